@@ -1,0 +1,28 @@
+# The two commands: `make demo` and `make test`. Each creates .venv when it is missing and
+# installs the package with its `ros` and `test` extras (editable, so tests run this tree);
+# the stamp makes a second run reinstall nothing until setup.py, setup.cfg or package.xml change.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.collision_sensor-installed
+
+# DDS stays on this machine: shared memory only, and a domain of its own unless one is given.
+export FASTDDS_BUILTIN_TRANSPORTS ?= SHM
+export ROS_DOMAIN_ID ?= 42
+
+.PHONY: demo test bench clean
+
+$(STAMP): setup.py setup.cfg package.xml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip setuptools wheel
+	$(BIN)/python -m pip install --quiet -e '.[ros,test]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/collision_sensor_demo
+
+test: $(STAMP)
+	$(BIN)/python -m pytest test
+
+clean:
+	rm -rf $(VENV) *.egg-info build

@@ -1,0 +1,20 @@
+"""collision_sensor: a virtual collision sensor for robots.
+
+Importing this package never imports rclpy; the ROS node lives in ``collision_sensor.node``.
+"""
+from collision_sensor.errors import (
+    CollisionSensorError, ConfigError, JointStateError, MeshError, RobotDescriptionError,
+    SceneError, SequenceError, SrdfError)
+
+__all__ = [
+    'CollisionChecker', 'CheckResult', 'CollisionSensorError', 'ConfigError', 'JointStateError',
+    'MeshError', 'RobotDescriptionError', 'SceneError', 'SequenceError', 'SrdfError',
+]
+
+
+def __getattr__(name):
+    # The checker pulls in numba; import it on first use so that light tools stay light.
+    if name in ('CollisionChecker', 'CheckResult'):
+        from collision_sensor import checker
+        return getattr(checker, name)
+    raise AttributeError(f'module "collision_sensor" has no attribute "{name}"')

@@ -1,0 +1,37 @@
+"""The package's exception family.
+
+Every message names the file, link, joint or object at fault and says how to fix it, e.g.
+``link "forearm": mesh "package://arm/forearm.stl" not found; add --package-path arm=DIR``.
+"""
+
+
+class CollisionSensorError(Exception):
+    """Base of every error this package raises on purpose."""
+
+
+class RobotDescriptionError(CollisionSensorError):
+    """A URDF that cannot be read, is unsafe, or describes something unsupported."""
+
+
+class MeshError(RobotDescriptionError):
+    """A mesh that cannot be found or read, or has no usable triangles."""
+
+
+class SrdfError(CollisionSensorError):
+    """An SRDF that cannot be read or names links the robot does not have."""
+
+
+class SceneError(CollisionSensorError):
+    """A scene file that cannot be read or describes an object badly."""
+
+
+class ConfigError(CollisionSensorError):
+    """A setting with a bad value, or an exception list naming unknown links."""
+
+
+class JointStateError(CollisionSensorError, ValueError):
+    """Joint positions with unknown names or values that are not finite."""
+
+
+class SequenceError(CollisionSensorError):
+    """A recorded joint-state sequence that cannot be read or written."""
