@@ -56,6 +56,11 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
+            'collision_sensor_node = collision_sensor.node:main',
+            'collision_sensor_play = collision_sensor.player:main',
+            'collision_sensor_check = collision_sensor.offline_check:main',
+            'collision_sensor_bench = collision_sensor.bench.main:main',
+            'collision_sensor_acm = collision_sensor.acm:main',
             'collision_sensor_demo = collision_sensor.demo:main',
         ],
     },
