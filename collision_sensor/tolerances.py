@@ -1,0 +1,43 @@
+"""Every numerical tolerance of the geometric kernels, in one place.
+
+Each constant is dimensionless and multiplies a length scale named next to it, so every test
+reads the same whether a robot is measured in metres or millimetres. All of them make the
+sensor err toward "contact": a tolerance only ever turns a near miss into a reported contact,
+never a contact into a miss.
+
+Relations to keep when changing a value
+---------------------------------------
+- ``BOX_EPS_REL * BOX_EPS_PARALLEL`` must stay far above float64 rounding (2.2e-16): it is
+  the floor that keeps a separating axis made from two almost parallel edges (whose direction
+  is rounding noise) from ever declaring separation.
+- ``BOX_EPS_REL`` must stay far below any gap that matters: a box test keeps a pair whose gap
+  is below ``BOX_EPS_REL * (sum of the six half extents)``; 1e-9 of the boxes' size is
+  below every mesh's own precision.
+- Bounding-volume fits are not padded: the boxes contain their points up to rounding (about
+  1e-16 of the coordinates), which ``BOX_EPS_REL`` covers many times over.
+"""
+
+#: Box tests (``box_test.py``): boxes A and B are separated only if, along one candidate
+#: axis L, the gap between their projections exceeds
+#: ``BOX_EPS_REL * s * (1 + BOX_EPS_PARALLEL / |L|)``, where ``s`` is the sum of the six
+#: half extents and ``|L|`` the length of the unnormalised axis (1 for a face normal,
+#: ``sin`` of the angle between the two edges for an edge-edge axis ``a_i x b_j``).
+#: Touching (gap 0) therefore always counts as overlapping.
+BOX_EPS_REL = 1e-9
+
+#: Box tests: floor for nearly parallel edge pairs (see ``BOX_EPS_REL``). It plays the part
+#: of the epsilon coal adds to ``|R|``: the closer the two edges are to parallel, the larger
+#: the gap an edge-edge axis needs to count, so rounding noise in a near-zero cross product
+#: can never separate. Near-parallel configurations are still decided by the face axes.
+BOX_EPS_PARALLEL = 1e-3
+
+#: Triangle test (``triangle_test.py``): two triangles are in contact iff the float64
+#: Euclidean distance between them is at most ``TRIANGLE_EPS_REL * m``, where ``m`` is the
+#: largest absolute coordinate of the six vertices (the scale of the rounding error of every
+#: coordinate difference the test forms). Touching (distance 0) is contact.
+TRIANGLE_EPS_REL = 1e-12
+
+#: Bounding volumes (``bounding_volumes.py``): a point set whose spread across its
+#: ``k``-th principal direction is at most ``RANK_EPS_REL`` times its largest spread is treated
+#: as flat in that direction (decides coplanar / collinear input for the convex-hull fits).
+RANK_EPS_REL = 1e-12

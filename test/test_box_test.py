@@ -1,0 +1,371 @@
+"""Box tests: Table 1, paper test == SAT on 10^7 seeded pairs, both == an LP oracle, by hand."""
+import math
+
+import numba
+import numpy as np
+import pytest
+from scipy.optimize import linprog
+from scipy.spatial import ConvexHull
+
+from collision_sensor.bench.box_tests import (
+    contact_distance, place, random_extents, random_rotation, random_signed_permutation,
+    random_unit)
+from collision_sensor.box_test import (
+    BOX_TEST_PAPER, BOX_TEST_SAT, HEXAGON, box_tolerance, boxes_disjoint, boxes_disjoint_paper,
+    boxes_disjoint_sat)
+
+SCRATCH = np.zeros(64)
+
+
+def box_vertices(h):
+    """Return (8, 3) vertices of a box centred at 0; bit k of the index selects +h_k."""
+    return np.array([[h[k] if (i >> k) & 1 else -h[k] for k in range(3)] for i in range(8)])
+
+
+def both(ha, hb, R, t):
+    ha, hb, R, t = (np.asarray(x, dtype=np.float64) for x in (ha, hb, R, t))
+    return (boxes_disjoint_paper(ha, hb, R, t, SCRATCH),
+            boxes_disjoint_sat(ha, hb, R, t, SCRATCH))
+
+
+def literal(ha, hb, R, t):
+    """Return the pair as Python literals that can be pasted into a regression test."""
+    return (f'ha={np.asarray(ha).tolist()!r}, hb={np.asarray(hb).tolist()!r}, '
+            f'R={np.asarray(R).tolist()!r}, t={np.asarray(t).tolist()!r}')
+
+
+def rot(axis, angle):
+    """Return the rotation by ``angle`` about ``axis`` (Rodrigues)."""
+    k = np.asarray(axis, dtype=np.float64)
+    k = k / np.linalg.norm(k)
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * K @ K
+
+
+# --- Table 1 ------------------------------------------------------------------------------
+
+def test_table1_rows_are_box_edges_and_complementary_rows_reverse():
+    for i in range(8):
+        row = list(HEXAGON[i])
+        assert sorted(row + [i, 7 - i]) == list(range(8))
+        for m in range(6):
+            diff = row[m] ^ row[(m + 1) % 6]
+            assert diff in (1, 2, 4), (i, row)
+        rev = list(HEXAGON[7 - i])[::-1]
+        k = rev.index(row[0])
+        assert rev[k:] + rev[:k] == row
+
+
+def test_table1_is_the_ccw_silhouette_for_random_rotations():
+    # For a right-handed box frame W seen along +z, the vertex with minimal z selects the row;
+    # the six listed vertices must be the convex hull of the 8 projections, counter-clockwise
+    # in (x, y) (so f = alpha u + beta v + gamma > 0 is outside), and the hidden two inside.
+    rng = np.random.default_rng(1)
+    for trial in range(2000):
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        w, x, y, z = q
+        W = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                      [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+        h = rng.uniform(0.1, 2.0, size=3)
+        P = box_vertices(h) @ W.T
+        i = int(np.argmin(P[:, 2]))
+        row = list(HEXAGON[i])
+        uv = P[:, :2]
+        hull = ConvexHull(uv)
+        cyc = list(hull.vertices)          # scipy: counter-clockwise for 2-D hulls
+        k = cyc.index(row[0])
+        assert cyc[k:] + cyc[:k] == row, (trial, row, cyc)
+        for hidden in (i, 7 - i):
+            assert hidden not in hull.vertices
+        # and the signed edge functions: negative at the hidden vertices (inside)
+        for m in range(6):
+            (u0, v0), (u1, v1) = uv[row[m]], uv[row[(m + 1) % 6]]
+            alpha, beta = v1 - v0, u0 - u1
+            gamma = -(alpha * u0 + beta * v0)
+            for hidden in (i, 7 - i):
+                assert alpha * uv[hidden, 0] + beta * uv[hidden, 1] + gamma < 0
+
+
+# --- paper test == SAT on 10^7 seeded pairs -----------------------------------------------
+
+CAT_RANDOM, CAT_TOUCHING, CAT_NEAR = 0, 1, 2
+
+
+@numba.njit(cache=True)
+def _mixed_pair(ha, hb, R, t, w, S, M):
+    """Fill one random pair of the property test; return its placement category."""
+    u = np.random.random()
+    if u < 0.8:
+        random_rotation(R)
+    else:
+        random_signed_permutation(R)           # parallel / identical axes, exact 0 and +-1
+        if u >= 0.9:                           # ... tilted by 1e-12 to 1e-3 rad
+            random_unit(w)
+            a = 10.0 ** np.random.uniform(-12.0, -3.0)
+            c, s = math.cos(a), math.sin(a)
+            K = M
+            K[0, 0], K[0, 1], K[0, 2] = 0.0, -w[2], w[1]
+            K[1, 0], K[1, 1], K[1, 2] = w[2], 0.0, -w[0]
+            K[2, 0], K[2, 1], K[2, 2] = -w[1], w[0], 0.0
+            for r in range(3):
+                for q in range(3):
+                    kk = K[r, 0] * K[0, q] + K[r, 1] * K[1, q] + K[r, 2] * K[2, q]
+                    S[r, q] = (1.0 if r == q else 0.0) + s * K[r, q] + (1.0 - c) * kk
+            for r in range(3):
+                for q in range(3):
+                    M[r, q] = R[r, 0] * S[0, q] + R[r, 1] * S[1, q] + R[r, 2] * S[2, q]
+            R[:, :] = M
+    sa = 10.0 ** np.random.uniform(-4.0, 4.0)
+    if np.random.random() < 0.5:
+        sb = 10.0 ** np.random.uniform(-4.0, 4.0)
+    else:
+        sb = sa * 10.0 ** np.random.uniform(-1.0, 1.0)
+    za = np.random.randint(1, 8) if np.random.random() < 0.15 else 0   # flat, segment, point
+    zb = np.random.randint(1, 8) if np.random.random() < 0.15 else 0
+    random_extents(ha, sa, za)
+    random_extents(hb, sb, zb)
+    # Direction of approach: random, along an edge-edge axis (edge-edge contacts), or a face.
+    u = np.random.random()
+    if u < 0.5:
+        random_unit(w)
+    elif u < 0.75:
+        i = np.random.randint(0, 3)
+        j = np.random.randint(0, 3)
+        b0, b1, b2 = R[0, j], R[1, j], R[2, j]
+        if i == 0:
+            w[0], w[1], w[2] = 0.0, -b2, b1
+        elif i == 1:
+            w[0], w[1], w[2] = b2, 0.0, -b0
+        else:
+            w[0], w[1], w[2] = -b1, b0, 0.0
+        n = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+        if n < 1e-6:
+            random_unit(w)
+        else:
+            sgn = 1.0 if np.random.random() < 0.5 else -1.0
+            w[0], w[1], w[2] = sgn * w[0] / n, sgn * w[1] / n, sgn * w[2] / n
+    else:
+        j = np.random.randint(0, 3)
+        sgn = 1.0 if np.random.random() < 0.5 else -1.0
+        w[0], w[1], w[2] = sgn * R[0, j], sgn * R[1, j], sgn * R[2, j]
+    u = np.random.random()
+    if u < 0.2:
+        lam = contact_distance(ha, hb, R, w) * 2.0 * np.random.random()
+        t[0], t[1], t[2] = lam * w[0], lam * w[1], lam * w[2]
+        return CAT_RANDOM
+    sgn = 1.0 if np.random.random() < 0.5 else -1.0
+    if u < 0.6:
+        # Touching, to within far less than the tolerance (gap 0 +- 1e-16 .. 1e-11 of the size).
+        gap = 0.0 if np.random.random() < 0.1 else sgn * 10.0 ** np.random.uniform(-16.0, -11.0)
+        place(ha, hb, R, w, gap, t)
+        return CAT_TOUCHING
+    place(ha, hb, R, w, sgn * 10.0 ** np.random.uniform(-7.5, -2.0), t)
+    return CAT_NEAR
+
+
+@numba.njit(cache=True)
+def _count_disagreements(n, seed, cases, stats):
+    """Test n mixed pairs with both tests; keep the first disagreements in ``cases``.
+
+    stats[0] = disagreements, stats[1] = separated (paper), stats[2 + c] = pairs of category c,
+    stats[5] = touching pairs reported separated by either test.
+    """
+    np.random.seed(seed)
+    ha, hb, t, w = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    R, S, M = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    scratch = np.zeros(64)
+    for p in range(n):
+        cat = _mixed_pair(ha, hb, R, t, w, S, M)
+        stats[2 + cat] += 1
+        a = boxes_disjoint_paper(ha, hb, R, t, scratch)
+        b = boxes_disjoint_sat(ha, hb, R, t, scratch)
+        stats[1] += a
+        if cat == CAT_TOUCHING and (a or b):
+            stats[5] += 1
+        if a != b:
+            k = stats[0]
+            if k < cases.shape[0]:
+                cases[k, 0:3] = ha
+                cases[k, 3:6] = hb
+                cases[k, 6:15] = R.ravel()
+                cases[k, 15:18] = t
+            stats[0] += 1
+    return stats
+
+
+def test_paper_test_agrees_with_sat_on_ten_million_seeded_pairs():
+    n = 10_000_000
+    cases = np.zeros((20, 18))
+    stats = np.zeros(6, dtype=np.int64)
+    _count_disagreements(n, 20240601, cases, stats)
+    bad = [literal(c[0:3], c[3:6], c[6:15].reshape(3, 3), c[15:18])
+           for c in cases[:min(stats[0], len(cases))]]
+    assert stats[0] == 0, f'{stats[0]} disagreements; first ones:\n' + '\n'.join(bad)
+    # The mix is meaningful: plenty of both answers, and every touching pair overlaps.
+    assert 0.2 * n < stats[1] < 0.6 * n
+    assert stats[2] > 0.15 * n and stats[3] > 0.35 * n and stats[4] > 0.35 * n
+    assert stats[5] == 0
+
+
+# --- both against an LP oracle -------------------------------------------------------------
+
+def lp_inflation(ha, hb, R, t):
+    """Return sigma*: the least growth of every half extent of both boxes that makes them meet.
+
+    LP over (x, sigma): minimise sigma s.t. |x_k| <= ha_k + sigma, |b_j . (x - t)| <= hb_j +
+    sigma. sigma* > 0 iff the boxes are disjoint; it is a gap measure independent of both tests.
+    """
+    A, b = [], []
+    for k in range(3):
+        for sgn in (1.0, -1.0):
+            row = np.zeros(4)
+            row[k], row[3] = sgn, -1.0
+            A.append(row)
+            b.append(ha[k])
+    for j in range(3):
+        for sgn in (1.0, -1.0):
+            row = np.zeros(4)
+            row[:3], row[3] = sgn * R[:, j], -1.0
+            A.append(row)
+            b.append(hb[j] + sgn * R[:, j] @ t)
+    res = linprog(np.array([0, 0, 0, 1.0]), A_ub=np.array(A), b_ub=np.array(b),
+                  bounds=[(None, None)] * 4, method='highs')
+    assert res.status == 0, res.message
+    return res.fun
+
+
+@numba.njit(cache=True)
+def _lp_pairs(n, seed, H, RR, TT):
+    np.random.seed(seed)
+    w = np.empty(3)
+    S, M = np.empty((3, 3)), np.empty((3, 3))
+    for p in range(n):
+        _mixed_pair(H[p, 0], H[p, 1], RR[p], TT[p], w, S, M)
+
+
+def test_both_tests_agree_with_lp_oracle_when_the_gap_is_clear():
+    n = 4000
+    H, RR, TT = np.empty((n, 2, 3)), np.empty((n, 3, 3)), np.empty((n, 3))
+    _lp_pairs(n, 7, H, RR, TT)
+    checked = {True: 0, False: 0}
+    bad = []
+    for p in range(n):
+        ha, hb, R, t = H[p, 0], H[p, 1], RR[p], TT[p]
+        s = ha.sum() + hb.sum()
+        if s == 0.0:
+            continue
+        sigma = lp_inflation(ha / s, hb / s, R, t / s)     # scale-free: HiGHS tolerances
+        if abs(sigma) <= 1e-7:
+            continue
+        expected = sigma > 0.0
+        got = both(ha, hb, R, t)
+        checked[expected] += 1
+        if got != (expected, expected):
+            bad.append(f'sigma={sigma!r}: {literal(ha, hb, R, t)} -> {got}')
+    assert not bad, '\n'.join(bad[:10])
+    assert checked[True] > 800 and checked[False] > 600, checked
+
+
+# --- hand-built cases ----------------------------------------------------------------------
+
+I3 = np.eye(3)
+RZ45 = rot([0, 0, 1], math.pi / 4)
+RZ90 = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+RX90 = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+PERM = np.array([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])   # det +1
+ONE = [1.0, 1.0, 1.0]
+R2 = math.sqrt(2.0)
+
+HAND_BUILT = [
+    # name, ha, hb, R, t, separated
+    ('identical boxes', [1, 2, 3], [1, 2, 3], I3, [0, 0, 0], False),
+    ('identical axes, inside', [2, 2, 2], [1, 0.5, 0.25], I3, [0.3, -0.2, 0.1], False),
+    ('faces touching', ONE, ONE, I3, [2, 0, 0], False),
+    ('faces 1e-6 apart', ONE, ONE, I3, [2 + 1e-6, 0, 0], True),
+    ('faces 1e-6 deep', ONE, ONE, I3, [2 - 1e-6, 0, 0], False),
+    ('edges touching', ONE, ONE, I3, [2, 2, 0.5], False),
+    ('edges 1e-6 apart', ONE, ONE, I3, [2, 2 + 1e-6, 0.5], True),
+    ('vertices touching', ONE, ONE, I3, [2, 2, 2], False),
+    ('vertices 1e-6 apart', ONE, ONE, I3, [2, 2, 2 + 1e-6], True),
+    # PERM: b_0 = -y, b_1 = +z, b_2 = -x, so B reaches 2 along z.
+    ('permuted axes, faces touching', [1, 2, 3], [1, 2, 3], PERM, [0, 0, 3 + 2], False),
+    ('permuted axes, 1e-6 apart', [1, 2, 3], [1, 2, 3], PERM, [0, 0, 5 + 1e-6], True),
+    ('permuted axes, crossing', [3, 0.1, 0.1], [3, 0.1, 0.1], PERM, [0, 0, 0], False),
+    ('B edge on A face (45 deg)', ONE, ONE, RZ45, [1 + R2, 0, 0], False),
+    ('B edge 1e-6 off A face', ONE, ONE, RZ45, [1 + R2 + 1e-6, 0, 0], True),
+    ('flat squares coplanar, overlapping', [1, 1, 0], [1, 1, 0], I3, [1.5, 0, 0], False),
+    ('flat squares coplanar, edges touching', [1, 1, 0], [1, 1, 0], I3, [2, 0, 0], False),
+    ('flat squares coplanar, 1e-6 apart', [1, 1, 0], [1, 1, 0], I3, [2 + 1e-6, 0, 0], True),
+    ('flat squares in parallel planes', [1, 1, 0], [1, 1, 0], I3, [0, 0, 1e-6], True),
+    ('flat squares crossing at right angles', [1, 1, 0], [1, 1, 0], RX90, [0, 0, 0], False),
+    ('flat square and segment through it', [1, 1, 0], [0, 0, 1], I3, [0.5, 0.5, 0], False),
+    ('flat square and segment beside it', [1, 1, 0], [0, 0, 1], I3, [1 + 1e-6, 0.5, 0], True),
+    ('segments crossing', [1, 0, 0], [1, 0, 0], RZ90, [0, 0, 0], False),
+    ('segments crossing at ends', [1, 0, 0], [1, 0, 0], RZ90, [1, 1, 0], False),
+    ('skew segments 1e-6 apart (edge-edge axis only)', [1, 0, 0], [1, 0, 0],
+     rot([1, 0, 0], math.pi / 4) @ RZ90, [0, -1e-6 / R2, 1e-6 / R2], True),
+    ('skew segments touching', [1, 0, 0], [1, 0, 0], rot([1, 0, 0], math.pi / 4) @ RZ90,
+     [0, 0, 0], False),
+    ('point at point', [0, 0, 0], [0, 0, 0], I3, [0, 0, 0], False),
+    ('point off point', [0, 0, 0], [0, 0, 0], I3, [0, 1e-300, 0], True),
+    ('point in box', [0, 0, 0], ONE, RZ45, [0.1, 0.2, 0.3], False),
+    ('point on box face', [0, 0, 0], ONE, I3, [1, 0.2, 0.3], False),
+    ('point off box face', [0, 0, 0], ONE, I3, [1 + 1e-6, 0.2, 0.3], True),
+    ('huge and tiny, touching', [1e4] * 3, [1e-4] * 3, I3, [1e4 + 1e-4, 0, 0], False),
+    ('huge and tiny, apart', [1e4] * 3, [1e-4] * 3, I3, [1e4 + 1e-3, 0, 0], True),
+    ('tiny boxes, touching', [1e-6] * 3, [1e-6] * 3, RZ45, [1e-6 * (1 + R2), 0, 0], False),
+    ('tiny boxes, 1e-12 apart', [1e-6] * 3, [1e-6] * 3, RZ45, [1e-6 * (1 + R2) + 1e-12, 0, 0],
+     True),
+]
+
+
+@pytest.mark.parametrize('name, ha, hb, R, t, separated', HAND_BUILT,
+                         ids=[c[0] for c in HAND_BUILT])
+def test_hand_built_pair(name, ha, hb, R, t, separated):
+    got = both(ha, hb, R, t)
+    assert got == (separated, separated), f'{name}: {literal(ha, hb, R, t)} -> {got}'
+    # And the same with A and B exchanged: R -> R^T, t -> -R^T t.
+    R, t = np.asarray(R, dtype=float), np.asarray(t, dtype=float)
+    got = both(hb, ha, R.T, -R.T @ t)
+    assert got == (separated, separated), f'{name}, swapped -> {got}'
+
+
+def test_edge_edge_contact_is_overlap_and_any_clear_gap_separates():
+    # A rotation with nice numbers, approached along an edge-edge axis to exact contact.
+    ha, hb = np.array([1.0, 0.5, 0.25]), np.array([0.75, 1.0, 0.5])
+    R = rot([1, 2, 3], 0.7)
+    w = np.cross([1.0, 0, 0], R[:, 1])
+    w /= np.linalg.norm(w)
+    lam = contact_distance(ha, hb, R, w)
+    assert both(ha, hb, R, lam * w) == (False, False)
+    s = ha.sum() + hb.sum()
+    assert both(ha, hb, R, (lam + 1e-6 * s) * w) == (True, True)
+    assert both(ha, hb, R, (lam - 1e-6 * s) * w) == (False, False)
+
+
+def test_tolerance_is_relative_to_the_boxes():
+    ha, hb = np.array([1.0, 2.0, 3.0]), np.array([0.5, 0.5, 0.5])
+    tol = box_tolerance(ha, hb)
+    assert tol == pytest.approx(1e-9 * 7.5)
+    for scale in (1e-4, 1.0, 1e4):
+        assert both(ha * scale, hb * scale, I3, [1.5 * scale + 0.5 * tol * scale, 0, 0]) == (
+            False, False)
+        assert both(ha * scale, hb * scale, I3, [1.5 * scale + 3.0 * tol * scale, 0, 0]) == (
+            True, True)
+
+
+def test_nan_input_counts_as_overlap():
+    R = I3.copy()
+    R[0, 0] = np.nan
+    assert both(ONE, ONE, R, [5.0, 0, 0]) == (False, False)
+    assert both(ONE, ONE, I3, [np.nan, 0, 0]) == (False, False)
+
+
+def test_dispatcher_selects_the_method():
+    args = (np.array(ONE), np.array(ONE), I3, np.array([3.0, 0, 0]), SCRATCH)
+    assert boxes_disjoint(BOX_TEST_PAPER, *args) and boxes_disjoint(BOX_TEST_SAT, *args)
+    args = (np.array(ONE), np.array(ONE), I3, np.array([1.0, 0, 0]), SCRATCH)
+    assert not boxes_disjoint(BOX_TEST_PAPER, *args)
+    assert not boxes_disjoint(BOX_TEST_SAT, *args)
