@@ -74,13 +74,13 @@ _B_IN_A = 0
 _A_IN_B = 24
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def box_tolerance(ha, hb):
     """Return ``BOX_EPS_REL * (sum of the six half extents)``, the box tests' gap tolerance."""
     return BOX_EPS_REL * (ha[0] + ha[1] + ha[2] + hb[0] + hb[1] + hb[2])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def _finite(ha, hb, R, t):
     # True iff no input is NaN or infinite: x * 0 is NaN exactly for those. Called only on the
     # way to answering "separated", so the common overlapping path pays nothing for it.
@@ -121,7 +121,7 @@ def _beyond_face_planes(out, base, h, thr):
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def boxes_disjoint_paper(ha, hb, R, t, scratch):
     """Return True iff boxes A and B are separated: the paper's sec. 5 test.
 
@@ -213,13 +213,31 @@ def boxes_disjoint_paper(ha, hb, R, t, scratch):
     return False
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
+def _edge_axis_separates(ti1, ti2, r_i1j, r_i2j, ha_i1, ha_i2, hb_j1, hb_j2, r_ij1, r_ij2, tol):
+    """Edge-edge axis L = e_i x b_j (i1, i2 and j1, j2 the other indices, cyclic)::
+
+        t . L = t[i2] R[i1, j] - t[i1] R[i2, j]
+        r_A   = ha[i1] |R[i2, j]| + ha[i2] |R[i1, j]|
+        r_B   = hb[j1] |R[i, j2]| + hb[j2] |R[i, j1]|
+        |L|   = sqrt(R[i, j1]^2 + R[i, j2]^2)   (a_i in F_B minus its b_j component)
+    """
+    d = (abs(ti2 * r_i1j - ti1 * r_i2j)
+         - (ha_i1 * abs(r_i2j) + ha_i2 * abs(r_i1j))
+         - (hb_j1 * abs(r_ij2) + hb_j2 * abs(r_ij1)))
+    if d > tol * BOX_EPS_PARALLEL:
+        return d > tol * (math.sqrt(r_ij1 * r_ij1 + r_ij2 * r_ij2) + BOX_EPS_PARALLEL)
+    return False
+
+
+@numba.njit(cache=True, inline='always')
 def boxes_disjoint_sat(ha, hb, R, t, scratch):
     """Return True iff boxes A and B are separated: the classical 15-axis separating-axis test.
 
     Axes, all in F_A: A's face normals e_k, B's face normals b_j (column j of R), and the
     edge-edge axes e_i x b_j for every i with ``ha[i] > 0`` (see the module docstring). Gaps
-    count only beyond the module's tolerance rule, the same as the paper's test.
+    count only beyond the module's tolerance rule, the same as the paper's test. The axes are
+    unrolled over scalars: this runs for every node pair of every traversal.
 
     :param ha: (3,) half extents of A.
     :param hb: (3,) half extents of B.
@@ -228,45 +246,47 @@ def boxes_disjoint_sat(ha, hb, R, t, scratch):
     :param scratch: (64,) float64 work buffer (unused; kept for a common signature).
     :return: True if separated, False if the closed boxes meet.
     """
-    tol = box_tolerance(ha, hb)
+    a0, a1, a2 = ha[0], ha[1], ha[2]
+    b0, b1, b2 = hb[0], hb[1], hb[2]
+    r00, r01, r02 = R[0, 0], R[0, 1], R[0, 2]
+    r10, r11, r12 = R[1, 0], R[1, 1], R[1, 2]
+    r20, r21, r22 = R[2, 0], R[2, 1], R[2, 2]
+    t0, t1, t2 = t[0], t[1], t[2]
+    tol = BOX_EPS_REL * (a0 + a1 + a2 + b0 + b1 + b2)
     thr_face = tol * (1.0 + BOX_EPS_PARALLEL)
-    floor = tol * BOX_EPS_PARALLEL
-
     # L = e_k: r_A = ha_k, r_B = sum_j |R[k, j]| hb_j.
-    for k in range(3):
-        rb = (abs(R[k, 0] * hb[0]) + abs(R[k, 1] * hb[1])) + abs(R[k, 2] * hb[2])
-        if (abs(t[k]) - rb) - ha[k] > thr_face:
-            return _finite(ha, hb, R, t)
+    if ((abs(t0) - ((abs(r00 * b0) + abs(r01 * b1)) + abs(r02 * b2))) - a0 > thr_face
+            or (abs(t1) - ((abs(r10 * b0) + abs(r11 * b1)) + abs(r12 * b2))) - a1 > thr_face
+            or (abs(t2) - ((abs(r20 * b0) + abs(r21 * b1)) + abs(r22 * b2))) - a2 > thr_face):
+        return _finite(ha, hb, R, t)
     # L = b_j: t . b_j = (R^T t)_j, r_A = sum_k |R[k, j]| ha_k, r_B = hb_j.
-    for j in range(3):
-        tb = (R[0, j] * t[0] + R[1, j] * t[1]) + R[2, j] * t[2]
-        ra = (abs(R[0, j] * ha[0]) + abs(R[1, j] * ha[1])) + abs(R[2, j] * ha[2])
-        if (abs(tb) - ra) - hb[j] > thr_face:
-            return _finite(ha, hb, R, t)
-    # L = e_i x b_j (i1, i2 and j1, j2 the other two indices, cyclic):
-    #   t . L = t[i2] R[i1, j] - t[i1] R[i2, j]
-    #   r_A   = ha[i1] |R[i2, j]| + ha[i2] |R[i1, j]|
-    #   r_B   = hb[j1] |R[i, j2]| + hb[j2] |R[i, j1]|
-    #   |L|   = sqrt(R[i, j1]^2 + R[i, j2]^2)  (a_i in F_B minus its b_j component)
-    for i in range(3):
-        if not (ha[i] > 0.0):
-            continue
-        i1 = (i + 1) % 3
-        i2 = (i + 2) % 3
-        for j in range(3):
-            j1 = (j + 1) % 3
-            j2 = (j + 2) % 3
-            d = (abs(t[i2] * R[i1, j] - t[i1] * R[i2, j])
-                 - (ha[i1] * abs(R[i2, j]) + ha[i2] * abs(R[i1, j]))
-                 - (hb[j1] * abs(R[i, j2]) + hb[j2] * abs(R[i, j1])))
-            if d > floor:
-                if d > tol * (math.sqrt(R[i, j1] * R[i, j1] + R[i, j2] * R[i, j2])
-                              + BOX_EPS_PARALLEL):
-                    return _finite(ha, hb, R, t)
+    if ((abs((r00 * t0 + r10 * t1) + r20 * t2)
+         - ((abs(r00 * a0) + abs(r10 * a1)) + abs(r20 * a2))) - b0 > thr_face
+            or (abs((r01 * t0 + r11 * t1) + r21 * t2)
+                - ((abs(r01 * a0) + abs(r11 * a1)) + abs(r21 * a2))) - b1 > thr_face
+            or (abs((r02 * t0 + r12 * t1) + r22 * t2)
+                - ((abs(r02 * a0) + abs(r12 * a1)) + abs(r22 * a2))) - b2 > thr_face):
+        return _finite(ha, hb, R, t)
+    # L = e_i x b_j, only where A has edges along e_i (ha[i] > 0).
+    if a0 > 0.0 and (
+            _edge_axis_separates(t1, t2, r10, r20, a1, a2, b1, b2, r01, r02, tol)
+            or _edge_axis_separates(t1, t2, r11, r21, a1, a2, b2, b0, r02, r00, tol)
+            or _edge_axis_separates(t1, t2, r12, r22, a1, a2, b0, b1, r00, r01, tol)):
+        return _finite(ha, hb, R, t)
+    if a1 > 0.0 and (
+            _edge_axis_separates(t2, t0, r20, r00, a2, a0, b1, b2, r11, r12, tol)
+            or _edge_axis_separates(t2, t0, r21, r01, a2, a0, b2, b0, r12, r10, tol)
+            or _edge_axis_separates(t2, t0, r22, r02, a2, a0, b0, b1, r10, r11, tol)):
+        return _finite(ha, hb, R, t)
+    if a2 > 0.0 and (
+            _edge_axis_separates(t0, t1, r00, r10, a0, a1, b1, b2, r21, r22, tol)
+            or _edge_axis_separates(t0, t1, r01, r11, a0, a1, b2, b0, r22, r20, tol)
+            or _edge_axis_separates(t0, t1, r02, r12, a0, a1, b0, b1, r20, r21, tol)):
+        return _finite(ha, hb, R, t)
     return False
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def boxes_disjoint(method, ha, hb, R, t, scratch):
     """Return True iff boxes A and B are separated, by ``method`` (BOX_TEST_PAPER or _SAT).
 

@@ -31,6 +31,69 @@ _JOINT_CODES = {'fixed': JOINT_FIXED, 'revolute': JOINT_REVOLUTE,
                 'continuous': JOINT_REVOLUTE, 'prismatic': JOINT_PRISMATIC}
 
 
+@njit(cache=True, nogil=True, fastmath=False, inline='always')
+def set_link_pose(i, q, parent, joint_type, T_parent_joint, axis, q_index, multiplier, offset,
+                  T_world_link):
+    """Write link ``i``'s world pose from its parent's (already current) pose.
+
+    ``T_world_link[i] = T_world_link[parent[i]] @ T_parent_joint[i] @ motion(value)``, with
+    ``value = multiplier[i] * q[q_index[i]] + offset[i]``; the root gets its origin alone.
+    Parameters as for :func:`forward_kinematics_kernel`.
+    """
+    J = T_parent_joint[i]
+    # M = T_parent_joint @ motion, as 12 scalars (rotation m.., translation t.).
+    m00, m01, m02, t0 = J[0, 0], J[0, 1], J[0, 2], J[0, 3]
+    m10, m11, m12, t1 = J[1, 0], J[1, 1], J[1, 2], J[1, 3]
+    m20, m21, m22, t2 = J[2, 0], J[2, 1], J[2, 2], J[2, 3]
+    kind = joint_type[i]
+    if kind != 0:
+        value = multiplier[i] * q[q_index[i]] + offset[i]
+        x, y, z = axis[i, 0], axis[i, 1], axis[i, 2]
+        if kind == 1:
+            # Rodrigues: R = c I + s [a]x + (1 - c) a a^T; then M.R <- J.R @ R.
+            c = np.cos(value)
+            s = np.sin(value)
+            v = 1.0 - c
+            r00, r01, r02 = c + v * x * x, v * x * y - s * z, v * x * z + s * y
+            r10, r11, r12 = v * x * y + s * z, c + v * y * y, v * y * z - s * x
+            r20, r21, r22 = v * x * z - s * y, v * y * z + s * x, c + v * z * z
+            a00 = m00 * r00 + m01 * r10 + m02 * r20
+            a01 = m00 * r01 + m01 * r11 + m02 * r21
+            a02 = m00 * r02 + m01 * r12 + m02 * r22
+            a10 = m10 * r00 + m11 * r10 + m12 * r20
+            a11 = m10 * r01 + m11 * r11 + m12 * r21
+            a12 = m10 * r02 + m11 * r12 + m12 * r22
+            a20 = m20 * r00 + m21 * r10 + m22 * r20
+            a21 = m20 * r01 + m21 * r11 + m22 * r21
+            a22 = m20 * r02 + m21 * r12 + m22 * r22
+            m00, m01, m02 = a00, a01, a02
+            m10, m11, m12 = a10, a11, a12
+            m20, m21, m22 = a20, a21, a22
+        else:
+            # Prismatic: the child frame slides by value * axis, in the joint frame.
+            t0 += value * (m00 * x + m01 * y + m02 * z)
+            t1 += value * (m10 * x + m11 * y + m12 * z)
+            t2 += value * (m20 * x + m21 * y + m22 * z)
+    out = T_world_link[i]
+    p = parent[i]
+    if p < 0:
+        out[0, 0], out[0, 1], out[0, 2], out[0, 3] = m00, m01, m02, t0
+        out[1, 0], out[1, 1], out[1, 2], out[1, 3] = m10, m11, m12, t1
+        out[2, 0], out[2, 1], out[2, 2], out[2, 3] = m20, m21, m22, t2
+    else:
+        P = T_world_link[p]
+        for r in range(3):
+            p0, p1, p2 = P[r, 0], P[r, 1], P[r, 2]
+            out[r, 0] = p0 * m00 + p1 * m10 + p2 * m20
+            out[r, 1] = p0 * m01 + p1 * m11 + p2 * m21
+            out[r, 2] = p0 * m02 + p1 * m12 + p2 * m22
+            out[r, 3] = p0 * t0 + p1 * t1 + p2 * t2 + P[r, 3]
+    out[3, 0] = 0.0
+    out[3, 1] = 0.0
+    out[3, 2] = 0.0
+    out[3, 3] = 1.0
+
+
 @njit(cache=True, nogil=True, fastmath=False)
 def forward_kinematics_kernel(q, parent, joint_type, T_parent_joint, axis, q_index, multiplier,
                               offset, T_world_link):
@@ -47,58 +110,8 @@ def forward_kinematics_kernel(q, parent, joint_type, T_parent_joint, axis, q_ind
     :param T_world_link: ``(L, 4, 4) float64`` output, written in place (rows 3 included).
     """
     for i in range(parent.shape[0]):
-        J = T_parent_joint[i]
-        # M = T_parent_joint @ motion, as 12 scalars (rotation m.., translation t.).
-        m00, m01, m02, t0 = J[0, 0], J[0, 1], J[0, 2], J[0, 3]
-        m10, m11, m12, t1 = J[1, 0], J[1, 1], J[1, 2], J[1, 3]
-        m20, m21, m22, t2 = J[2, 0], J[2, 1], J[2, 2], J[2, 3]
-        kind = joint_type[i]
-        if kind != 0:
-            value = multiplier[i] * q[q_index[i]] + offset[i]
-            x, y, z = axis[i, 0], axis[i, 1], axis[i, 2]
-            if kind == 1:
-                # Rodrigues: R = c I + s [a]x + (1 - c) a a^T; then M.R <- J.R @ R.
-                c = np.cos(value)
-                s = np.sin(value)
-                v = 1.0 - c
-                r00, r01, r02 = c + v * x * x, v * x * y - s * z, v * x * z + s * y
-                r10, r11, r12 = v * x * y + s * z, c + v * y * y, v * y * z - s * x
-                r20, r21, r22 = v * x * z - s * y, v * y * z + s * x, c + v * z * z
-                a00 = m00 * r00 + m01 * r10 + m02 * r20
-                a01 = m00 * r01 + m01 * r11 + m02 * r21
-                a02 = m00 * r02 + m01 * r12 + m02 * r22
-                a10 = m10 * r00 + m11 * r10 + m12 * r20
-                a11 = m10 * r01 + m11 * r11 + m12 * r21
-                a12 = m10 * r02 + m11 * r12 + m12 * r22
-                a20 = m20 * r00 + m21 * r10 + m22 * r20
-                a21 = m20 * r01 + m21 * r11 + m22 * r21
-                a22 = m20 * r02 + m21 * r12 + m22 * r22
-                m00, m01, m02 = a00, a01, a02
-                m10, m11, m12 = a10, a11, a12
-                m20, m21, m22 = a20, a21, a22
-            else:
-                # Prismatic: the child frame slides by value * axis, in the joint frame.
-                t0 += value * (m00 * x + m01 * y + m02 * z)
-                t1 += value * (m10 * x + m11 * y + m12 * z)
-                t2 += value * (m20 * x + m21 * y + m22 * z)
-        out = T_world_link[i]
-        p = parent[i]
-        if p < 0:
-            out[0, 0], out[0, 1], out[0, 2], out[0, 3] = m00, m01, m02, t0
-            out[1, 0], out[1, 1], out[1, 2], out[1, 3] = m10, m11, m12, t1
-            out[2, 0], out[2, 1], out[2, 2], out[2, 3] = m20, m21, m22, t2
-        else:
-            P = T_world_link[p]
-            for r in range(3):
-                p0, p1, p2 = P[r, 0], P[r, 1], P[r, 2]
-                out[r, 0] = p0 * m00 + p1 * m10 + p2 * m20
-                out[r, 1] = p0 * m01 + p1 * m11 + p2 * m21
-                out[r, 2] = p0 * m02 + p1 * m12 + p2 * m22
-                out[r, 3] = p0 * t0 + p1 * t1 + p2 * t2 + P[r, 3]
-        out[3, 0] = 0.0
-        out[3, 1] = 0.0
-        out[3, 2] = 0.0
-        out[3, 3] = 1.0
+        set_link_pose(i, q, parent, joint_type, T_parent_joint, axis, q_index, multiplier,
+                      offset, T_world_link)
 
 
 @njit(cache=True, nogil=True)

@@ -41,3 +41,9 @@ TRIANGLE_EPS_REL = 1e-12
 #: ``k``-th principal direction is at most ``RANK_EPS_REL`` times its largest spread is treated
 #: as flat in that direction (decides coplanar / collinear input for the convex-hull fits).
 RANK_EPS_REL = 1e-12
+
+#: Sphere pre-test of the traversal (``traversal.py``): two boxes are skipped without the box
+#: test only if the spheres around them (centre = box centre, radius = |half extents|) are
+#: apart by more than ``SPHERE_EPS_REL`` of the sum of their radii. The spheres contain the
+#: boxes, so this only ever skips pairs the box test would also separate.
+SPHERE_EPS_REL = 1e-9

@@ -29,7 +29,7 @@ from collision_sensor.tolerances import TRIANGLE_EPS_REL
 _U = 2.0 ** -53                 # unit roundoff of float64
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def _clamp01(x):
     if x < 0.0:
         return 0.0
@@ -38,7 +38,7 @@ def _clamp01(x):
     return x
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def _point_segment_dist2(p0, p1, p2, a, b):
     # Squared distance from point p to segment [a, b] (a point when a == b).
     d0, d1, d2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
@@ -51,7 +51,7 @@ def _point_segment_dist2(p0, p1, p2, a, b):
     return x0 * x0 + x1 * x1 + x2 * x2
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def _segment_segment_dist2(p, q, a, b):
     # Squared distance between segments [p, q] and [a, b]; either may be a point. Ericson,
     # Real-Time Collision Detection, 5.1.9: closest point of the lines, clamped to the segments,
@@ -87,7 +87,7 @@ def _segment_segment_dist2(p, q, a, b):
     return x0 * x0 + x1 * x1 + x2 * x2
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def _inside_prism(T, n0, n1, n2, x0, x1, x2):
     # True iff x projects into triangle T along its normal n: x lies on the inner side (or on)
     # each edge's plane through n, ((T[k+1] - T[k]) x (x - T[k])) . n >= 0 for k = 0, 1, 2.
@@ -102,7 +102,7 @@ def _inside_prism(T, n0, n1, n2, x0, x1, x2):
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def _plane(T, tol):
     # Return (n0, n1, n2, nn, flat, err): n = (T1 - T0) x (T2 - T0), nn = |n|, flat iff T is
     # thinner than tol / 2 (|n| / longest edge = twice its area over its longest edge), and
@@ -124,7 +124,7 @@ def _plane(T, tol):
     return n0, n1, n2, nn, flat, err
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def _beyond_plane(T, n0, n1, n2, nn, err, S, tol):
     # True iff all three vertices of S are farther than tol from T's plane, on the same side,
     # beyond the rounding of the signed distances (so a rejection here is never wrong).
@@ -143,7 +143,7 @@ def _beyond_plane(T, n0, n1, n2, nn, err, S, tol):
     return pos == 3 or neg == 3
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def _edge_crosses(T, n0, n1, n2, S):
     # True iff an edge of S passes strictly through T's plane at a point inside T.
     ds0 = n0 * (S[0, 0] - T[0, 0]) + n1 * (S[0, 1] - T[0, 1]) + n2 * (S[0, 2] - T[0, 2])
@@ -164,7 +164,7 @@ def _edge_crosses(T, n0, n1, n2, S):
     return False
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def _point_triangle_dist2(p, T, n0, n1, n2, nn, flat):
     # Squared distance from p to the closed triangle T: to its plane if p projects inside,
     # else to the nearest edge; a flat T is its three edges.
@@ -176,7 +176,7 @@ def _point_triangle_dist2(p, T, n0, n1, n2, nn, flat):
     return min(best, _point_segment_dist2(p[0], p[1], p[2], T[2], T[0]))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def triangles_intersect(P, Q):
     """Return True iff the closed triangles P and Q touch or cross (see the module contract).
 

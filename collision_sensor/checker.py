@@ -1,0 +1,394 @@
+"""The collision checker: a robot and a static scene, checked on every joint-state update.
+
+This is the API the node, the command-line tools and the benchmarks build on::
+
+    checker = CollisionChecker.from_urdf(urdf, srdf=None, package_paths=None, scene=None,
+                                         config=None)
+    result = checker.check(positions)    # full check, trusts nothing carried over
+    result = checker.update(positions)   # incremental: re-checks only what the motion changed
+    result.in_collision, result.colliding_pairs
+
+Everything between ``positions`` and the pair statuses runs in one compiled kernel
+(:func:`collision_sensor.query_kernel.query_kernel`); this module turns files into flat arrays
+once, and names back into answers.
+"""
+import math
+from typing import Dict, Iterable, List, Mapping, NamedTuple, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from collision_sensor.bounding_volumes import fit_obb
+from collision_sensor.checker_config import CheckerConfig
+from collision_sensor.errors import JointStateError, SceneError
+from collision_sensor.exception_list import adjacent_pairs, parse_pair_strings, sorted_pair
+from collision_sensor.kinematics import KinematicTree, build_kinematic_tree
+from collision_sensor.obb_tree import build_forest
+from collision_sensor.array_pack import ArrayPack
+from collision_sensor.query_kernel import FLOAT_SLOTS, INT_SLOTS, WORK_SIZE, packed_query
+from collision_sensor.robot_model import RobotModel, load_urdf
+from collision_sensor.traversal import N_COUNTERS
+from collision_sensor.scene import SceneObject, load_scene
+from collision_sensor.srdf import Srdf, load_srdf
+
+Pair = Tuple[str, str]
+Positions = Union[Mapping[str, float], Sequence[float], np.ndarray]
+
+
+class CheckResult(NamedTuple):
+    """The answer of one check.
+
+    :ivar in_collision: True iff at least one checked pair collides.
+    :ivar colliding_pairs: sorted tuple of ``(a, b)`` with ``a < b``.
+    :ivar rechecked_pairs: how many pairs this call actually re-checked (all for ``check``).
+    """
+
+    in_collision: bool
+    colliding_pairs: Tuple[Pair, ...]
+    rechecked_pairs: int
+
+
+def _transformed(T: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(vertices @ T[:3, :3].T + T[:3, 3])
+
+
+class CollisionChecker:
+    """Self-collision and robot-versus-scene checking for one robot.
+
+    Bodies are the robot's links (world == the root link's frame) and the scene objects. Pairs
+    are every two bodies with geometry, robot-robot and robot-scene, minus the exception list
+    (adjacent links, SRDF ``disable_collisions``, ``allowed_collisions``). Contact means the
+    two bodies' triangle surfaces share a point (touching counts); a body wholly inside another
+    without touching its surface is not reported (see README, "Contact rule").
+    """
+
+    def __init__(self, model: RobotModel, srdf: Optional[Srdf] = None,
+                 scene: Sequence[SceneObject] = (), config=None):
+        """Build the hierarchies and the exception list; prefer :meth:`from_urdf`.
+
+        :raises CollisionSensorError: on a bad scene, configuration or exception list.
+        """
+        self.config = CheckerConfig.from_mapping(config)
+        self.model = model
+        self.kinematics: KinematicTree = build_kinematic_tree(model)
+        kin = self.kinematics
+        link_names = list(kin.link_names)
+        scene = tuple(scene)
+        clashes = sorted(set(link_names) & {obj.name for obj in scene})
+        if clashes:
+            raise SceneError(f'scene object name(s) {", ".join(clashes)} are also link names of '
+                             f'robot "{model.name}"; rename the scene objects')
+        self.scene_object_names: Tuple[str, ...] = tuple(obj.name for obj in scene)
+        body_names = link_names + list(self.scene_object_names)
+        n_links, n_bodies = len(link_names), len(body_names)
+        self._n_links = n_links
+
+        # One tree per collision element (the paper's per-link sub-groups), in body frames.
+        link_index = {name: i for i, name in enumerate(link_names)}
+        meshes, owners = [], []
+        for element in model.elements:
+            meshes.append((_transformed(element.T_link_element, element.vertices),
+                           element.faces))
+            owners.append(link_index[element.link])
+        for s, obj in enumerate(scene):
+            meshes.append((np.asarray(obj.vertices, dtype=np.float64), obj.faces))
+            owners.append(n_links + s)
+        order = np.argsort(np.asarray(owners, dtype=np.int64), kind='stable')
+        meshes = [meshes[i] for i in order]
+        owners = np.asarray(owners, dtype=np.int64)[order]
+        self.forest = build_forest(meshes, leaf_size=self.config.leaf_size,
+                                   fit=self.config.obb_fit_code)
+        counts = np.bincount(owners, minlength=n_bodies) if len(owners) else np.zeros(
+            n_bodies, dtype=np.int64)
+        self._body_elem_end = np.cumsum(counts).astype(np.int64)
+        self._body_elem_start = (self._body_elem_end - counts).astype(np.int64)
+
+        # Each body's box over all its sub-groups, in the body frame (sec. 2.1: computed once).
+        self._body_center = np.zeros((n_bodies, 3))
+        self._body_axes = np.tile(np.eye(3), (n_bodies, 1, 1))
+        self._body_half = np.zeros((n_bodies, 3))
+        for b in range(n_bodies):
+            chunk = [meshes[e][0] for e in range(self._body_elem_start[b],
+                                                 self._body_elem_end[b])]
+            if chunk:
+                points = np.concatenate(chunk)
+                faces = np.concatenate([meshes[e][1] + sum(len(c) for c in chunk[:k])
+                                        for k, e in enumerate(range(self._body_elem_start[b],
+                                                                    self._body_elem_end[b]))])
+                c, a, h = fit_obb(points, self.config.obb_fit_code, faces=faces)
+                self._body_center[b], self._body_axes[b], self._body_half[b] = c, a, h
+
+        with_geometry = [name for b, name in enumerate(body_names) if counts[b] > 0]
+        self.link_names: Tuple[str, ...] = tuple(
+            name for name in with_geometry if name in link_index)
+        self.excluded_pairs: Dict[Pair, str] = self._exception_list(srdf, link_names)
+        candidates = []
+        robot = list(self.link_names)
+        for i, a in enumerate(robot):
+            for b in robot[i + 1:]:
+                candidates.append(sorted_pair(a, b))
+        for obj in self.scene_object_names:
+            if counts[body_names.index(obj)] > 0:
+                candidates.extend(sorted_pair(link, obj) for link in robot)
+        self.checked_pairs: Tuple[Pair, ...] = tuple(
+            sorted(pair for pair in set(candidates) if pair not in self.excluded_pairs))
+
+        body_index = {name: b for b, name in enumerate(body_names)}
+        self._body_index = body_index
+        pair_a, pair_b = [], []
+        for a, b in self.checked_pairs:
+            ia, ib = body_index[a], body_index[b]
+            if ia >= n_links:  # the kernel expects the scene body second
+                ia, ib = ib, ia
+            pair_a.append(ia)
+            pair_b.append(ib)
+        self._pair_a = np.asarray(pair_a, dtype=np.int64)
+        self._pair_b = np.asarray(pair_b, dtype=np.int64)
+        self._pair_path = self._pair_paths(n_links)
+
+        self.joint_names: Tuple[str, ...] = tuple(kin.joint_names)
+        self._joint_index = {name: j for j, name in enumerate(self.joint_names)}
+        self._derived_joints = frozenset(
+            joint.name for joint in model.joints
+            if joint.mimic is not None and joint.type != 'fixed')
+        self.joint_limits: Dict[str, Tuple[float, float]] = {
+            name: (float(kin.lower[j]), float(kin.upper[j]))
+            for j, name in enumerate(self.joint_names)}
+
+        is_scene = np.zeros(n_bodies, dtype=np.int64)
+        is_scene[n_links:] = 1
+        T_world_body = np.tile(np.eye(4), (n_bodies, 1, 1))
+        for s, obj in enumerate(scene):
+            T_world_body[n_links + s] = obj.T_world_object
+        n_joints = len(self.joint_names)
+        depth = int(self.forest.depth.max()) if len(self.forest.depth) else 1
+        f = self.forest
+        # Everything the kernel reads or keeps, in two flat buffers (see array_pack): static
+        # model data and the carried state (q_ref, poses, statuses) alike.
+        floats = dict(
+            q_ref=np.zeros(n_joints), T_parent_joint=kin.T_parent_joint, axis=kin.axis,
+            multiplier=kin.multiplier, offset=kin.offset, T_world_body=T_world_body,
+            body_center=self._body_center, body_axes=self._body_axes, body_half=self._body_half,
+            body_radius=np.sqrt((self._body_half ** 2).sum(axis=1)),
+            center=f.center, axes=f.axes, half=f.half, radius=f.radius, volume=f.volume,
+            gain=f.gain,
+            tris=f.tris, work=np.zeros(WORK_SIZE))
+        ints = dict(
+            parent=kin.parent, joint_type=kin.joint_type, q_index=kin.q_index,
+            is_scene=is_scene, body_elem_start=self._body_elem_start,
+            body_elem_end=self._body_elem_end, roots=f.roots, left=f.left, right=f.right,
+            first=f.first, count=f.count, pair_a=self._pair_a, pair_b=self._pair_b,
+            pair_path=self._pair_path, status=np.zeros(len(self.checked_pairs)),
+            moved=np.zeros(n_joints), body_dirty=np.zeros(n_bodies),
+            scene_culled=np.zeros(len(scene)), stack=np.zeros((2 * depth + 8, 3)),
+            counters=np.zeros(N_COUNTERS))
+        self._F, self._F_layout, float_views = self._pack(np.float64, FLOAT_SLOTS, floats)
+        self._I, self._I_layout, int_views = self._pack(np.int64, INT_SLOTS, ints)
+        self._q_ref = float_views['q_ref']
+        self._T_world_body = float_views['T_world_body']
+        self._status = int_views['status']
+        self.counters = int_views['counters']  # work done, see traversal.COUNT_* (benchmarks)
+        self._q = np.zeros(n_joints)
+        self._checked_once = False
+        self._result = CheckResult(False, (), 0)
+
+    @classmethod
+    def from_urdf(cls, urdf, srdf=None, package_paths: Optional[Mapping[str, str]] = None,
+                  scene=None, config=None) -> 'CollisionChecker':
+        """Load a robot, optionally its SRDF and a static scene, and build the checker.
+
+        :param urdf: path to a URDF file, or the URDF's XML text.
+        :param srdf: path or XML text of an SRDF, or None.
+        :param package_paths: ``{package_name: directory}`` for ``package://`` mesh URIs.
+        :param scene: path to a scene YAML file (or its parsed mapping), or None.
+        :param config: mapping of settings (see :mod:`collision_sensor.checker_config`).
+        :raises CollisionSensorError: naming the file, link or setting at fault.
+        """
+        settings = CheckerConfig.from_mapping(config)
+        model = load_urdf(urdf, package_paths, primitive_sections=settings.primitive_sections)
+        srdf_model = None
+        if srdf is not None:
+            srdf_model = load_srdf(srdf, link_names=model.links,
+                                   joint_names=[joint.name for joint in model.joints])
+        objects = ()
+        if scene is not None:
+            objects = load_scene(scene, package_paths,
+                                 primitive_sections=settings.primitive_sections)
+        return cls(model, srdf_model, objects, settings)
+
+    # ------------------------------------------------------------------ set-up helpers
+    @staticmethod
+    def _pack(dtype, slots, arrays):
+        pack = ArrayPack(dtype)
+        for name in slots:  # the order the kernel's slot constants expect
+            pack.add(name, arrays[name])
+        return pack.pack()
+
+    def _exception_list(self, srdf: Optional[Srdf], link_names: List[str]) -> Dict[Pair, str]:
+        excluded: Dict[Pair, str] = {}
+        if self.config.ignore_adjacent:
+            parents = {link: None for link in link_names}
+            for joint in self.model.joints:
+                parents[joint.child] = joint.parent
+            for pair in adjacent_pairs(parents, self.link_names):
+                excluded[pair] = 'adjacent'
+        if srdf is not None:
+            for entry in srdf.disabled_pairs:
+                pair = sorted_pair(entry.link1, entry.link2)
+                excluded.setdefault(pair, f'srdf: {entry.reason}' if entry.reason else 'srdf')
+        known = set(link_names) | set(self.scene_object_names)
+        for pair in parse_pair_strings(self.config.allowed_collisions, known):
+            excluded.setdefault(pair, 'allowed_collisions')
+        return excluded
+
+    def _pair_paths(self, n_links: int) -> np.ndarray:
+        """(P, J) uint8: variable j drives a joint on the tree path between the pair's bodies."""
+        kin = self.kinematics
+        n_joints = len(kin.joint_names)
+        above = []  # links from each link up to (excluding) the root
+        for i in range(n_links):
+            chain, k = set(), i
+            while k > 0:
+                chain.add(k)
+                k = int(kin.parent[k])
+            above.append(chain)
+        path = np.zeros((len(self._pair_a), n_joints), dtype=np.int64)
+        for p, (a, b) in enumerate(zip(self._pair_a, self._pair_b)):
+            links = above[a] ^ (above[b] if b < n_links else set())
+            for k in links:
+                if kin.q_index[k] >= 0:
+                    path[p, kin.q_index[k]] = 1
+        return path
+
+    # ------------------------------------------------------------------ queries
+    def _merged(self, positions: Positions) -> np.ndarray:
+        """Return the current joint vector with ``positions`` applied.
+
+        Finiteness is checked by the kernel, before it changes anything.
+        """
+        if (isinstance(positions, np.ndarray) and positions.shape == self._q.shape
+                and positions.dtype == np.float64):
+            return positions.astype(np.float64)  # a copy: the caller may reuse its array
+        q = self._q.copy()
+        if isinstance(positions, Mapping):
+            unknown = [name for name in positions
+                       if name not in self._joint_index and name not in self._derived_joints]
+            if unknown:
+                raise JointStateError(
+                    f'unknown joint name(s) {", ".join(map(str, unknown))} for robot '
+                    f'"{self.model.name}"; movable joints are {", ".join(self.joint_names)}')
+            for name, value in positions.items():
+                try:
+                    number = float(value)
+                except (TypeError, ValueError):
+                    raise JointStateError(
+                        f'joint "{name}": position {value!r} is not a number') from None
+                if not math.isfinite(number):
+                    raise JointStateError(f'joint "{name}": position {number} is not finite; '
+                                          'send a finite value (nothing was changed)')
+                j = self._joint_index.get(name)
+                if j is not None:  # a mimic joint follows its source; its own value is unused
+                    q[j] = number
+            return q
+        try:
+            values = np.asarray(positions, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise JointStateError(f'positions must be a mapping joint -> value or a sequence of '
+                                  f'{len(q)} numbers, got {type(positions).__name__}') from None
+        if values.shape != q.shape:
+            raise JointStateError(
+                f'expected {len(q)} positions in the order of joint_names '
+                f'({", ".join(self.joint_names)}), got shape {values.shape}')
+        return values.copy()
+
+    def _run(self, positions: Positions, full: bool) -> CheckResult:
+        q = self._merged(positions)
+        full = full or not self._checked_once
+        rechecked, changed = packed_query(
+            q, full, self.config.motion_tolerance, self.config.box_test_code,
+            self.config.expansion_code, self._n_links, self._F, self._F_layout, self._I,
+            self._I_layout)
+        if rechecked < 0:
+            name = self.joint_names[-1 - rechecked]
+            raise JointStateError(f'joint "{name}": position {q[-1 - rechecked]} is not finite; '
+                                  'send a finite value (nothing was changed)')
+        self._q = q
+        self._checked_once = True
+        if changed or full:
+            names = self.checked_pairs
+            hits = tuple(names[p] for p in np.flatnonzero(self._status))
+            self._result = CheckResult(bool(hits), hits, rechecked)
+        else:
+            self._result = self._result._replace(rechecked_pairs=rechecked)
+        return self._result
+
+    def check(self, positions: Positions) -> CheckResult:
+        """Check every pair from scratch at ``positions``; trust nothing carried over.
+
+        :param positions: ``{joint: value}`` (joints not given keep their last value, zero at
+            start; mimic joints' values are ignored, they follow their source), or an array
+            in the order of :attr:`joint_names`.
+        :raises JointStateError: on unknown names or non-finite values; nothing changes then.
+        """
+        return self._run(positions, full=True)
+
+    def update(self, positions: Positions) -> CheckResult:
+        """Check incrementally: re-check only pairs whose relative pose can have changed.
+
+        A pair is re-checked only if a joint on the tree path between its two bodies moved by
+        more than ``motion_tolerance`` since the state its status describes; every other
+        status, and every pose not below a moved joint, carries over (paper sec. 4.2).
+        Same arguments and errors as :meth:`check`.
+        """
+        return self._run(positions, full=False)
+
+    def check_batch(self, configurations: np.ndarray) -> np.ndarray:
+        """Check many configurations from scratch; return (n, P) bool statuses.
+
+        Columns follow :attr:`checked_pairs`. The carried state is restored afterwards.
+
+        :param configurations: (n, J) float, rows in the order of :attr:`joint_names`.
+        """
+        Q = np.asarray(configurations, dtype=np.float64)
+        if Q.ndim != 2 or Q.shape[1] != len(self.joint_names):
+            raise JointStateError(f'expected configurations of shape (n, {len(self.joint_names)})'
+                                  f', got {Q.shape}')
+        if not np.isfinite(Q).all():
+            raise JointStateError('configurations contain values that are not finite')
+        saved = self._q.copy()
+        out = np.zeros((len(Q), len(self.checked_pairs)), dtype=bool)
+        for i, q in enumerate(Q):
+            self._run(q, full=True)
+            out[i] = self._status != 0
+        self._run(saved, full=True)
+        return out
+
+    # ------------------------------------------------------------------ inspection
+    @property
+    def positions(self) -> Dict[str, float]:
+        """The joint positions of the last check, by name."""
+        return {name: float(v) for name, v in zip(self.joint_names, self._q)}
+
+    def link_poses(self) -> Dict[str, np.ndarray]:
+        """World poses (4, 4) of every link and scene object at the last checked state."""
+        names = list(self.kinematics.link_names) + list(self.scene_object_names)
+        return {name: self._T_world_body[b].copy() for b, name in enumerate(names)}
+
+    def collision_boxes(self, names: Iterable[str]) -> List[Tuple[str, np.ndarray, np.ndarray]]:
+        """Return each sub-group's root box of the named bodies, in the world.
+
+        :param names: link or scene object names; names without geometry give nothing.
+        :return: list of ``(name, T_world_box (4, 4), half_extents (3,))``.
+        """
+        boxes = []
+        f = self.forest
+        for name in names:
+            b = self._body_index.get(name)
+            if b is None:
+                continue
+            for e in range(self._body_elem_start[b], self._body_elem_end[b]):
+                node = f.roots[e]
+                T_body_box = np.eye(4)
+                T_body_box[:3, :3] = f.axes[node]
+                T_body_box[:3, 3] = f.center[node]
+                boxes.append((name, self._T_world_body[b] @ T_body_box, f.half[node].copy()))
+        return boxes

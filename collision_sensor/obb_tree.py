@@ -1,0 +1,251 @@
+"""Oriented-bounding-box trees over triangle meshes, stored flat (paper sec. 2 and 3).
+
+Every collision element (one ``<collision>`` of a link, or one scene object) gets its own
+binary OBB tree, built top-down over its triangles: a node's box is fitted to the vertices of
+the triangles beneath it, split along the box's longest-variance axis at the mean of the
+triangle centroids, down to leaves of at most ``leaf_size`` triangles. All trees of a checker
+live in one :class:`ObbForest`, structure of arrays, so that the compiled traversal indexes
+nodes by integers and never sees a Python object.
+
+Conventions, shared with :mod:`collision_sensor.bounding_volumes`:
+
+* boxes live in their body's frame (the link frame, or the scene object's frame) and are never
+  refitted when the body moves (paper sec. 2.1: "the link and its bounding volume move
+  together");
+* ``axes[n][:, k]`` is box ``n``'s k-th axis in the body frame, a right-handed orthonormal frame;
+  ``half[n]`` its half extents; ``center[n]`` its centre in the body frame;
+* ``left[n] == -1`` marks a leaf, whose triangles are ``tris[first[n]:first[n] + count[n]]``;
+* ``gain[n] = volume(n) - volume(left) - volume(right)`` is the paper's "most promising node"
+  score (sec. 4.1), 0 for leaves.
+"""
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from collision_sensor.bounding_volumes import (
+    OBB_HULL_PCA, OBB_MIN_VOLUME, OBB_PCA, fit_obb, fit_obb_pca)
+
+
+@dataclass(frozen=True)
+class ObbForest:
+    """All OBB trees of one checker, concatenated.
+
+    :ivar center: (N, 3) float64, box centres in the owning body's frame.
+    :ivar axes: (N, 3, 3) float64, box axes as columns.
+    :ivar half: (N, 3) float64, half extents.
+    :ivar radius: (N,) float64, radius of the sphere around the box (|half|), a pre-test.
+    :ivar volume: (N,) float64, box volumes.
+    :ivar gain: (N,) float64, parent volume minus the children's volumes (0 for leaves).
+    :ivar left: (N,) int64, left child or -1 for a leaf.
+    :ivar right: (N,) int64, right child or -1 for a leaf.
+    :ivar first: (N,) int64, first triangle of a leaf.
+    :ivar count: (N,) int64, triangle count of a leaf (0 for inner nodes).
+    :ivar tris: (T, 3, 3) float64, triangles in the body frame, rows are vertices.
+    :ivar roots: (E,) int64, root node of each tree.
+    :ivar depth: (E,) int64, depth of each tree (a lone leaf has depth 1).
+    """
+
+    center: np.ndarray
+    axes: np.ndarray
+    half: np.ndarray
+    radius: np.ndarray
+    volume: np.ndarray
+    gain: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    first: np.ndarray
+    count: np.ndarray
+    tris: np.ndarray
+    roots: np.ndarray
+    depth: np.ndarray
+
+    @property
+    def node_count(self) -> int:
+        return len(self.left)
+
+    def nbytes(self) -> int:
+        """Return the memory held by the forest's arrays, in bytes."""
+        return sum(getattr(self, name).nbytes for name in self.__dataclass_fields__)
+
+
+@numba.njit(cache=True)
+def _gather_points(tris, order, start, end):
+    points = np.empty(((end - start) * 3, 3))
+    for i in range(start, end):
+        tri = tris[order[i]]
+        for k in range(3):
+            points[(i - start) * 3 + k] = tri[k]
+    return points
+
+
+@numba.njit(cache=True)
+def _partition(keys, order, start, end, split):
+    """Reorder ``order[start:end]`` so that keys below ``split`` come first; return the cut."""
+    cut = start
+    for i in range(start, end):
+        if keys[order[i]] < split:
+            order[i], order[cut] = order[cut], order[i]
+            cut += 1
+    return cut
+
+
+@numba.njit(cache=True)
+def build_tree_kernel(tris, leaf_size, center, axes, half, left, right, first, count, order):
+    """Build one OBB tree over ``tris`` into preallocated node arrays; return (nodes, depth).
+
+    Contract in plain Python::
+
+        root covers all triangles; a node with more than leaf_size triangles is split in two
+        along its box's first axis at the mean centroid projection (other axes, then the
+        median, if a side would be empty); each node's box is fit_obb_pca of its vertices.
+
+    :param tris: (m, 3, 3) float64 triangles.
+    :param leaf_size: most triangles in a leaf (>= 1).
+    :param order: (m,) int64 work array; on return, leaf ``n`` holds
+        ``tris[order[first[n]:first[n] + count[n]]]``.
+    Node arrays must hold ``2 * m - 1`` nodes.
+    """
+    m = tris.shape[0]
+    centroids = np.empty((m, 3))
+    for i in range(m):
+        order[i] = i
+        for d in range(3):
+            centroids[i, d] = (tris[i, 0, d] + tris[i, 1, d] + tris[i, 2, d]) / 3.0
+    keys = np.empty(m)
+    # Explicit stack of (node, start, end, depth): trees can be deep, recursion is not needed.
+    stack = np.empty((2 * m + 2, 4), dtype=np.int64)
+    stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3] = 0, 0, m, 1
+    top = 1
+    n_nodes = 1
+    max_depth = 1
+    while top > 0:
+        top -= 1
+        node, start, end, depth = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
+        if depth > max_depth:
+            max_depth = depth
+        c, a, h = fit_obb_pca(_gather_points(tris, order, start, end))
+        center[node] = c
+        axes[node] = a
+        half[node] = h
+        n = end - start
+        if n <= leaf_size:
+            left[node] = -1
+            right[node] = -1
+            first[node] = start
+            count[node] = n
+            continue
+        cut = start
+        for k in range(3):
+            total = 0.0
+            for i in range(start, end):
+                t = order[i]
+                keys[t] = (centroids[t, 0] * a[0, k] + centroids[t, 1] * a[1, k]
+                           + centroids[t, 2] * a[2, k])
+                total += keys[t]
+            cut = _partition(keys, order, start, end, total / n)
+            if start < cut < end:
+                break
+        if not start < cut < end:
+            # All centroids coincide along every axis: split the list in halves.
+            cut = start + n // 2
+        left[node] = n_nodes
+        right[node] = n_nodes + 1
+        first[node] = start
+        count[node] = 0
+        stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = n_nodes, start, cut, depth + 1
+        stack[top + 1, 0], stack[top + 1, 1] = n_nodes + 1, cut
+        stack[top + 1, 2], stack[top + 1, 3] = end, depth + 1
+        top += 2
+        n_nodes += 2
+    return n_nodes, max_depth
+
+
+def triangles_of(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Return (m, 3, 3) float64 triangles from (n, 3) vertices and (m, 3) faces."""
+    return np.ascontiguousarray(np.asarray(vertices, dtype=np.float64)[np.asarray(faces)])
+
+
+def _refit(tris_sorted, center, axes, half, left, right, first, count, n_nodes, method):
+    """Refit every node's box with a slower fit (hull PCA, minimum volume), same topology."""
+    # A node's triangles are a contiguous range of the sorted list; children have larger
+    # indices than their parent, so one backward sweep gives every node's range.
+    span_start = np.empty(n_nodes, dtype=np.int64)
+    span_end = np.empty(n_nodes, dtype=np.int64)
+    for node in range(n_nodes - 1, -1, -1):
+        if left[node] < 0:
+            span_start[node] = first[node]
+            span_end[node] = first[node] + count[node]
+        else:
+            span_start[node] = span_start[left[node]]
+            span_end[node] = span_end[right[node]]
+    for node in range(n_nodes):
+        tri = tris_sorted[span_start[node]:span_end[node]]
+        points = tri.reshape(-1, 3)
+        faces = np.arange(len(points)).reshape(-1, 3)
+        center[node], axes[node], half[node] = fit_obb(points, method, faces=faces)
+
+
+def build_forest(meshes, leaf_size: int = 2, fit: int = OBB_PCA) -> ObbForest:
+    """Build one OBB tree per mesh and concatenate them.
+
+    :param meshes: sequence of ((n, 3) float vertices, (m, 3) int faces), in body frames.
+    :param leaf_size: most triangles per leaf.
+    :param fit: OBB_PCA (default, the paper's Wu method), OBB_HULL_PCA or OBB_MIN_VOLUME.
+    :return: the forest; ``roots[i]`` is mesh ``i``'s root node.
+    """
+    if leaf_size < 1:
+        raise ValueError(f'leaf_size must be at least 1, got {leaf_size}')
+    parts = []
+    node_offset = 0
+    tri_offset = 0
+    for vertices, faces in meshes:
+        tris = triangles_of(vertices, faces)
+        m = len(tris)
+        cap = 2 * m - 1
+        center = np.empty((cap, 3))
+        axes = np.empty((cap, 3, 3))
+        half = np.empty((cap, 3))
+        left = np.empty(cap, dtype=np.int64)
+        right = np.empty(cap, dtype=np.int64)
+        first = np.empty(cap, dtype=np.int64)
+        count = np.empty(cap, dtype=np.int64)
+        order = np.empty(m, dtype=np.int64)
+        n_nodes, depth = build_tree_kernel(
+            tris, leaf_size, center, axes, half, left, right, first, count, order)
+        tris_sorted = tris[order]
+        if fit in (OBB_HULL_PCA, OBB_MIN_VOLUME):
+            _refit(tris_sorted, center, axes, half, left, right, first, count, n_nodes, fit)
+        inner = left[:n_nodes] >= 0
+        left = left[:n_nodes].copy()
+        right = right[:n_nodes].copy()
+        first = first[:n_nodes] + tri_offset
+        left[inner] += node_offset
+        right[inner] += node_offset
+        parts.append(dict(center=center[:n_nodes], axes=axes[:n_nodes], half=half[:n_nodes],
+                          left=left, right=right, first=first, count=count[:n_nodes],
+                          tris=tris_sorted, root=node_offset, depth=depth))
+        node_offset += n_nodes
+        tri_offset += m
+
+    def cat(key, shape, dtype):
+        if not parts:
+            return np.zeros(shape, dtype=dtype)
+        return np.ascontiguousarray(np.concatenate([p[key] for p in parts]), dtype=dtype)
+
+    center = cat('center', (0, 3), np.float64)
+    axes = cat('axes', (0, 3, 3), np.float64)
+    half = cat('half', (0, 3), np.float64)
+    left = cat('left', (0,), np.int64)
+    right = cat('right', (0,), np.int64)
+    volume = 8.0 * np.prod(half, axis=1)
+    gain = np.zeros(len(left))
+    inner = left >= 0
+    gain[inner] = volume[inner] - volume[left[inner]] - volume[right[inner]]
+    return ObbForest(
+        center=center, axes=axes, half=half, radius=np.sqrt((half * half).sum(axis=1)),
+        volume=volume, gain=gain, left=left, right=right,
+        first=cat('first', (0,), np.int64), count=cat('count', (0,), np.int64),
+        tris=cat('tris', (0, 3, 3), np.float64),
+        roots=np.array([p['root'] for p in parts], dtype=np.int64),
+        depth=np.array([p['depth'] for p in parts], dtype=np.int64))

@@ -1,0 +1,113 @@
+"""Independent oracles for whole-robot answers: python-fcl on the same triangles, with
+pinocchio's kinematics, and a brute-force all-triangle-pairs check."""
+import numpy as np
+
+import fcl
+import pinocchio as pin
+
+
+class FclOracle:
+    """Colliding pairs by python-fcl BVH models built from the meshes the checker loaded.
+
+    Link poses come from pinocchio, not from our kinematics, so the oracle shares only the
+    triangles with the engine under test.
+    """
+
+    def __init__(self, checker, urdf_path):
+        self.checker = checker
+        self.pin_model = pin.buildModelFromUrdf(urdf_path)
+        self.pin_data = self.pin_model.createData()
+        self.frame_ids = {name: self.pin_model.getFrameId(name)
+                          for name in checker.kinematics.link_names}
+        self.models = {}
+        for element in checker.model.elements:
+            T = element.T_link_element
+            vertices = element.vertices @ T[:3, :3].T + T[:3, 3]
+            self.models.setdefault(element.link, []).append(self._bvh(vertices, element.faces))
+        self.scene_poses = {}
+        for name in checker.scene_object_names:
+            b = checker._body_index[name]
+            start, end = checker._body_elem_start[b], checker._body_elem_end[b]
+            f = checker.forest
+            meshes = []
+            for e in range(start, end):
+                tris = self._tris_of_tree(f, f.roots[e])
+                vertices = tris.reshape(-1, 3)
+                faces = np.arange(len(vertices)).reshape(-1, 3)
+                meshes.append(self._bvh(vertices, faces))
+            self.models[name] = meshes
+            self.scene_poses[name] = checker._T_world_body[b].copy()
+
+    @staticmethod
+    def _tris_of_tree(forest, root):
+        stack, tris = [root], []
+        while stack:
+            n = stack.pop()
+            if forest.left[n] < 0:
+                tris.append(forest.tris[forest.first[n]:forest.first[n] + forest.count[n]])
+            else:
+                stack += [forest.left[n], forest.right[n]]
+        return np.concatenate(tris)
+
+    @staticmethod
+    def _bvh(vertices, faces):
+        model = fcl.BVHModel()
+        model.beginModel(len(vertices), len(faces))
+        model.addSubModel(np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int32))
+        model.endModel()
+        return model
+
+    def pin_configuration(self, positions):
+        """pinocchio q from our joint vector (mimic joints get their derived value)."""
+        q = pin.neutral(self.pin_model)
+        values = dict(zip(self.checker.joint_names, positions))
+        for joint in self.checker.model.joints:
+            if joint.mimic is not None:
+                values[joint.name] = (joint.mimic.multiplier * values[joint.mimic.joint]
+                                      + joint.mimic.offset)
+        for name, value in values.items():
+            if self.pin_model.existJointName(name):
+                jid = self.pin_model.getJointId(name)
+                q[self.pin_model.joints[jid].idx_q] = value
+        return q
+
+    def poses(self, positions):
+        q = self.pin_configuration(positions)
+        pin.forwardKinematics(self.pin_model, self.pin_data, q)
+        pin.updateFramePlacements(self.pin_model, self.pin_data)
+        poses = dict(self.scene_poses)
+        for name, fid in self.frame_ids.items():
+            poses[name] = self.pin_data.oMf[fid].homogeneous
+        return poses
+
+    def colliding_pairs(self, positions):
+        poses = self.poses(positions)
+        request = fcl.CollisionRequest()
+        hits = []
+        for a, b in self.checker.checked_pairs:
+            Ta, Tb = poses[a], poses[b]
+            ta = fcl.Transform(Ta[:3, :3], Ta[:3, 3])
+            tb = fcl.Transform(Tb[:3, :3], Tb[:3, 3])
+            found = False
+            for ma in self.models[a]:
+                for mb in self.models[b]:
+                    result = fcl.CollisionResult()
+                    if fcl.collide(fcl.CollisionObject(ma, ta), fcl.CollisionObject(mb, tb),
+                                   request, result):
+                        found = True
+                        break
+                if found:
+                    break
+            if found:
+                hits.append((a, b))
+        return tuple(hits)
+
+
+def random_configurations(checker, n, seed):
+    """(n, J) configurations uniform within the joint limits (continuous: [-pi, pi])."""
+    rng = np.random.default_rng(seed)
+    lower = np.array([checker.joint_limits[name][0] for name in checker.joint_names])
+    upper = np.array([checker.joint_limits[name][1] for name in checker.joint_names])
+    lower = np.where(np.isfinite(lower), lower, -np.pi)
+    upper = np.where(np.isfinite(upper), upper, np.pi)
+    return lower + (upper - lower) * rng.random((n, len(lower)))

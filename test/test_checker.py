@@ -1,0 +1,342 @@
+"""Whole-robot answers of CollisionChecker against independent oracles.
+
+* python-fcl on the same triangles, with pinocchio's kinematics, on the Panda and the UR5 from
+  example-robot-data with their SRDFs: 10,000 seeded random configurations each;
+* brute force over all triangle pairs on small generated robots and scenes;
+* ``update`` against a from-scratch ``check`` along long random walks.
+"""
+import os
+import textwrap
+
+import numba
+import numpy as np
+import pytest
+
+from collision_sensor import CollisionChecker, ConfigError, JointStateError
+from collision_sensor.triangle_test import triangles_intersect
+from engine_oracles import FclOracle, random_configurations
+
+N_FCL_CONFIGURATIONS = 10_000
+
+
+@pytest.fixture(scope='module')
+def panda(panda_urdf, panda_srdf, erd_package_paths):
+    return CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                      package_paths=erd_package_paths)
+
+
+@pytest.fixture(scope='module')
+def ur5(ur5_urdf, ur5_srdf, erd_package_paths):
+    return CollisionChecker.from_urdf(ur5_urdf, srdf=ur5_srdf, package_paths=erd_package_paths)
+
+
+def _agree_with_fcl(checker, urdf, seed):
+    oracle = FclOracle(checker, urdf)
+    configurations = random_configurations(checker, N_FCL_CONFIGURATIONS, seed)
+    mismatches = []
+    colliding = 0
+    for q in configurations:
+        ours = checker.check(q).colliding_pairs
+        theirs = oracle.colliding_pairs(q)
+        colliding += bool(theirs)
+        if ours != theirs:
+            mismatches.append((list(q), ours, theirs))
+    # Print failures as literals that can be pasted into a regression test.
+    assert not mismatches, f'{len(mismatches)} mismatches, first: {mismatches[:3]}'
+    return colliding
+
+
+def test_panda_matches_fcl_on_random_configurations(panda, panda_urdf):
+    colliding = _agree_with_fcl(panda, panda_urdf, seed=1)
+    # The comparison means something only if both answers occur often.
+    assert 200 < colliding < N_FCL_CONFIGURATIONS - 200
+
+
+def test_ur5_matches_fcl_on_random_configurations(ur5, ur5_urdf):
+    colliding = _agree_with_fcl(ur5, ur5_urdf, seed=2)
+    assert 200 < colliding < N_FCL_CONFIGURATIONS - 200
+
+
+def test_every_box_test_and_expansion_rule_gives_the_same_answers(
+        panda_urdf, panda_srdf, erd_package_paths, panda):
+    configurations = random_configurations(panda, 300, seed=3)
+    expected = [panda.check(q).colliding_pairs for q in configurations]
+    for box_test in ('sat', 'paper'):
+        for expansion in ('same', 'alternate', 'larger', 'promising'):
+            checker = CollisionChecker.from_urdf(
+                panda_urdf, srdf=panda_srdf, package_paths=erd_package_paths,
+                config={'box_test': box_test, 'expansion': expansion})
+            got = [checker.check(q).colliding_pairs for q in configurations]
+            assert got == expected, (box_test, expansion)
+
+
+# ---------------------------------------------------------------- brute force, small robots
+
+SMALL_ROBOT = textwrap.dedent('''\
+    <robot name="small">
+      <link name="base">
+        <collision><geometry><box size="0.4 0.4 0.1"/></geometry></collision>
+      </link>
+      <link name="upper">
+        <collision><origin xyz="0 0 0.25"/>
+          <geometry><cylinder radius="0.05" length="0.5"/></geometry></collision>
+        <collision><origin xyz="0 0 0.5"/><geometry><sphere radius="0.08"/></geometry></collision>
+      </link>
+      <link name="lower">
+        <collision><origin xyz="0 0 0.2"/>
+          <geometry><box size="0.06 0.06 0.4"/></geometry></collision>
+      </link>
+      <link name="slider"/>
+      <link name="tool">
+        <collision><geometry><box size="0.1 0.02 0.15"/></geometry></collision>
+      </link>
+      <joint name="shoulder" type="revolute">
+        <parent link="base"/><child link="upper"/><origin xyz="0 0 0.05" rpy="0 0 0"/>
+        <axis xyz="0 1 0"/><limit lower="-2.5" upper="2.5" effort="1" velocity="1"/>
+      </joint>
+      <joint name="elbow" type="continuous">
+        <parent link="upper"/><child link="lower"/><origin xyz="0 0 0.5" rpy="0 0 0"/>
+        <axis xyz="0 1 0"/>
+      </joint>
+      <joint name="extend" type="prismatic">
+        <parent link="lower"/><child link="slider"/><origin xyz="0 0 0.4" rpy="0 0 0"/>
+        <axis xyz="0 0 1"/><limit lower="-0.3" upper="0.1" effort="1" velocity="1"/>
+      </joint>
+      <joint name="wrist" type="revolute">
+        <parent link="slider"/><child link="tool"/><origin xyz="0 0 0" rpy="0 0.3 0"/>
+        <axis xyz="1 0 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/>
+      </joint>
+    </robot>
+    ''')
+
+SMALL_SCENE = {'objects': [
+    {'name': 'pillar', 'cylinder': {'radius': 0.08, 'length': 1.2},
+     'pose': {'xyz': [0.45, 0.0, 0.6], 'rpy': [0.0, 0.0, 0.0]}},
+    {'name': 'shelf', 'box': {'size': [0.3, 0.6, 0.03]},
+     'pose': {'xyz': [-0.4, 0.1, 0.7], 'rpy': [0.2, 0.0, 0.4]}},
+    {'name': 'ball', 'sphere': {'radius': 0.12},
+     'pose': {'xyz': [0.0, 0.0, 1.25]}},
+]}
+
+
+@numba.njit(cache=True)
+def _any_triangle_pair_meets(A, B):
+    for i in range(A.shape[0]):
+        for j in range(B.shape[0]):
+            if triangles_intersect(A[i], B[j]):
+                return True
+    return False
+
+
+def _world_triangles(checker):
+    poses = checker.link_poses()
+    out = {}
+    for element in checker.model.elements:
+        T = poses[element.link] @ element.T_link_element
+        tris = element.vertices[element.faces] @ T[:3, :3].T + T[:3, 3]
+        out.setdefault(element.link, []).append(tris)
+    f = checker.forest
+    for name in checker.scene_object_names:
+        b = checker._body_index[name]
+        T = poses[name]
+        for e in range(checker._body_elem_start[b], checker._body_elem_end[b]):
+            tris = FclOracle._tris_of_tree(f, f.roots[e])
+            out.setdefault(name, []).append(tris @ T[:3, :3].T + T[:3, 3])
+    return {name: np.ascontiguousarray(np.concatenate(parts)) for name, parts in out.items()}
+
+
+def _brute_force_pairs(checker):
+    tris = _world_triangles(checker)
+    return tuple(pair for pair in checker.checked_pairs
+                 if _any_triangle_pair_meets(tris[pair[0]], tris[pair[1]]))
+
+
+@pytest.mark.parametrize('leaf_size', [1, 3])
+def test_small_robot_and_scene_match_brute_force(leaf_size):
+    checker = CollisionChecker.from_urdf(
+        SMALL_ROBOT, scene=SMALL_SCENE,
+        config={'primitive_sections': 10, 'leaf_size': leaf_size, 'ignore_adjacent': False})
+    configurations = random_configurations(checker, 400, seed=4)
+    seen = set()
+    for q in configurations:
+        result = checker.check(q)
+        expected = _brute_force_pairs(checker)
+        assert result.colliding_pairs == expected, list(q)
+        seen.update(expected)
+    # Self pairs and scene pairs both occur, so both paths of the engine were exercised.
+    assert any('pillar' in pair or 'shelf' in pair or 'ball' in pair for pair in seen)
+    assert any(set(pair) <= {'base', 'upper', 'lower', 'tool'} for pair in seen)
+
+
+# ---------------------------------------------------------------- incremental == from scratch
+
+def _walk(checker, steps, rng, mode):
+    q = random_configurations(checker, 1, seed=int(rng.integers(1 << 30)))[0]
+    lower = np.array([checker.joint_limits[n][0] for n in checker.joint_names])
+    upper = np.array([checker.joint_limits[n][1] for n in checker.joint_names])
+    lower = np.where(np.isfinite(lower), lower, -np.pi)
+    upper = np.where(np.isfinite(upper), upper, np.pi)
+    for _ in range(steps):
+        step = np.zeros_like(q)
+        if mode == 'one':
+            j = rng.integers(len(q))
+            step[j] = rng.normal(0.0, 0.05)
+        elif mode == 'many':
+            step = rng.normal(0.0, 0.03, len(q))
+        elif mode == 'jumps':
+            step = rng.uniform(-1.0, 1.0, len(q)) * (upper - lower)
+        elif mode == 'mixed':
+            choice = rng.integers(4)
+            if choice == 0:
+                pass  # nothing moves
+            elif choice == 1:
+                step[rng.integers(len(q))] = rng.normal(0.0, 0.1)
+            elif choice == 2:
+                step = rng.normal(0.0, 0.05, len(q))
+            else:
+                step = rng.uniform(-1.0, 1.0, len(q)) * (upper - lower)
+        q = np.clip(q + step, lower, upper)
+        yield q
+
+
+@pytest.mark.parametrize('mode', ['one', 'many', 'jumps', 'mixed'])
+def test_update_equals_check_along_random_walks(panda_urdf, panda_srdf, erd_package_paths,
+                                                mode):
+    scene = {'objects': [
+        {'name': 'table', 'box': {'size': [1.2, 1.2, 0.04]},
+         'pose': {'xyz': [0.5, 0.0, 0.3]}},
+        {'name': 'post', 'cylinder': {'radius': 0.05, 'length': 1.0},
+         'pose': {'xyz': [0.0, 0.45, 0.5]}},
+    ]}
+    incremental = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                             package_paths=erd_package_paths, scene=scene)
+    scratch = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                         package_paths=erd_package_paths, scene=scene)
+    rng = np.random.default_rng({'one': 5, 'many': 6, 'jumps': 7, 'mixed': 8}[mode])
+    changes = 0
+    previous = None
+    skipped = 0
+    for q in _walk(incremental, 1500, rng, mode):
+        got = incremental.update(q)
+        expected = scratch.check(q)
+        assert got.colliding_pairs == expected.colliding_pairs, list(q)
+        changes += got.colliding_pairs != previous
+        skipped += got.rechecked_pairs < len(incremental.checked_pairs)
+        previous = got.colliding_pairs
+    assert changes > 5  # the walk went in and out of contact
+    if mode in ('one', 'mixed'):
+        assert skipped > 100  # and the incremental path really skipped work
+
+
+def test_update_with_nothing_moving_rechecks_nothing(panda):
+    q = random_configurations(panda, 1, seed=9)[0]
+    first = panda.check(q)
+    again = panda.update(q)
+    assert again.rechecked_pairs == 0
+    assert again.colliding_pairs == first.colliding_pairs
+
+
+def test_motion_tolerance_skips_small_motions_and_catches_drift(
+        panda_urdf, panda_srdf, erd_package_paths):
+    checker = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                         package_paths=erd_package_paths,
+                                         config={'motion_tolerance': 0.01})
+    q = random_configurations(checker, 1, seed=10)[0]
+    checker.check(q)
+    q2 = q.copy()
+    q2[3] += 0.005
+    assert checker.update(q2).rechecked_pairs == 0
+    q3 = q2.copy()
+    q3[3] += 0.006  # 0.011 from the state the statuses describe: counts as motion
+    assert checker.update(q3).rechecked_pairs > 0
+
+
+def test_pairs_below_an_unmoved_joint_are_not_rechecked(panda):
+    q = random_configurations(panda, 1, seed=11)[0]
+    panda.check(q)
+    q2 = q.copy()
+    j = panda.joint_names.index('panda_joint7')
+    q2[j] += 0.1
+    rechecked = panda.update(q2).rechecked_pairs
+    # Only pairs with link7's subtree on one side and the rest on the other can change.
+    below = {'panda_link7', 'panda_hand', 'panda_leftfinger', 'panda_rightfinger'}
+    expected = sum((a in below) != (b in below) for a, b in panda.checked_pairs)
+    assert rechecked == expected
+
+
+# ---------------------------------------------------------------- API edge
+
+def test_unknown_joint_and_nan_raise_and_change_nothing(panda):
+    q = random_configurations(panda, 1, seed=12)[0]
+    before = panda.check(q)
+    positions = panda.positions
+    with pytest.raises(JointStateError, match='wrist_99'):
+        panda.update({'wrist_99': 0.3, 'panda_joint1': 0.2})
+    with pytest.raises(JointStateError, match='panda_joint2.*not finite'):
+        panda.update({'panda_joint1': 0.2, 'panda_joint2': float('nan')})
+    with pytest.raises(JointStateError, match='not finite'):
+        panda.update(np.full(len(panda.joint_names), np.inf))
+    assert panda.positions == positions
+    assert panda.update(positions).colliding_pairs == before.colliding_pairs
+
+
+def test_joints_not_given_keep_their_last_value(panda):
+    panda.check({name: 0.0 for name in panda.joint_names})
+    panda.update({'panda_joint4': -2.0})
+    panda.update({'panda_joint2': 0.5})
+    assert panda.positions['panda_joint4'] == -2.0
+    assert panda.positions['panda_joint2'] == 0.5
+
+
+def test_exception_list_from_srdf_adjacency_and_config(panda_urdf, panda_srdf,
+                                                       erd_package_paths):
+    plain = CollisionChecker.from_urdf(panda_urdf, package_paths=erd_package_paths)
+    # Adjacent through a link without geometry: link7 -> link8 (none) -> hand.
+    assert plain.excluded_pairs[('panda_hand', 'panda_link7')] == 'adjacent'
+    assert ('panda_hand', 'panda_link7') not in plain.checked_pairs
+    assert ('panda_leftfinger', 'panda_rightfinger') in plain.checked_pairs
+    with_srdf = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                           package_paths=erd_package_paths,
+                                           config={'allowed_collisions': ['panda_link0:panda_link6']})
+    assert ('panda_leftfinger', 'panda_rightfinger') not in with_srdf.checked_pairs
+    assert with_srdf.excluded_pairs[('panda_link0', 'panda_link6')] == 'allowed_collisions'
+    no_adjacent = CollisionChecker.from_urdf(panda_urdf, package_paths=erd_package_paths,
+                                             config={'ignore_adjacent': False})
+    assert ('panda_hand', 'panda_link7') in no_adjacent.checked_pairs
+    assert list(with_srdf.checked_pairs) == sorted(with_srdf.checked_pairs)
+    assert all(a < b for a, b in with_srdf.checked_pairs)
+
+
+def test_unknown_link_in_allowed_collisions_is_an_error(panda_urdf, erd_package_paths):
+    with pytest.raises(ConfigError, match='"panda_link99"'):
+        CollisionChecker.from_urdf(panda_urdf, package_paths=erd_package_paths,
+                                   config={'allowed_collisions': ['panda_link1:panda_link99']})
+    with pytest.raises(ConfigError, match='link_a:link_b'):
+        CollisionChecker.from_urdf(panda_urdf, package_paths=erd_package_paths,
+                                   config={'allowed_collisions': ['panda_link1']})
+
+
+def test_bad_settings_are_errors_naming_the_setting(panda_urdf, erd_package_paths):
+    for config, culprit in [({'box_test': 'fast'}, 'box_test'),
+                            ({'expansion': 'random'}, 'expansion'),
+                            ({'motion_tolerance': -1}, 'motion_tolerance'),
+                            ({'leaf_size': 0}, 'leaf_size'),
+                            ({'colour': 'red'}, 'colour')]:
+        with pytest.raises(ConfigError, match=culprit):
+            CollisionChecker.from_urdf(panda_urdf, package_paths=erd_package_paths,
+                                       config=config)
+
+
+def test_collision_boxes_contain_their_geometry(panda):
+    q = random_configurations(panda, 1, seed=13)[0]
+    panda.check(q)
+    poses = panda.link_poses()
+    boxes = panda.collision_boxes(['panda_link3', 'panda_leftfinger', 'no_such_link'])
+    assert len(boxes) == 1 + 4
+    elements = [e for e in panda.model.elements
+                if e.link in ('panda_link3', 'panda_leftfinger')]
+    for (name, T_world_box, half), element in zip(boxes, elements):
+        T = poses[element.link] @ element.T_link_element
+        world = element.vertices @ T[:3, :3].T + T[:3, 3]
+        local = (world - T_world_box[:3, 3]) @ T_world_box[:3, :3]
+        assert np.all(np.abs(local) <= half + 1e-9)
