@@ -1,0 +1,411 @@
+"""Recorded joint-state sequences: read and write CSV files and rosbag2 bags.
+
+A sequence is a list of frames, each a time and one position per joint
+(:class:`JointSequence`). Two kinds of files hold one:
+
+CSV (``*.csv``)
+    The first row that is not blank and not a comment (``#`` in the first column) is the
+    header: ``time`` and then one column per joint, named as in the URDF. Every following row
+    is one frame: the time in seconds, then the joint positions (rad for revolute joints, m for
+    prismatic ones). Times must strictly increase; every value must be a finite number::
+
+        # paper experiment, 50 Hz
+        time,shoulder_pan,shoulder_lift,elbow,wrist_roll,wrist_pitch,tool_roll
+        0.0,0.0,0.0,0.0,0.0,0.0,0.0
+        0.02,0.001,0.0,-0.002,0.0,0.0,0.0
+
+rosbag2 (a bag directory with ``metadata.yaml``, or a bare ``*.mcap`` / ``*.db3`` file)
+    ``sensor_msgs/msg/JointState`` messages on one topic (``/joint_states`` by default). The
+    frame time is ``header.stamp`` (the bag's log time when the stamp is zero), with nanosecond
+    resolution. A message may name only some joints: messages are merged into a running state,
+    and each message yields a frame once every joint has been seen; a message stamped with the
+    same time as the previous frame updates that frame. Joints that are not asked for are
+    ignored.
+
+Errors are :class:`~collision_sensor.errors.SequenceError` and name the file, the line (CSV) or
+message (bag) and the fix.
+"""
+import csv
+import math
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable, Optional, Sequence
+
+import numpy as np
+
+from collision_sensor.errors import SequenceError
+
+JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
+DEFAULT_TOPIC = '/joint_states'
+FORMATS = ('csv', 'mcap', 'sqlite3')
+_NS_PER_S = 1_000_000_000
+
+
+@dataclass(frozen=True)
+class JointSequence:
+    """Joint positions over time.
+
+    :ivar joint_names: (J,) joint names, the column order of ``positions``.
+    :ivar times: (n,) float64 seconds, strictly increasing.
+    :ivar positions: (n, J) float64 joint positions.
+    :ivar source: where the sequence came from (a file name), for messages.
+    """
+
+    joint_names: tuple
+    times: np.ndarray
+    positions: np.ndarray
+    source: str = ''
+
+    def __post_init__(self):
+        names = tuple(str(name) for name in self.joint_names)
+        times = np.ascontiguousarray(self.times, dtype=np.float64)
+        positions = np.ascontiguousarray(self.positions, dtype=np.float64)
+        if positions.ndim == 1 and len(names) == 0:
+            positions = positions.reshape(len(times), 0)
+        where = self.source or 'sequence'
+        if times.ndim != 1 or positions.shape != (len(times), len(names)):
+            raise SequenceError(
+                f'{where}: positions have shape {positions.shape}, expected '
+                f'({len(times)}, {len(names)}) for {len(times)} times and {len(names)} joints')
+        if len(set(names)) != len(names):
+            raise SequenceError(f'{where}: joint names repeat: {list(names)}')
+        if not (np.all(np.isfinite(times)) and np.all(np.isfinite(positions))):
+            raise SequenceError(f'{where}: times and positions must be finite numbers')
+        if np.any(np.diff(times) <= 0.0):
+            row = int(np.argmax(np.diff(times) <= 0.0)) + 1
+            raise SequenceError(
+                f'{where}: frame {row}: time {times[row]!r} is not after {times[row - 1]!r}; '
+                'times must strictly increase')
+        times.setflags(write=False)
+        positions.setflags(write=False)
+        object.__setattr__(self, 'joint_names', names)
+        object.__setattr__(self, 'times', times)
+        object.__setattr__(self, 'positions', positions)
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+    @property
+    def duration(self) -> float:
+        """Seconds from the first to the last frame (0 for fewer than two frames)."""
+        return float(self.times[-1] - self.times[0]) if len(self.times) else 0.0
+
+    def select(self, joint_names: Sequence[str]) -> 'JointSequence':
+        """Return the sequence with columns reordered to ``joint_names``.
+
+        :raises SequenceError: if a name is not a column of this sequence.
+        """
+        missing = [name for name in joint_names if name not in self.joint_names]
+        if missing:
+            raise SequenceError(
+                f'{self.source or "sequence"}: no column for joint(s) {missing}; '
+                f'it has {list(self.joint_names)}')
+        columns = [self.joint_names.index(name) for name in joint_names]
+        return JointSequence(tuple(joint_names), self.times, self.positions[:, columns],
+                             self.source)
+
+    def __eq__(self, other):
+        if not isinstance(other, JointSequence):
+            return NotImplemented
+        return (self.joint_names == other.joint_names
+                and np.array_equal(self.times, other.times)
+                and np.array_equal(self.positions, other.positions))
+
+    __hash__ = None
+
+
+def _format_from_path(path: str) -> str:
+    suffix = Path(path).suffix.lower()
+    if suffix == '.csv':
+        return 'csv'
+    if suffix == '.db3':
+        return 'sqlite3'
+    if suffix == '.mcap' or suffix == '':
+        return 'mcap'
+    raise SequenceError(
+        f'{path}: cannot tell the format from the extension "{suffix}"; use .csv, .mcap, '
+        '.db3 or a bag directory, or pass fmt="csv"|"mcap"|"sqlite3"')
+
+
+def read_sequence(path, topic: str = DEFAULT_TOPIC,
+                  joint_names: Optional[Sequence[str]] = None) -> JointSequence:
+    """Read a sequence from a CSV file or a rosbag2 bag (see the module docstring).
+
+    :param path: a ``.csv`` file, a bag directory holding ``metadata.yaml``, or a bare
+        ``.mcap`` / ``.db3`` file.
+    :param topic: the JointState topic in a bag (ignored for CSV).
+    :param joint_names: the joints expected, in the order wanted for the columns. For CSV the
+        columns must be exactly these; for a bag every one must appear (others are ignored).
+        ``None`` takes the file's own joints in the order they first appear.
+    :return: the sequence, ``source`` set to ``path``.
+    :raises SequenceError: for anything unreadable or malformed.
+    """
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        if not os.path.isfile(os.path.join(path, 'metadata.yaml')):
+            raise SequenceError(
+                f'{path}: a directory without metadata.yaml is not a rosbag2 bag; give a bag '
+                'directory, a .mcap/.db3 file or a .csv file')
+        return _read_bag(path, topic, joint_names)
+    if not os.path.exists(path):
+        raise SequenceError(f'{path}: no such file; check the path')
+    suffix = Path(path).suffix.lower()
+    if suffix == '.csv':
+        return _read_csv(path, joint_names)
+    if suffix in ('.mcap', '.db3'):
+        return _read_bag(path, topic, joint_names)
+    raise SequenceError(
+        f'{path}: unknown sequence format "{suffix}"; use a .csv file, a rosbag2 bag '
+        'directory, or a .mcap/.db3 file')
+
+
+def write_sequence(seq: JointSequence, path, fmt: Optional[str] = None,
+                   topic: str = DEFAULT_TOPIC) -> None:
+    """Write a sequence as CSV or as a rosbag2 bag of JointState messages.
+
+    ``fmt`` defaults from the extension: ``.csv`` -> csv, ``.mcap`` -> mcap, ``.db3`` ->
+    sqlite3, no extension -> mcap. A path ending in ``.mcap`` or ``.db3`` receives a bare
+    storage file (readable without ``metadata.yaml``); any other path for a bag receives a
+    rosbag2 directory (``metadata.yaml`` and ``<name>.mcap`` or ``<name>.db3``).
+
+    CSV values are written with Python's shortest round-trip ``repr``, so reading gives back
+    the same floats. Bag times are stored in nanoseconds and must not be negative.
+
+    :raises SequenceError: if the format is unknown, a bag target already exists, or the file
+        cannot be written.
+    """
+    path = os.fspath(path)
+    fmt = fmt or _format_from_path(path)
+    if fmt not in FORMATS:
+        raise SequenceError(f'{path}: unknown format "{fmt}"; use one of {list(FORMATS)}')
+    try:
+        if fmt == 'csv':
+            _write_csv(seq, path)
+        else:
+            _write_bag(seq, path, fmt, topic)
+    except OSError as err:
+        raise SequenceError(f'{path}: cannot write: {err.strerror or err}; check the directory '
+                            'exists and is writable') from None
+
+
+# --- CSV ---------------------------------------------------------------------------------------
+
+def _write_csv(seq: JointSequence, path: str) -> None:
+    with open(path, 'w', newline='', encoding='utf-8') as stream:
+        stream.write(','.join(('time',) + seq.joint_names) + '\n')
+        for time, row in zip(seq.times.tolist(), seq.positions.tolist()):
+            stream.write(','.join(repr(float(value)) for value in [time] + row) + '\n')
+
+
+def _data_rows(reader) -> Iterable:
+    """Yield (line number, fields) for rows that are neither blank nor comments."""
+    for fields in reader:
+        if not fields or all(not field.strip() for field in fields):
+            continue
+        if fields[0].lstrip().startswith('#'):
+            continue
+        yield reader.line_num, [field.strip() for field in fields]
+
+
+def _read_csv(path: str, joint_names: Optional[Sequence[str]]) -> JointSequence:
+    try:
+        with open(path, newline='', encoding='utf-8') as stream:
+            rows = list(_data_rows(csv.reader(stream)))
+    except (OSError, UnicodeDecodeError, csv.Error) as err:
+        reason = getattr(err, 'strerror', None) or err
+        raise SequenceError(f'{path}: cannot read: {reason}; give a readable UTF-8 CSV file') \
+            from None
+    if not rows:
+        raise SequenceError(
+            f'{path}: empty file; expected a header "time,<joint>,<joint>,..." and one row per '
+            'frame')
+    header_line, header = rows[0]
+    if header[0] != 'time':
+        raise SequenceError(
+            f'{path}: line {header_line}: the first column is "{header[0]}", expected "time"; '
+            'the header must read "time,<joint>,<joint>,..."')
+    columns = header[1:]
+    if not columns or any(not name for name in columns):
+        raise SequenceError(
+            f'{path}: line {header_line}: empty joint name in the header; name every column')
+    repeated = sorted({name for name in columns if columns.count(name) > 1})
+    if repeated:
+        raise SequenceError(
+            f'{path}: line {header_line}: column(s) {repeated} appear more than once; keep one')
+    if joint_names is not None:
+        unknown = [name for name in columns if name not in joint_names]
+        missing = [name for name in joint_names if name not in columns]
+        if unknown:
+            raise SequenceError(
+                f'{path}: line {header_line}: unknown joint column(s) {unknown}; the robot\'s '
+                f'joints are {list(joint_names)}; rename or remove the column(s)')
+        if missing:
+            raise SequenceError(
+                f'{path}: line {header_line}: no column for joint(s) {missing}; add a column '
+                'per joint')
+    if len(rows) == 1:
+        raise SequenceError(f'{path}: no frames after the header; add one row per frame')
+
+    names = ['time'] + columns
+    values = np.empty((len(rows) - 1, len(names)))
+    for row_index, (line, fields) in enumerate(rows[1:]):
+        if len(fields) != len(names):
+            raise SequenceError(
+                f'{path}: line {line}: {len(fields)} values, expected {len(names)} (time and '
+                f'{len(columns)} joints as in the header)')
+        for column, (name, text) in enumerate(zip(names, fields)):
+            try:
+                value = float(text)
+            except ValueError:
+                raise SequenceError(
+                    f'{path}: line {line}, column "{name}": "{text}" is not a number; write a '
+                    'decimal number such as 0.25') from None
+            if not math.isfinite(value):
+                raise SequenceError(
+                    f'{path}: line {line}, column "{name}": {text} is not a finite number; '
+                    'fill in the value or drop the row')
+            values[row_index, column] = value
+        if row_index and values[row_index, 0] <= values[row_index - 1, 0]:
+            raise SequenceError(
+                f'{path}: line {line}: time {fields[0]} is not after the previous row\'s time '
+                f'{values[row_index - 1, 0]!r}; times must strictly increase (sort the rows, '
+                'drop repeated ones)')
+    seq = JointSequence(tuple(columns), values[:, 0], values[:, 1:], path)
+    return seq.select(joint_names) if joint_names is not None else seq
+
+
+# --- rosbag2 -----------------------------------------------------------------------------------
+
+def _typestore():
+    from rosbags.typesys import Stores, get_typestore
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+def _write_bag(seq: JointSequence, path: str, fmt: str, topic: str) -> None:
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.rosbag2.errors import WriterError
+
+    if np.any(seq.times < 0.0):
+        raise SequenceError(f'{path}: a bag cannot hold negative times; shift the times so the '
+                            'first one is >= 0')
+    bare_file = Path(path).suffix.lower() in ('.mcap', '.db3')
+    if os.path.exists(path):
+        raise SequenceError(f'{path}: exists already; remove it or choose another name')
+    plugin = StoragePlugin.MCAP if fmt == 'mcap' else StoragePlugin.SQLITE3
+    typestore = _typestore()
+    msg_type = typestore.types[JOINT_STATE_TYPE]
+    header_type = typestore.types['std_msgs/msg/Header']
+    time_type = typestore.types['builtin_interfaces/msg/Time']
+    empty = np.zeros(0, dtype=np.float64)
+
+    scratch = tempfile.mkdtemp(prefix='collision_sensor_bag_') if bare_file else None
+    bag_dir = os.path.join(scratch, Path(path).stem) if bare_file else path
+    try:
+        writer = Writer(bag_dir, version=9, storage_plugin=plugin)
+        try:
+            writer.open()
+            connection = writer.add_connection(topic, JOINT_STATE_TYPE, typestore=typestore)
+            names = list(seq.joint_names)
+            for time, row in zip(seq.times.tolist(), seq.positions):
+                stamp_ns = int(round(time * _NS_PER_S))
+                sec, nanosec = divmod(stamp_ns, _NS_PER_S)
+                message = msg_type(
+                    header=header_type(stamp=time_type(sec=sec, nanosec=nanosec), frame_id=''),
+                    name=names, position=np.array(row, dtype=np.float64),
+                    velocity=empty, effort=empty)
+                writer.write(connection, stamp_ns,
+                             typestore.serialize_cdr(message, JOINT_STATE_TYPE))
+        finally:
+            writer.close()
+        if bare_file:
+            storage = Path(bag_dir) / (Path(bag_dir).name + ('.mcap' if fmt == 'mcap' else '.db3'))
+            shutil.move(str(storage), path)
+    except WriterError as err:
+        raise SequenceError(f'{path}: cannot write the bag: {err}') from None
+    finally:
+        if scratch:
+            shutil.rmtree(scratch, ignore_errors=True)
+
+
+def _read_bag(path: str, topic: str, joint_names: Optional[Sequence[str]]) -> JointSequence:
+    from rosbags.rosbag2 import Reader
+
+    typestore = _typestore()
+    try:
+        with Reader(Path(path)) as reader:
+            connections = [c for c in reader.connections if c.topic == topic]
+            if not connections:
+                topics = sorted({f'{c.topic} ({c.msgtype})' for c in reader.connections})
+                raise SequenceError(
+                    f'{path}: no topic "{topic}" in the bag; it has {topics or "no topics"}; '
+                    'pass the JointState topic (--topic)')
+            wrong = [c.msgtype for c in connections if c.msgtype != JOINT_STATE_TYPE]
+            if wrong:
+                raise SequenceError(
+                    f'{path}: topic "{topic}" has type {wrong[0]}, expected {JOINT_STATE_TYPE}')
+            messages = []
+            for index, (_, log_time, raw) in enumerate(reader.messages(connections=connections)):
+                msg = typestore.deserialize_cdr(raw, JOINT_STATE_TYPE)
+                stamp = msg.header.stamp.sec * _NS_PER_S + msg.header.stamp.nanosec
+                messages.append((index, stamp or log_time, list(msg.name),
+                                 np.asarray(msg.position, dtype=np.float64)))
+    except SequenceError:
+        raise
+    except Exception as err:  # rosbags raises several families for broken bags
+        raise SequenceError(f'{path}: cannot read the bag: {err}; check it is a rosbag2 bag '
+                            '(mcap or sqlite3) and not truncated') from None
+    if not messages:
+        raise SequenceError(f'{path}: topic "{topic}" has no messages; record some first')
+    return _merge_joint_states(path, topic, messages, joint_names)
+
+
+def _merge_joint_states(path, topic, messages, joint_names) -> JointSequence:
+    """Turn (index, stamp_ns, names, positions) messages into frames (module docstring)."""
+    if joint_names is None:
+        seen = {}
+        for _, _, names, _ in messages:
+            for name in names:
+                seen.setdefault(name, None)
+        joint_names = tuple(seen)
+    else:
+        joint_names = tuple(joint_names)
+        present = {name for _, _, names, _ in messages for name in names}
+        missing = [name for name in joint_names if name not in present]
+        if missing:
+            raise SequenceError(
+                f'{path}: topic "{topic}" never names joint(s) {missing}; record them or pass '
+                'the robot that matches this bag')
+    column = {name: index for index, name in enumerate(joint_names)}
+    state = np.full(len(joint_names), np.nan)
+    times, rows = [], []
+    for index, stamp, names, positions in messages:
+        if len(positions) != len(names):
+            raise SequenceError(
+                f'{path}: message {index}: {len(names)} names but {len(positions)} positions; '
+                'every named joint needs a position')
+        for name, value in zip(names, positions.tolist()):
+            if name not in column:
+                continue
+            if not math.isfinite(value):
+                raise SequenceError(
+                    f'{path}: message {index}: joint "{name}" position {value} is not finite')
+            state[column[name]] = value
+        if np.isnan(state).any():
+            continue  # not every joint seen yet
+        if times and stamp < times[-1]:
+            raise SequenceError(
+                f'{path}: message {index}: stamp {stamp / _NS_PER_S!r} s is earlier than the '
+                f'previous frame\'s {times[-1] / _NS_PER_S!r} s; times must not go backwards '
+                '(re-stamp the messages or use --topic with a single publisher)')
+        if times and stamp == times[-1]:
+            rows[-1] = state.copy()
+        else:
+            times.append(stamp)
+            rows.append(state.copy())
+    if not times:
+        raise SequenceError(f'{path}: topic "{topic}" never gives every joint a position')
+    return JointSequence(joint_names, np.array(times, dtype=np.float64) / _NS_PER_S,
+                         np.array(rows), path)
