@@ -34,6 +34,9 @@ setup(
         'pycollada>=0.8',
         'PyYAML>=6.0',
         'lxml>=4.9',
+        'scipy>=1.10',
+        'rosbags>=0.10',
+        'matplotlib>=3.6',
     ],
     extras_require={
         'ros': [
@@ -45,7 +48,6 @@ setup(
             'python-fcl>=0.7',
             'pin>=3.0',
             'example-robot-data>=4.0',
-            'scipy>=1.10',
         ],
     },
     zip_safe=False,
