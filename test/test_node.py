@@ -1,0 +1,578 @@
+"""The ROS 2 node, with real rclpy and the real checker on the Panda of example-robot-data.
+
+No launch: each test makes its own Context, executor, namespace and probe node
+(``ros_helpers.RosHarness``), starts the node in the test process (or, once, as a separate
+process from its console script) and talks to it over DDS shared memory. The Panda is loaded
+once for the module as the reference answer.
+"""
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import yaml
+
+rclpy = pytest.importorskip('rclpy')
+
+from builtin_interfaces.msg import Time  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+from std_msgs.msg import Bool, String  # noqa: E402
+from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
+
+from collision_sensor import CollisionChecker, CollisionSensorError, ConfigError  # noqa: E402
+from collision_sensor.node import (  # noqa: E402
+    LATCHED_QOS, CollisionSensorNode, quaternion_from_matrix)
+from collision_sensor.node_parameters import PARAMETERS, default_values  # noqa: E402
+from collision_sensor.share import config_path  # noqa: E402
+from ros_helpers import RosHarness, reliable  # noqa: E402
+
+ARM = tuple(f'panda_joint{i}' for i in range(1, 8))
+GRIPPER = ('panda_finger_joint1',)
+N_FRAMES = 200
+NODE_SCRIPT = os.path.join(os.path.dirname(sys.executable), 'collision_sensor_node')
+
+# A box on a slider next to a fixed box: a second robot to replace the Panda with.
+SLIDER_URDF = """<?xml version="1.0"?>
+<robot name="slider">
+  <link name="base"/>
+  <link name="anchor">
+    <collision><geometry><box size="0.2 0.2 0.2"/></geometry></collision>
+  </link>
+  <link name="carriage">
+    <collision><geometry><box size="0.2 0.2 0.2"/></geometry></collision>
+  </link>
+  <joint name="fix" type="fixed"><parent link="base"/><child link="anchor"/></joint>
+  <joint name="slide" type="prismatic">
+    <parent link="base"/><child link="carriage"/>
+    <origin xyz="1 0 0"/><axis xyz="1 0 0"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/>
+  </joint>
+</robot>
+"""
+
+
+# -- module fixtures: the reference robot and poses ---------------------------------------------
+
+@pytest.fixture(scope='module')
+def panda(panda_urdf, panda_srdf, erd_package_paths):
+    """The reference checker (a separate instance from any node's)."""
+    return CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                      package_paths=erd_package_paths)
+
+
+@pytest.fixture(scope='module')
+def frames(panda):
+    """A recorded Panda sequence: (200, 8) positions in ARM + GRIPPER order, seeded.
+
+    A random walk within the joint limits with jumps to fresh random configurations, so that
+    runs of colliding and free frames alternate.
+    """
+    rng = np.random.default_rng(20240611)
+    names = ARM + GRIPPER
+    lower = np.array([panda.joint_limits[name][0] for name in names])
+    upper = np.array([panda.joint_limits[name][1] for name in names])
+    q = rng.uniform(lower, upper)
+    out = []
+    for _ in range(N_FRAMES):
+        if rng.random() < 0.25:
+            q = rng.uniform(lower, upper)
+        else:
+            q = np.clip(q + rng.normal(0.0, 0.15, len(names)) * (upper - lower) / 4, lower, upper)
+        out.append(q.copy())
+    return np.array(out)
+
+
+@pytest.fixture(scope='module')
+def expected(panda, frames):
+    """``CollisionChecker.check`` on each frame: list of (in_collision, colliding_pairs)."""
+    answers = []
+    for q in frames:
+        result = panda.check(dict(zip(ARM + GRIPPER, q)))
+        answers.append((result.in_collision, tuple(result.colliding_pairs)))
+    colliding = sum(in_collision for in_collision, _ in answers)
+    assert 10 <= colliding <= N_FRAMES - 10, f'{colliding} colliding frames: re-seed'
+    return answers
+
+
+@pytest.fixture(scope='module')
+def poses(frames, expected):
+    """One free and one colliding configuration of the sequence, as {joint: value}."""
+    free = next(i for i, (hit, _) in enumerate(expected) if not hit)
+    hit = next(i for i, (hit, _) in enumerate(expected) if hit)
+    as_dict = lambda i: dict(zip(ARM + GRIPPER, map(float, frames[i])))  # noqa: E731
+    return {'free': as_dict(free), 'hit': as_dict(hit), 'hit_pairs': expected[hit][1]}
+
+
+@pytest.fixture
+def ros(request):
+    harness = RosHarness(request.node.name)
+    yield harness
+    harness.close()
+
+
+# -- helpers ------------------------------------------------------------------------------------
+
+def panda_parameters(panda_urdf, panda_srdf, erd_share, **overrides):
+    values = {'urdf_path': panda_urdf, 'srdf_path': panda_srdf,
+              'package_paths': [f'example-robot-data={erd_share}'],
+              'joint_states_qos': 'reliable'}
+    values.update(overrides)
+    return [Parameter(name, value=value) for name, value in values.items()]
+
+
+def start_node(ros, parameters):
+    node = CollisionSensorNode(namespace=ros.namespace, context=ros.context,
+                               parameter_overrides=parameters)
+    return ros.add(node)
+
+
+def joint_state(positions, stamp=None, names=None):
+    msg = JointState()
+    msg.name = list(names if names is not None else positions)
+    msg.position = [float(positions[name]) for name in msg.name] if names is None else list(
+        positions)
+    if stamp is not None:
+        msg.header.stamp = stamp
+    return msg
+
+
+def stamp_of(k: int) -> Time:
+    return Time(sec=1000 + k, nanosec=1000 * k)
+
+
+class Probe:
+    """The test side: publishes joint states, records the node's outputs."""
+
+    def __init__(self, ros, markers=False):
+        self.ros = ros
+        self.joint_states = ros.publisher(JointState, 'joint_states', reliable(100))
+        self.contact = ros.record(Bool, 'contact', reliable(1000, latched=True))
+        self.pairs = ros.record(DiagnosticArray, 'colliding_pairs', reliable(1000, latched=True))
+        self.diagnostics = ros.record(DiagnosticArray, '/diagnostics', reliable(100))
+        self.markers = ros.record(MarkerArray, 'collision_sensor/markers', 100) if markers \
+            else None
+        assert ros.wait_for_subscribers(self.joint_states), 'the node never subscribed'
+
+    def send(self, msg, wait=True, timeout=5.0):
+        """Publish ``msg``; with ``wait``, spin until the verdict for it arrived."""
+        count = len(self.pairs)
+        self.joint_states.publish(msg)
+        if wait:
+            assert self.ros.spin_until(
+                lambda: len(self.pairs) > count and len(self.contact) > count, timeout), \
+                'no verdict'
+            return self.contact.last.data, pairs_of(self.pairs.last)
+
+    def no_verdict_for(self, msg, seconds=0.3):
+        """Publish ``msg`` and check that no verdict follows."""
+        count = len(self.pairs)
+        self.joint_states.publish(msg)
+        self.ros.spin_for(seconds)
+        return len(self.pairs) == count
+
+    def next_diagnostics(self, condition=lambda values: True, timeout=3.0):
+        """Spin until a /diagnostics status of this node satisfies ``condition(values)``."""
+        found = []
+        name = f'{self.ros.namespace.strip("/")}/collision_sensor: collision sensor'
+
+        def ready():
+            while self.diagnostics.messages:
+                for status in self.diagnostics.messages.pop(0).status:
+                    values = {kv.key: kv.value for kv in status.values}
+                    if status.name == name and condition(values):
+                        found.append((status, values))
+            return bool(found)
+
+        assert self.ros.spin_until(ready, timeout), 'no matching diagnostics'
+        return found[0]
+
+
+def pairs_of(msg: DiagnosticArray):
+    return tuple(tuple(status.name.split(':')) for status in msg.status)
+
+
+# -- parameters ---------------------------------------------------------------------------------
+
+def test_params_file_lists_every_parameter_with_its_default():
+    with open(config_path('collision_sensor.yaml')) as stream:
+        document = yaml.safe_load(stream)
+    values = document['/**']['ros__parameters']
+    assert list(values) == [spec.name for spec in PARAMETERS]
+    defaults = default_values()
+    for name, value in values.items():
+        assert value == defaults[name], name
+    with open(config_path('collision_sensor.yaml')) as stream:
+        text = stream.read()
+    for spec in PARAMETERS:   # every parameter has a comment line just above it
+        before = text.split(f'    {spec.name}:')[0].rstrip().splitlines()[-1]
+        assert before.strip().startswith('#'), spec.name
+
+
+def test_shipped_params_file_declares_typed_defaults(ros):
+    node = ros.add(CollisionSensorNode(
+        namespace=ros.namespace, context=ros.context,
+        cli_args=['--ros-args', '--params-file', config_path('collision_sensor.yaml')]))
+    for spec in PARAMETERS:
+        value = node.get_parameter_or(spec.name, None)
+        if isinstance(spec.default, tuple):   # empty string arrays read as "not set"
+            assert value is None or value.value in (None, [])
+        else:
+            assert value.value == spec.default and type(value.value) is type(spec.default)
+    descriptor = node.describe_parameter('allowed_collisions')
+    assert descriptor.type == Parameter.Type.STRING_ARRAY.value and descriptor.read_only
+    result = node.set_parameters([Parameter('stale_timeout', value=5.0)])[0]
+    assert not result.successful    # read-only: the node does not reconfigure at run time
+
+
+@pytest.mark.parametrize('overrides, words', [
+    ({'urdf_path': '/no/such/robot.urdf'}, ['urdf_path', '/no/such/robot.urdf']),
+    ({'joint_states_qos': 'fast'}, ['joint_states_qos', 'fast', 'sensor_data']),
+    ({'package_paths': ['example-robot-data']}, ['package_paths', 'name=dir']),
+    ({'stale_timeout': 1}, ['stale_timeout', '1.0']),
+    ({'expansion': 'widest'}, ['expansion', 'widest']),
+    ({'allowed_collisions': ['panda_link0:panda_link99']}, ['panda_link99']),
+])
+def test_bad_configuration_fails_with_a_clear_reason(ros, panda_urdf, panda_srdf, erd_share,
+                                                     overrides, words, capfd):
+    with pytest.raises(CollisionSensorError) as raised:
+        start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share, **overrides))
+    for word in words:
+        assert word in str(raised.value)
+    assert 'configuration failed' in capfd.readouterr().err    # logged before raising
+
+
+def test_bad_configuration_exits_non_zero_from_the_console_script(tmp_path):
+    params = tmp_path / 'bad.yaml'
+    params.write_text(yaml.safe_dump(
+        {'/**': {'ros__parameters': {'urdf_path': str(tmp_path / 'missing.urdf')}}}))
+    run = subprocess.run([NODE_SCRIPT, '--ros-args', '--params-file', str(params)],
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 1
+    assert 'configuration failed' in run.stderr and 'missing.urdf' in run.stderr
+
+
+# -- verdicts -----------------------------------------------------------------------------------
+
+def test_recorded_sequence_matches_the_checker(ros, panda_urdf, panda_srdf, erd_share, frames,
+                                               expected):
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share))
+    probe = Probe(ros)
+    names = ARM + GRIPPER
+    for k, q in enumerate(frames):
+        msg = joint_state(q, stamp=stamp_of(k), names=names)
+        msg.header.frame_id = 'recording'
+        probe.send(msg)
+    assert [msg.data for msg in probe.contact.messages] == [hit for hit, _ in expected]
+    assert [pairs_of(msg) for msg in probe.pairs.messages] == [pairs for _, pairs in expected]
+    for k, msg in enumerate(probe.pairs.messages):
+        assert msg.header.stamp == stamp_of(k) and msg.header.frame_id == 'recording'
+        for status in msg.status:
+            values = {kv.key: kv.value for kv in status.values}
+            assert status.level == DiagnosticStatus.ERROR
+            assert status.name == f'{values["link_a"]}:{values["link_b"]}'
+            assert values['link_a'] < values['link_b']
+    # A late subscriber gets the latest verdict at once (transient local, depth 1).
+    late_contact = ros.record(Bool, 'contact', LATCHED_QOS)
+    late_pairs = ros.record(DiagnosticArray, 'colliding_pairs', LATCHED_QOS)
+    assert ros.spin_until(lambda: len(late_contact) and len(late_pairs))
+    ros.spin_for(0.2)
+    assert len(late_contact) == 1 and late_contact.last.data == expected[-1][0]
+    assert len(late_pairs) == 1 and late_pairs.last.header.stamp == stamp_of(N_FRAMES - 1)
+
+
+def test_partial_states_from_two_publishers_merge(ros, panda, panda_urdf, panda_srdf, erd_share,
+                                                  poses):
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share))
+    probe = Probe(ros)
+    gripper = ros.publisher(JointState, 'joint_states', reliable(10))
+    hit, free = poses['hit'], poses['free']
+    assert probe.no_verdict_for(joint_state({name: hit[name] for name in ARM}))
+    count = len(probe.pairs)
+    gripper.publish(joint_state({name: hit[name] for name in GRIPPER}))
+    assert ros.spin_until(lambda: len(probe.pairs) > count)
+    assert probe.contact.last.data and pairs_of(probe.pairs.last) == poses['hit_pairs']
+    # Each publisher now moves its own subset; the verdict is that of the merged state, which
+    # the reference follows by being given the same subsets from the same full state.
+    panda.check(hit)
+    rng = np.random.default_rng(3)
+    verdicts = set()
+    for step in range(8):
+        side = ARM if step % 2 == 0 else GRIPPER
+        source = free if rng.random() < 0.5 else hit
+        state = {name: source[name] for name in side}
+        count = len(probe.pairs)
+        (probe.joint_states if side is ARM else gripper).publish(joint_state(state))
+        assert ros.spin_until(lambda: len(probe.pairs) > count)
+        reference = panda.check(state)    # keeps the other joints from before, as the node
+        assert probe.contact.last.data == reference.in_collision
+        assert pairs_of(probe.pairs.last) == tuple(reference.colliding_pairs)
+        verdicts.add(reference.in_collision)
+    assert verdicts == {False, True}    # the sequence went through both
+
+
+def test_require_all_joints_off_checks_partial_states(ros, panda, panda_urdf, panda_srdf,
+                                                      erd_share, poses):
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
+                                     require_all_joints=False))
+    probe = Probe(ros)
+    for pose in ('hit', 'free'):
+        arm = {name: poses[pose][name] for name in ARM}
+        # Joints never heard keep the checker's start value, 0 (the gripper closed).
+        reference = panda.check(dict(arm, panda_finger_joint1=0.0))
+        assert probe.send(joint_state(arm)) == (reference.in_collision,
+                                                tuple(reference.colliding_pairs))
+
+
+def test_waiting_for_joints_is_reported(ros, panda_urdf, panda_srdf, erd_share, poses):
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share))
+    probe = Probe(ros)
+    status, values = probe.next_diagnostics()
+    assert values['seconds_since_joint_state'] == '' and values['waiting_for_joints'] == 'true'
+    assert status.level == DiagnosticStatus.WARN and 'waiting for joint states' in status.message
+    assert probe.no_verdict_for(joint_state({name: poses['free'][name] for name in ARM}))
+    status, values = probe.next_diagnostics(lambda v: v['seconds_since_joint_state'] != '')
+    assert values['missing_joints'] == 'panda_finger_joint1'
+    assert values['waiting_for_joints'] == 'true'
+    assert status.level == DiagnosticStatus.WARN and 'panda_finger_joint1' in status.message
+
+
+def test_bad_joint_states_are_rejected_and_change_nothing(ros, panda_urdf, panda_srdf,
+                                                          erd_share, poses, capfd):
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share))
+    probe = Probe(ros)
+    free, hit = poses['free'], poses['hit']
+    assert probe.send(joint_state(free)) == (False, ())
+    names = list(ARM + GRIPPER)
+    hit_values = [hit[name] for name in names]
+    bad = {
+        'length': joint_state(hit_values[:-1], names=names),
+        'duplicate': joint_state(hit_values + [0.0], names=names + ['panda_joint3']),
+        'nan': joint_state(hit_values[:-1] + [math.nan], names=names),
+        'inf': joint_state([math.inf] + hit_values[1:], names=names),
+    }
+    for msg in bad.values():
+        # Each would make the robot collide if any of it were taken.
+        assert probe.no_verdict_for(msg, seconds=0.15)
+    velocity_only = joint_state([], names=names)
+    velocity_only.velocity = [1.0] * len(names)
+    assert probe.no_verdict_for(velocity_only, seconds=0.15)
+    # The known state is unchanged: a message moving nothing gives the free verdict again.
+    assert probe.send(joint_state({'panda_joint1': free['panda_joint1']})) == (False, ())
+    err = capfd.readouterr().err
+    assert 'joint state rejected' in err and '8 names but 7 positions' in err   # throttled:
+    # the first of a kind within a second is shown, so each kind appears once here.
+    assert "given more than once: 'panda_joint3'" in err
+    assert 'not finite' in err and "'panda_finger_joint1'=nan" in err
+    _, values = probe.next_diagnostics(lambda v: int(v['rejected_total']) >= 4)
+    assert values['rejected_total'] == '4'
+
+
+def test_unknown_joints_are_ignored_with_one_warning_each(ros, panda_urdf, panda_srdf, erd_share,
+                                                          poses, capfd):
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share))
+    probe = Probe(ros)
+    state = dict(poses['free'], ghost_joint=3.0, panda_finger_joint2=0.01)   # + a mimic joint
+    for _ in range(3):
+        assert probe.send(joint_state(state)) == (False, ())
+    err = capfd.readouterr().err
+    assert err.count('ignoring joint "ghost_joint"') == 1
+    assert 'panda_finger_joint2' not in err    # mimic joints follow their source silently
+    _, values = probe.next_diagnostics(lambda v: v['unknown_joints'] != '')
+    assert values['unknown_joints'] == 'ghost_joint'
+
+
+def test_out_of_limit_joints_are_checked_and_reported(ros, panda, panda_urdf, panda_srdf,
+                                                      erd_share, poses, capfd):
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share))
+    probe = Probe(ros)
+    state = dict(poses['free'], panda_joint4=0.5)    # limit [-3.0718, -0.0698]
+    reference = panda.check(state)
+    assert probe.send(joint_state(state)) == (reference.in_collision,
+                                              tuple(reference.colliding_pairs))
+    assert 'joint "panda_joint4" at 0.5 is outside its limits' in capfd.readouterr().err
+    status, values = probe.next_diagnostics(lambda v: v['out_of_limit_joints'] != '')
+    assert values['out_of_limit_joints'].startswith('panda_joint4=0.5 [')
+    assert status.level >= DiagnosticStatus.WARN
+
+
+class _FlakyChecker:
+    """A real checker whose update fails at one marked configuration."""
+
+    MARK = 0.123
+
+    def __init__(self, checker):
+        self._checker = checker
+
+    def __getattr__(self, name):
+        return getattr(self._checker, name)
+
+    def update(self, positions):
+        if positions.get('panda_joint1') == self.MARK:
+            raise RuntimeError('engine fault injected by the test')
+        if positions.get('panda_joint1') == -self.MARK:
+            raise ConfigError('engine error injected by the test')
+        return self._checker.update(positions)
+
+
+def test_engine_errors_are_logged_and_the_node_keeps_running(ros, panda_urdf, panda_srdf,
+                                                             erd_share, poses, capfd):
+    def factory(*args, **kwargs):
+        return _FlakyChecker(CollisionChecker.from_urdf(*args, **kwargs))
+
+    ros.add(CollisionSensorNode(
+        namespace=ros.namespace, context=ros.context, checker_factory=factory,
+        parameter_overrides=panda_parameters(panda_urdf, panda_srdf, erd_share)))
+    probe = Probe(ros)
+    free = poses['free']
+    assert probe.send(joint_state(free)) == (False, ())
+    assert probe.no_verdict_for(joint_state(dict(free, panda_joint1=_FlakyChecker.MARK)))
+    assert probe.no_verdict_for(joint_state(dict(free, panda_joint1=-_FlakyChecker.MARK)))
+    assert probe.send(joint_state(free)) == (False, ())
+    err = capfd.readouterr().err
+    assert 'engine fault injected by the test' in err
+    assert 'collision check failed: engine error injected by the test' in err
+    _, values = probe.next_diagnostics(lambda v: v['engine_errors_total'] != '0')
+    assert values['engine_errors_total'] == '2'
+
+
+def test_stale_joint_states_are_reported(ros, panda_urdf, panda_srdf, erd_share, poses):
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share, stale_timeout=0.2))
+    probe = Probe(ros)
+    probe.send(joint_state(poses['free']))
+    status, values = probe.next_diagnostics(lambda v: v['stale'] == 'true')
+    assert status.level == DiagnosticStatus.STALE and 'stale' in status.message
+    # A stream of joint states again (20 Hz): the state is fresh.
+    ros.probe.create_timer(0.05, lambda: probe.joint_states.publish(joint_state(poses['free'])))
+    status, values = probe.next_diagnostics(lambda v: v['stale'] == 'false')
+    assert float(values['seconds_since_joint_state']) < 0.2
+    assert status.level == DiagnosticStatus.OK and status.message == 'no collision'
+    assert float(values['input_rate_hz']) > 0.0
+    assert float(values['check_time_max_ms']) >= 0.0 and 'input_rate_hz' in values
+
+
+def test_markers_appear_and_clear(ros, panda_urdf, panda_srdf, erd_share, poses):
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share, publish_markers=True))
+    probe = Probe(ros, markers=True)
+    probe.send(joint_state(poses['hit']))
+    assert ros.spin_until(lambda: len(probe.markers))
+    markers = probe.markers.last.markers
+    assert markers[0].action == Marker.DELETEALL
+    boxes = markers[1:]
+    colliding_links = {name for pair in poses['hit_pairs'] for name in pair}
+    assert boxes and {marker.ns for marker in boxes} == colliding_links
+    for marker in boxes:
+        assert marker.type == Marker.CUBE and marker.action == Marker.ADD
+        assert marker.header.frame_id == 'panda_link0'
+        assert marker.color.r == 1.0 and marker.color.g == 0.0 and marker.color.b == 0.0
+        assert min(marker.scale.x, marker.scale.y, marker.scale.z) > 0.0
+        q = marker.pose.orientation
+        assert abs(q.x ** 2 + q.y ** 2 + q.z ** 2 + q.w ** 2 - 1.0) < 1e-9
+    count = len(probe.markers)
+    probe.send(joint_state(poses['free']))
+    assert ros.spin_until(lambda: len(probe.markers) > count)
+    assert [marker.action for marker in probe.markers.last.markers] == [Marker.DELETEALL]
+
+
+def test_quaternion_from_matrix_against_random_rotations():
+    rng = np.random.default_rng(5)
+    matrices = [np.eye(3), np.diag([1.0, -1.0, -1.0]), np.diag([-1.0, 1.0, -1.0]),
+                np.diag([-1.0, -1.0, 1.0])]     # the branches where w is 0
+    for _ in range(200):
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        matrices.append(q * np.sign(np.linalg.det(q)))
+    for R in matrices:
+        x, y, z, w = quaternion_from_matrix(R)
+        assert abs(x * x + y * y + z * z + w * w - 1.0) < 1e-12
+        rebuilt = np.array([
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+        assert np.allclose(rebuilt, R, atol=1e-12), R.tolist()
+
+
+# -- the robot from the robot_description topic -------------------------------------------------
+
+def test_robot_from_topic_and_bad_description_rejected(ros, panda_urdf, erd_share, poses,
+                                                       capfd):
+    # No SRDF here: it would name Panda links that the second robot does not have.
+    start_node(ros, [Parameter('package_paths', value=[f'example-robot-data={erd_share}']),
+                     Parameter('joint_states_qos', value='reliable')])
+    probe = Probe(ros)
+    description = ros.publisher(String, 'robot_description', LATCHED_QOS)
+    with open(panda_urdf) as stream:
+        urdf_text = stream.read()
+    description.publish(String(data=urdf_text))
+    # The reference: the same text, no SRDF.
+    bare = CollisionChecker.from_urdf(urdf_text, package_paths={'example-robot-data': erd_share})
+
+    def reference(state):
+        result = bare.check(state)
+        return result.in_collision, tuple(result.colliding_pairs)
+
+    def verdict_for(state, timeout=30.0):
+        count = len(probe.pairs)
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:    # the node ignores joint states until loaded
+            probe.joint_states.publish(joint_state(state))
+            if ros.spin_until(lambda: len(probe.pairs) > count, 0.2):
+                return probe.contact.last.data, pairs_of(probe.pairs.last)
+        raise AssertionError('no verdict')
+
+    panda_free = verdict_for(poses['free'])
+    panda_hit = verdict_for(poses['hit'])
+    assert panda_free == reference(poses['free']) and panda_hit == reference(poses['hit'])
+    assert panda_hit[0] and set(poses['hit_pairs']) <= set(panda_hit[1])
+
+    description.publish(String(data='<robot name="broken"><link name="a"></robot>'))
+    seen = []
+    assert ros.spin_until(lambda: seen.append(capfd.readouterr().err) or
+                          'robot_description rejected' in ''.join(seen), 30.0)
+    assert 'the current model stays' in ''.join(seen)
+    assert verdict_for(poses['hit']) == panda_hit and verdict_for(poses['free']) == panda_free
+
+    description.publish(String(data=SLIDER_URDF))
+    assert verdict_for({'slide': -0.95}) == (True, (('anchor', 'carriage'),))
+    assert verdict_for({'slide': 0.0}) == (False, ())
+    # The Panda's joints are now unknown names, ignored.
+    assert probe.no_verdict_for(joint_state(poses['free']))
+
+
+# -- the console script, as a user runs it ------------------------------------------------------
+
+def test_console_script_with_params_file(ros, tmp_path, panda_urdf, panda_srdf, erd_share, poses):
+    with open(config_path('collision_sensor.yaml')) as stream:
+        document = yaml.safe_load(stream)
+    document['/**']['ros__parameters'].update(
+        urdf_path=panda_urdf, srdf_path=panda_srdf, joint_states_qos='reliable',
+        package_paths=[f'example-robot-data={erd_share}'])
+    params = tmp_path / 'panda.yaml'
+    params.write_text(yaml.safe_dump(document))
+    process = subprocess.Popen(
+        [NODE_SCRIPT, '--ros-args', '--params-file', str(params), '-r',
+         f'__ns:={ros.namespace}'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        # The node subscribes once its robot is loaded; its first check may compile kernels.
+        assert ros.spin_until(
+            lambda: ros.probe.count_subscribers(f'{ros.namespace}/joint_states') > 0, 60.0), \
+            'the node process never subscribed to joint_states'
+        probe = Probe(ros)
+        assert probe.send(joint_state(poses['hit'], stamp=stamp_of(1)), timeout=60.0)[0]
+        assert pairs_of(probe.pairs.last) == poses['hit_pairs']
+        assert probe.pairs.last.header.stamp == stamp_of(1)
+        assert probe.send(joint_state(poses['free'], stamp=stamp_of(2))) == (False, ())
+    finally:
+        process.send_signal(signal.SIGINT)
+        try:
+            output, _ = process.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            output, _ = process.communicate()
+            pytest.fail(f'the node did not stop on SIGINT:\n{output}')
+    assert process.returncode == 0, output
+    assert 'robot loaded from urdf_path' in output
