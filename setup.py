@@ -55,7 +55,6 @@ setup(
     maintainer_email='maintainers@collision-sensor.invalid',
     description='Virtual collision sensor for ROS 2 robots: OBB hierarchies, incremental checks.',
     license='Apache-2.0',
-    tests_require=['pytest'],
     entry_points={
         'console_scripts': [
             'collision_sensor_node = collision_sensor.node:main',
