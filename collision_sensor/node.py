@@ -9,7 +9,7 @@ Topics (relative, so ``-r __ns:=/robot`` moves them):
 =================== ==== =================================== ====================================
 topic               dir  type                                QoS
 =================== ==== =================================== ====================================
-joint_states        in   sensor_msgs/JointState              sensor data, or reliable depth 100
+joint_states        in   sensor_msgs/JointState              sensor data, or reliable keep-all
 robot_description   in   std_msgs/String                     reliable, transient local, depth 1
                                                              (only when ``urdf_path`` is empty)
 contact             out  std_msgs/Bool                       reliable, transient local, depth 1
@@ -61,9 +61,12 @@ from collision_sensor.node_parameters import NodeSettings, declare_node_paramete
 LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
-#: ``joint_states_qos: reliable``: every message checked; 100 messages (0.1 s at 1 kHz) of slack
-#: before a slow moment of the node drops input.
-RELIABLE_INPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+#: ``joint_states_qos: reliable``: every message checked, none dropped. KEEP_ALL, because a
+#: reliable reader acknowledges a message once it is in its history, not once it is taken: with
+#: KEEP_LAST depth N a publisher that waits for acknowledgements (``collision_sensor_play
+#: --as-fast-as-possible``) still overruns the node whenever the node falls N messages behind.
+#: KEEP_ALL makes the writer wait instead (DDS flow control), so replay is lossless.
+RELIABLE_INPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL,
                                 reliability=ReliabilityPolicy.RELIABLE,
                                 durability=DurabilityPolicy.VOLATILE)
 JOINT_STATES_QOS = {'sensor_data': qos_profile_sensor_data, 'reliable': RELIABLE_INPUT_QOS}

@@ -77,7 +77,7 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
                   'on /diagnostics; 0 turns the check off', '>= 0'),
     ParameterSpec('joint_states_qos', 'sensor_data',
                   'QoS of the joint_states subscription: "sensor_data" (best effort, depth 5) '
-                  'or "reliable" (reliable, depth 100: every message is checked)',
+                  'or "reliable" (reliable, keep all: every message is checked)',
                   ' | '.join(JOINT_STATES_QOS)),
     ParameterSpec('publish_markers', False,
                   'publish the boxes of colliding links on ~/markers '

@@ -1,0 +1,89 @@
+"""``collision_sensor_demo`` (``make demo``) as a user runs it: a subprocess from its console
+script, which starts ``collision_sensor_node`` as a process of its own, in a random domain over
+shared memory. Its summary must agree with ``collision_sensor_check`` on the same sequence.
+"""
+import json
+import os
+import random
+import re
+import subprocess
+import sys
+
+import pytest
+
+from collision_sensor import offline_check
+
+pytest.importorskip('rclpy')
+
+DEMO = os.path.join(os.path.dirname(sys.executable), 'collision_sensor_demo')
+
+
+def run_demo(*args, timeout=300):
+    env = dict(os.environ, FASTDDS_BUILTIN_TRANSPORTS='SHM',
+               ROS_DOMAIN_ID=str(random.SystemRandom().randint(1, 100)))
+    return subprocess.run([DEMO, *args], capture_output=True, text=True, env=env,
+                          timeout=timeout)
+
+
+def offline(name, tmp_path, capsys):
+    """Return the frames and pair spans ``collision_sensor_check NAME --json`` reports."""
+    path = tmp_path / f'{name}.jsonl'
+    offline_check.main([name, '--json', str(path), '--progress', 'never'])
+    capsys.readouterr()
+    frames = [json.loads(line) for line in path.read_text().splitlines()]
+    results = [offline_check.FrameResult(f['index'], f['time'], f['in_collision'],
+                                         tuple(tuple(p) for p in f['pairs']), 0.0)
+               for f in frames]
+    return frames, offline_check.pair_spans(results)
+
+
+def test_make_demo_reports_the_contacts_of_the_offline_check(tmp_path, capsys):
+    run = run_demo()    # what `make demo` runs: the paper's experiment at its recorded timing
+    assert run.returncode == 0, run.stdout + run.stderr
+    out = run.stdout
+    frames, spans = offline('paper_experiment', tmp_path, capsys)
+    n, hits = len(frames), sum(f['in_collision'] for f in frames)
+
+    assert 'robot loaded from urdf_path' in out    # the node's own log line, echoed
+    # Contacts as they happen: each pair enters (+) as often as it leaves (-), first at its
+    # first frame.
+    changes = re.findall(r'^\s+(\d+\.\d+) s\s+(?:CONTACT|clear)?\s*([+-]) (\S+) -- (\S+)$',
+                         out, re.MULTILINE)
+    assert changes, out
+    for span in spans:
+        entered = [float(t) for t, sign, a, b in changes if sign == '+' and (a, b) == span.pair]
+        left = [t for t, sign, a, b in changes if sign == '-' and (a, b) == span.pair]
+        assert entered and len(entered) == len(left), span.pair
+        assert entered[0] == pytest.approx(span.first - frames[0]['time'], abs=1e-3)
+    # The summary.
+    assert f'frames:              {n} played' in out and f'{n} verdicts' in out
+    assert re.search(rf'frames in collision: {hits} of {n}\b', out), out
+    for span in spans:
+        name = f'{span.pair[0]} -- {span.pair[1]}'
+        assert re.search(rf'{re.escape(name)}\s+first\s+{span.first - frames[0]["time"]:.3f} s'
+                         rf'\s+last\s+{span.last - frames[0]["time"]:.3f} s\s+{span.frames} '
+                         'frames', out), name
+    assert re.search(r'node check time \(/diagnostics\): mean \d+\.\d+ ms', out), out
+    assert 'result: COLLISION' in out
+
+
+def test_a_clear_sequence_played_as_fast_as_possible(tmp_path, capsys):
+    run = run_demo('--sequence', 'into_drum_clear', '--as-fast-as-possible')
+    assert run.returncode == 0, run.stdout + run.stderr
+    frames, _ = offline('into_drum_clear', tmp_path, capsys)
+    assert f'frames in collision: 0 of {len(frames)}' in run.stdout
+    assert 'pairs in contact:    none' in run.stdout and 'result: clear' in run.stdout
+
+
+def test_a_node_that_does_not_come_up_in_time_is_a_clear_error():
+    run = run_demo('--timeout', '0.01')
+    assert run.returncode == 1, run.stdout + run.stderr
+    assert re.search(r'collision_sensor_demo: error: collision_sensor_node did not subscribe '
+                     r'to /collision_sensor_demo/joint_states within 0\.01 s', run.stderr)
+
+
+def test_a_bad_sequence_fails_before_ros_starts(tmp_path):
+    run = run_demo('--sequence', str(tmp_path / 'missing.csv'))
+    assert run.returncode == 2
+    assert run.stderr.startswith('collision_sensor_demo: error: ') and 'missing.csv' in run.stderr
+    assert 'starting collision_sensor_node' not in run.stdout
