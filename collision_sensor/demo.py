@@ -431,10 +431,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if args.rate is not None and not args.rate > 0.0:
         return _error(f'--rate {args.rate}: must be a positive number of frames per second', 2)
 
-    from collision_sensor.offline_check import _sequence_path
+    from collision_sensor.offline_check import bundled_sequence_path
     from collision_sensor.sequences import read_sequence
     try:
-        seq = read_sequence(_sequence_path(args.sequence))
+        seq = read_sequence(bundled_sequence_path(args.sequence))
     except CollisionSensorError as err:
         return _error(str(err), 2)
     if len(seq) == 0:

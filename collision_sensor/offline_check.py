@@ -221,7 +221,7 @@ def _load_config(path: Optional[str]):
     return config
 
 
-def _sequence_path(value: str) -> str:
+def bundled_sequence_path(value: str) -> str:
     """Return ``value``, or the bundled sequence it names (``paper_experiment``, ...)."""
     if os.path.exists(value) or os.sep in value:
         return value
@@ -282,7 +282,7 @@ def _run(args) -> int:
         scene = None
     checker = CollisionChecker.from_urdf(urdf, srdf=srdf, package_paths=package_paths or None,
                                          scene=scene, config=_load_config(args.config))
-    seq = read_sequence(_sequence_path(args.sequence), topic=args.topic,
+    seq = read_sequence(bundled_sequence_path(args.sequence), topic=args.topic,
                         joint_names=checker.joint_names)
 
     label = os.path.basename(os.path.normpath(seq.source))

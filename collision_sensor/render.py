@@ -207,7 +207,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     os.makedirs(out, exist_ok=True)
     try:
         checker = demo_checker()
-        seq = read_sequence(offline_check._sequence_path(args.sequence),
+        seq = read_sequence(offline_check.bundled_sequence_path(args.sequence),
                             joint_names=checker.joint_names)
     except CollisionSensorError as err:
         print(f'{PROG}: error: {err}', file=sys.stderr)

@@ -86,7 +86,7 @@ def test_node_verdicts_equal_the_offline_check(ros, tmp_path, capsys, name):
     assert ros.spin_until(lambda: ros.probe.count_subscribers(
         f'{ros.namespace}/joint_states') > 0, 60.0), 'the node never subscribed'
 
-    play = PlayerThread([offline_check._sequence_path(name), '--as-fast-as-possible',
+    play = PlayerThread([offline_check.bundled_sequence_path(name), '--as-fast-as-possible',
                          '--stamp', 'recorded', '--progress', 'never',
                          '--ros-args', '-r', f'__ns:={ros.namespace}'])
     try:
