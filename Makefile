@@ -14,7 +14,7 @@ export ROS_DOMAIN_ID ?= 42
 
 $(STAMP): setup.py setup.cfg package.xml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip setuptools wheel
+	$(BIN)/python -m pip install --quiet --upgrade pip wheel
 	$(BIN)/python -m pip install --quiet -e '.[ros,test]'
 	touch $(STAMP)
 

@@ -48,6 +48,8 @@ setup(
             'python-fcl>=0.7',
             'pin>=3.0',
             'example-robot-data>=4.0',
+            'colcon-core>=0.21',
+            'colcon-ros>=0.5',
         ],
     },
     zip_safe=False,

@@ -1,0 +1,309 @@
+"""Packaging: what importing the package loads, what the wheel holds, and that a real pip
+install and a real colcon build each find their data from outside the source tree.
+
+Every install is made from a copy of the files a release ships (``SHIPPED``) in tmp_path, so
+no test writes ``build/`` or ``*.egg-info`` into the shared checkout.
+
+The runs of ``collision_sensor_check`` from an install set ``NUMBA_DISABLE_JIT=1``: a fresh
+install has an empty numba cache, and compiling the kernels cold costs about a minute on this
+2-core machine, once per install. What these tests prove is where the files land and that the
+installed tool finds them; the compiled kernels are tested from the source tree.
+"""
+import ast
+import configparser
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import sysconfig
+import zipfile
+
+import pytest
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+PACKAGE = 'collision_sensor'
+# What a release ships: everything setup.py reads, and nothing else of the checkout.
+SHIPPED = ('package.xml', 'setup.py', 'setup.cfg', 'resource', 'collision_sensor', 'config',
+           'meshes', 'LICENSE', 'README.md')
+CONSOLE_SCRIPTS = ('collision_sensor_node', 'collision_sensor_play', 'collision_sensor_check',
+                   'collision_sensor_bench', 'collision_sensor_acm', 'collision_sensor_demo')
+ROS_FREE_MODULES = ('collision_sensor', 'collision_sensor.checker', 'collision_sensor.sequences',
+                    'collision_sensor.acm', 'collision_sensor.offline_check',
+                    'collision_sensor.demo')
+AMENT_MARKER = 'share/ament_index/resource_index/packages/' + PACKAGE
+PY = f'python{sys.version_info.major}.{sys.version_info.minor}'
+# Prints where the package and its data were found; run from outside the checkout.
+WHERE = ('import collision_sensor, collision_sensor.share as s\n'
+         'print(collision_sensor.__file__)\n'
+         'print(s.share_directory())\n')
+TIMEOUT = 240
+
+
+def clean_env(**extra):
+    """Return the environment minus anything that could point at this checkout or a ROS
+    workspace (PYTHONPATH, AMENT_PREFIX_PATH, COLCON_*), plus ``extra``."""
+    env = {key: value for key, value in os.environ.items()
+           if key not in ('PYTHONPATH', 'PYTHONHOME', 'AMENT_PREFIX_PATH', 'CMAKE_PREFIX_PATH')
+           and not key.startswith('COLCON_')}
+    env['PYTHONNOUSERSITE'] = '1'
+    env.update(extra)
+    return env
+
+
+def run(argv, cwd, env, expect=0):
+    """Run ``argv``; fail with its output unless it exits with ``expect``."""
+    proc = subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True,
+                          timeout=TIMEOUT)
+    assert proc.returncode == expect, (
+        f'{argv} exited {proc.returncode}, expected {expect}\n'
+        f'--- stdout\n{proc.stdout}\n--- stderr\n{proc.stderr}')
+    return proc
+
+
+def copy_shipped(destination):
+    """Copy the shipped files of the checkout to ``destination``; return it."""
+    junk = shutil.ignore_patterns('__pycache__', '*.pyc', '*.nbi', '*.nbc')
+    os.makedirs(destination)
+    for name in SHIPPED:
+        source = os.path.join(REPO, name)
+        if os.path.isdir(source):
+            shutil.copytree(source, os.path.join(destination, name), ignore=junk)
+        else:
+            shutil.copy2(source, destination)
+    return str(destination)
+
+
+def same_path(a, b):
+    return os.path.realpath(a) == os.path.realpath(b)
+
+
+def check_summary(proc, share):
+    """Assert that ``collision_sensor_check paper_experiment`` read the bundled sequence from
+    ``share`` and found the paper's collisions."""
+    out = proc.stdout
+    sequence = re.search(r'^sequence:\s+(\S+)', out, re.M)
+    assert sequence, out
+    assert same_path(sequence.group(1),
+                     os.path.join(share, 'config', 'sequences', 'paper_experiment.csv')), out
+    assert re.search(r'^frames in collision: [1-9]\d* of \d+', out, re.M), out
+    assert 'result: COLLISION' in out, out
+
+
+# --- 1. importing the package stays free of ROS ---------------------------------------------
+
+PROBE = '''
+import importlib, json, sys
+importlib.import_module(sys.argv[1])
+roots = {name.partition('.')[0] for name in sys.modules}
+print(json.dumps(sorted(r for r in roots if r == 'rclpy' or r.startswith('rclpy')
+                        or r.endswith(('_msgs', '_srvs', '_interfaces')))))
+'''
+
+
+def ros_modules_loaded_by(module):
+    """Return the ROS top-level modules (rclpy, *_msgs, *_srvs, *_interfaces) in
+    ``sys.modules`` after importing ``module`` in a fresh interpreter."""
+    proc = run([sys.executable, '-c', PROBE, module], cwd=REPO, env=clean_env())
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.parametrize('module', ROS_FREE_MODULES)
+def test_import_loads_no_ros(module):
+    assert ros_modules_loaded_by(module) == []
+
+
+def test_import_probe_sees_ros_when_it_is_loaded():
+    # The control: the node does import rclpy and message packages, and the probe says so.
+    loaded = ros_modules_loaded_by('collision_sensor.node')
+    assert 'rclpy' in loaded
+    assert 'sensor_msgs' in loaded
+
+
+# --- 2. the wheel --------------------------------------------------------------------------
+
+@pytest.fixture(scope='module')
+def wheel(tmp_path_factory):
+    """Build the wheel from a copy of the shipped files; return its path.
+
+    ``--no-build-isolation`` builds with this venv's setuptools, so the test needs no network.
+    """
+    root = tmp_path_factory.mktemp('wheel')
+    source = copy_shipped(root / 'src')
+    run([sys.executable, '-m', 'pip', 'wheel', '--no-deps', '--no-build-isolation',
+         '--no-index', '-q', '-w', str(root / 'dist'), source], cwd=str(root), env=clean_env())
+    wheels = os.listdir(root / 'dist')
+    assert len(wheels) == 1 and wheels[0].endswith('.whl'), wheels
+    return str(root / 'dist' / wheels[0])
+
+
+def test_wheel_holds_the_package_the_data_and_the_ament_marker(wheel):
+    with zipfile.ZipFile(wheel) as archive:
+        names = set(archive.namelist())
+    data = {m.group(1) for m in map(re.compile(r'^[^/]+\.data/data/(.+)$').match, names) if m}
+    share = f'share/{PACKAGE}/'
+    for path in ('package.xml', 'config/collision_sensor.yaml', 'config/demo_arm.urdf',
+                 'config/demo_arm.srdf', 'config/demo_scene.yaml',
+                 'config/sequences/paper_experiment.csv'):
+        assert share + path in data, path
+    assert AMENT_MARKER in data
+    # Every module of the package, subpackages included (find_packages skips a folder that
+    # lost its __init__.py).
+    for directory, folders, files in os.walk(os.path.join(REPO, PACKAGE)):
+        folders[:] = [folder for folder in folders if folder != '__pycache__']
+        for name in files:
+            if name.endswith('.py'):
+                path = os.path.relpath(os.path.join(directory, name), REPO)
+                assert path.replace(os.sep, '/') in names, path
+    # Every mesh the demo cell refers to, from the URDF (package://) and the scene (relative).
+    with open(os.path.join(REPO, 'config', 'demo_arm.urdf')) as stream:
+        meshes = re.findall(r'package://collision_sensor/(meshes/[^"]+)', stream.read())
+    with open(os.path.join(REPO, 'config', 'demo_scene.yaml')) as stream:
+        meshes += re.findall(r'\.\./(meshes/[^\s,}]+)', stream.read())
+    meshes = sorted(set(meshes))
+    assert len(meshes) >= 10, meshes
+    assert all(mesh.startswith('meshes/demo_cell/') and mesh.endswith('.stl') for mesh in meshes)
+    assert [mesh for mesh in meshes if share + mesh not in data] == []
+
+
+def test_wheel_has_an_entry_point_for_every_console_script(wheel):
+    with zipfile.ZipFile(wheel) as archive:
+        info = [n for n in archive.namelist() if n.endswith('.dist-info/entry_points.txt')]
+        assert len(info) == 1
+        entry_points = configparser.ConfigParser()
+        entry_points.read_string(archive.read(info[0]).decode())
+        scripts = dict(entry_points['console_scripts'])
+        assert sorted(scripts) == sorted(CONSOLE_SCRIPTS)
+        for name, target in scripts.items():
+            # Each target names a module of the wheel that defines the function.
+            module, _, function = target.strip().partition(':')
+            source = archive.read(module.replace('.', '/') + '.py').decode()
+            defined = {node.name for node in ast.parse(source).body
+                       if isinstance(node, ast.FunctionDef)}
+            assert function in defined, f'{name} = {target}'
+
+
+# --- 3. a real pip install -----------------------------------------------------------------
+
+@pytest.fixture(scope='module')
+def pip_venv(wheel, tmp_path_factory):
+    """A venv with the wheel installed (not editable); return its prefix.
+
+    The venv is plain (``--without-pip``; this venv's pip installs into it through
+    ``--python``). Our dependencies come from one ``.pth`` line naming this venv's
+    site-packages: a bare path line only appends that directory to ``sys.path``, so its own
+    ``.pth`` hooks, among them the editable finder that maps ``collision_sensor`` to this
+    checkout, do not run, and the wheel's copy is the only ``collision_sensor`` there is.
+    (``--system-site-packages`` would not do: it shares the base interpreter's site-packages,
+    not this venv's.)
+    """
+    prefix = str(tmp_path_factory.mktemp('pip') / 'venv')
+    run([sys.executable, '-m', 'venv', '--without-pip', prefix], cwd=REPO, env=clean_env())
+    python = os.path.join(prefix, 'bin', 'python')
+    purelib = run([python, '-c', 'import sysconfig; print(sysconfig.get_paths()["purelib"])'],
+                  cwd=prefix, env=clean_env()).stdout.strip()
+    with open(os.path.join(purelib, '_collision_sensor_test_deps.pth'), 'w') as stream:
+        stream.write(sysconfig.get_paths()['purelib'] + '\n')
+    run([sys.executable, '-m', 'pip', '--python', python, 'install', '--no-deps', '--no-index',
+         '--no-compile', '-q', wheel], cwd=prefix, env=clean_env())
+    return prefix
+
+
+def test_pip_install_finds_its_data_under_the_prefix(pip_venv, tmp_path):
+    proc = run([os.path.join(pip_venv, 'bin', 'python'), '-c', WHERE], cwd=str(tmp_path),
+               env=clean_env())
+    module, share = proc.stdout.split()
+    assert module.startswith(os.path.join(pip_venv, 'lib')), module  # the wheel's copy
+    assert same_path(share, os.path.join(pip_venv, 'share', PACKAGE))
+
+
+def test_pip_installed_check_finds_the_paper_collisions(pip_venv, tmp_path):
+    for name in CONSOLE_SCRIPTS:
+        assert os.access(os.path.join(pip_venv, 'bin', name), os.X_OK), name
+    proc = run([os.path.join(pip_venv, 'bin', 'collision_sensor_check'), 'paper_experiment'],
+               cwd=str(tmp_path), env=clean_env(NUMBA_DISABLE_JIT='1'), expect=1)
+    check_summary(proc, os.path.join(pip_venv, 'share', PACKAGE))
+
+
+# --- 4. a real colcon build ----------------------------------------------------------------
+
+def colcon_command():
+    """Return the colcon executable of this interpreter's environment, or None."""
+    import importlib.util
+    if importlib.util.find_spec('colcon_core') is None:
+        return None
+    if importlib.util.find_spec('colcon_ros') is None:  # the ament_python build type
+        return None
+    candidate = os.path.join(os.path.dirname(sys.executable), 'colcon')
+    return candidate if os.access(candidate, os.X_OK) else shutil.which('colcon')
+
+
+@pytest.fixture(scope='module')
+def colcon_install(tmp_path_factory):
+    """``colcon build`` of a workspace holding a copy of the package; return the package's
+    install prefix (``install/collision_sensor``, colcon's isolated layout)."""
+    colcon = colcon_command()
+    if colcon is None:
+        pytest.skip('colcon-core and colcon-ros are not installed in this environment '
+                    '(pip install -e ".[test]" brings them)')
+    workspace = tmp_path_factory.mktemp('colcon')
+    copy_shipped(workspace / 'src' / PACKAGE)
+    # COLCON_HOME in the workspace: no user defaults (e.g. --symlink-install) leak in.
+    env = clean_env(COLCON_HOME=str(workspace / 'colcon_home'))
+    # --base-paths keeps discovery to the workspace, so the one package found is ours
+    # (--packages-select would need the colcon-package-selection extension).
+    proc = run([colcon, '--log-base', str(workspace / 'log'), 'build',
+                '--base-paths', str(workspace / 'src'),
+                '--build-base', str(workspace / 'build'),
+                '--install-base', str(workspace / 'install'),
+                '--event-handlers', 'console_direct+'], cwd=str(workspace), env=env)
+    assert f'Finished <<< {PACKAGE}' in proc.stdout, proc.stdout
+    with open(workspace / 'log' / 'latest_build' / 'logger_all.log') as stream:
+        assert f"with type 'ros.ament_python' and name '{PACKAGE}'" in stream.read()
+    return str(workspace / 'install' / PACKAGE)
+
+
+def colcon_env(install, **extra):
+    """What ``source install/setup.bash`` sets for this package: its prefix on
+    AMENT_PREFIX_PATH and its site-packages on PYTHONPATH."""
+    return clean_env(AMENT_PREFIX_PATH=install,
+                     PYTHONPATH=os.path.join(install, 'lib', PY, 'site-packages'), **extra)
+
+
+def test_colcon_install_has_what_ros2_run_and_the_ament_index_need(colcon_install):
+    # `ros2 run collision_sensor NAME` runs <prefix>/lib/collision_sensor/NAME.
+    for name in CONSOLE_SCRIPTS:
+        path = os.path.join(colcon_install, 'lib', PACKAGE, name)
+        assert os.path.isfile(path) and os.access(path, os.X_OK), path
+    share = os.path.join(colcon_install, 'share', PACKAGE)
+    for path in ('package.xml', 'config/collision_sensor.yaml', 'config/demo_arm.urdf',
+                 'meshes/demo_cell/washer_drum.stl'):
+        assert os.path.isfile(os.path.join(share, path)), path
+    assert os.path.isfile(os.path.join(colcon_install, AMENT_MARKER))
+    assert os.path.isfile(os.path.join(colcon_install, 'lib', PY, 'site-packages', PACKAGE,
+                                       'share.py'))
+
+
+def test_colcon_install_finds_its_data_through_the_ament_index(colcon_install, tmp_path):
+    python = sys.executable  # the interpreter colcon wrote into the scripts' shebang
+    share = os.path.join(colcon_install, 'share', PACKAGE)
+    proc = run([python, '-c', WHERE], cwd=str(tmp_path), env=colcon_env(colcon_install))
+    module, found = proc.stdout.split()
+    assert module.startswith(colcon_install), module  # the install's copy, not this checkout
+    assert same_path(found, share)
+    # The control: without the ament index entry the install's data is not found.
+    env = colcon_env(colcon_install)
+    del env['AMENT_PREFIX_PATH']
+    proc = subprocess.run([python, '-c', WHERE], cwd=str(tmp_path), env=env,
+                          capture_output=True, text=True, timeout=TIMEOUT)
+    assert share not in proc.stdout
+    if proc.returncode:  # nothing found at all, rather than another copy of the data
+        assert 'FileNotFoundError' in proc.stderr, proc.stderr
+
+
+def test_colcon_installed_check_finds_the_paper_collisions(colcon_install, tmp_path):
+    proc = run([os.path.join(colcon_install, 'lib', PACKAGE, 'collision_sensor_check'),
+                'paper_experiment'], cwd=str(tmp_path),
+               env=colcon_env(colcon_install, NUMBA_DISABLE_JIT='1'), expect=1)
+    check_summary(proc, os.path.join(colcon_install, 'share', PACKAGE))
