@@ -49,6 +49,7 @@ import numpy as np
 from collision_sensor.errors import CollisionSensorError, ConfigError
 from collision_sensor.exception_list import adjacent_pairs, sorted_pair
 from collision_sensor.progress import MODES, ProgressBar
+from collision_sensor.mesh_loading import parse_package_paths
 
 PROG = 'collision_sensor_acm'
 EXIT_OK, EXIT_ERROR = 0, 2
@@ -525,17 +526,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _package_paths(values: Sequence[str]) -> Dict[str, str]:
-    paths = {}
-    for value in values:
-        name, sep, directory = value.partition('=')
-        if not sep or not name or not directory:
-            raise ConfigError(f'--package-path "{value}": expected NAME=DIR, e.g. '
-                              'my_robot=~/ws/src/my_robot')
-        paths[name] = os.path.expanduser(directory)
-    return paths
-
-
 def _write(path: str, data: bytes) -> None:
     try:
         with open(path, 'wb') as stream:
@@ -558,7 +548,7 @@ def _run(args, argv: Sequence[str], start: float) -> int:
     if not os.path.isfile(args.urdf):
         raise ConfigError(f'URDF "{args.urdf}" not found; give the path of the robot\'s URDF '
                           'file (xacro expanded)')
-    base = CollisionChecker.from_urdf(args.urdf, package_paths=_package_paths(args.package_path)
+    base = CollisionChecker.from_urdf(args.urdf, package_paths=parse_package_paths(args.package_path)
                                       or None, config={'ignore_adjacent': False})
     srdf = original = None
     if args.srdf:

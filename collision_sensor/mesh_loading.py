@@ -40,6 +40,7 @@ import functools
 import os
 import re
 import urllib.parse
+from typing import Dict, Sequence
 
 import numpy as np
 
@@ -47,6 +48,30 @@ from collision_sensor.errors import ConfigError, MeshError
 
 #: File types read by :func:`load_mesh_file` (through trimesh; DAE through pycollada).
 MESH_EXTENSIONS = ('.stl', '.obj', '.ply', '.dae')
+
+
+def parse_package_paths(entries: Sequence[str], what: str = '--package-path') -> Dict[str, str]:
+    """Turn ``"name=dir"`` strings into the ``{package: directory}`` mapping loaders take.
+
+    :param entries: the strings, as a command line or a node parameter gives them.
+    :param what: the option or parameter, for messages.
+    :raises ConfigError: on a malformed entry, a package given twice, or a missing directory.
+    """
+    packages = {}
+    for entry in entries:
+        name, separator, directory = entry.partition('=')
+        name, directory = name.strip(), os.path.expanduser(directory.strip())
+        if not separator or not name or not directory:
+            raise ConfigError(f'{what} "{entry}": expected NAME=DIR (name=dir), e.g. '
+                              '"example-robot-data=/opt/erd/share/example-robot-data"')
+        if name in packages:
+            raise ConfigError(f'{what}: package "{name}" is given twice; keep one entry per '
+                              'package')
+        if not os.path.isdir(directory):
+            raise ConfigError(f'{what}: directory "{directory}" of package "{name}" not found; '
+                              'give an existing directory')
+        packages[name] = directory
+    return packages
 
 
 def resolve_mesh_uri(uri: str, package_paths=None, base_dir=None, *, owner: str = 'mesh',

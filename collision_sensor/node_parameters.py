@@ -23,6 +23,7 @@ from typing import Any, Dict, List, Mapping, Optional, Tuple
 from collision_sensor.checker_config import BOX_TESTS, OBB_FITS, CheckerConfig
 from collision_sensor.errors import ConfigError
 from collision_sensor.traversal import EXPANSION_RULES
+from collision_sensor.mesh_loading import parse_package_paths
 
 #: Accepted values of ``joint_states_qos``.
 JOINT_STATES_QOS = ('sensor_data', 'reliable')
@@ -130,24 +131,6 @@ def _existing_file(values, name) -> Optional[str]:
     return path
 
 
-def _parse_package_paths(entries: List[str]) -> Dict[str, str]:
-    packages = {}
-    for entry in entries:
-        name, separator, directory = entry.partition('=')
-        name, directory = name.strip(), os.path.expanduser(directory.strip())
-        if not separator or not name or not directory:
-            raise ConfigError(f'parameter package_paths: entry "{entry}" is not "name=dir"; '
-                              'write e.g. "example-robot-data=/opt/erd/share/example-robot-data"')
-        if name in packages:
-            raise ConfigError(f'parameter package_paths: package "{name}" is given twice; '
-                              'keep one entry per package')
-        if not os.path.isdir(directory):
-            raise ConfigError(f'parameter package_paths: directory "{directory}" of package '
-                              f'"{name}" not found; give an existing directory')
-        packages[name] = directory
-    return packages
-
-
 def _parse_allowed_collisions(entries: List[str]) -> List[str]:
     pairs = []
     for entry in entries:
@@ -214,7 +197,7 @@ def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
     return NodeSettings(
         urdf_path=_existing_file(merged, 'urdf_path'),
         srdf_path=_existing_file(merged, 'srdf_path'),
-        package_paths=_parse_package_paths(merged['package_paths']),
+        package_paths=parse_package_paths(merged['package_paths'], 'parameter package_paths'),
         scene_path=_existing_file(merged, 'scene_path'),
         checker_config=checker_config,
         require_all_joints=bool(merged['require_all_joints']),

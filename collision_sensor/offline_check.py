@@ -23,6 +23,7 @@ import numpy as np
 from collision_sensor.errors import CollisionSensorError, ConfigError
 from collision_sensor.progress import MODES, ProgressBar
 from collision_sensor.sequences import DEFAULT_TOPIC, JointSequence, read_sequence
+from collision_sensor.mesh_loading import parse_package_paths
 
 PROG = 'collision_sensor_check'
 EXIT_CLEAR, EXIT_COLLISION, EXIT_ERROR = 0, 1, 2
@@ -191,17 +192,6 @@ def plot_timeline(results: Sequence[FrameResult], seq: JointSequence, path: str)
         plt.close(fig)
 
 
-def _package_paths(values: Sequence[str]) -> Dict[str, str]:
-    paths = {}
-    for value in values:
-        name, sep, directory = value.partition('=')
-        if not sep or not name or not directory:
-            raise ConfigError(f'--package-path "{value}": expected NAME=DIR, e.g. '
-                              'my_robot=~/ws/src/my_robot')
-        paths[name] = os.path.expanduser(directory)
-    return paths
-
-
 def _load_config(path: Optional[str]):
     if path is None:
         return None
@@ -272,7 +262,7 @@ def _run(args) -> int:
     from collision_sensor import CollisionChecker
     from collision_sensor.share import config_path
 
-    package_paths = _package_paths(args.package_path)
+    package_paths = parse_package_paths(args.package_path)
     if args.urdf is None:
         urdf, srdf = config_path('demo_arm.urdf'), args.srdf or config_path('demo_arm.srdf')
         scene = args.scene or config_path('demo_scene.yaml')
