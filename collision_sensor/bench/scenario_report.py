@@ -1,0 +1,63 @@
+"""The benchmark's output: sections of markdown, targets with a PASS/MISS verdict each."""
+import math
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Sequence
+
+
+@dataclass
+class Verdict:
+    """A target and how this run did against it; ``passed`` None when it cannot be judged."""
+
+    target: str
+    measured: str
+    passed: Optional[bool]
+
+    @property
+    def word(self) -> str:
+        return {True: 'PASS', False: 'MISS', None: 'n/a'}[self.passed]
+
+
+@dataclass
+class Section:
+    """One scenario's output: markdown lines, verdicts, and data for the plot."""
+
+    number: int
+    title: str
+    lines: List[str] = field(default_factory=list)
+    verdicts: List[Verdict] = field(default_factory=list)
+    plot: Dict[str, object] = field(default_factory=dict)
+
+    def text(self, *lines: str) -> None:
+        self.lines.extend(lines)
+
+    def table(self, header: Sequence[str], rows: Sequence[Sequence[object]]) -> None:
+        """Append a markdown table (a blank line before and after)."""
+        self.lines.append('')
+        self.lines.append('| ' + ' | '.join(header) + ' |')
+        self.lines.append('|' + '---|' * len(header))
+        for row in rows:
+            self.lines.append('| ' + ' | '.join(str(cell) for cell in row) + ' |')
+        self.lines.append('')
+
+    def judge(self, target: str, measured: str, passed: Optional[bool]) -> Verdict:
+        verdict = Verdict(target, measured, passed)
+        self.verdicts.append(verdict)
+        return verdict
+
+
+def us(value: Optional[float]) -> str:
+    """Format microseconds with sensible precision."""
+    if value is None or not math.isfinite(value):
+        return '-'
+    if value >= 100:
+        return f'{value:.0f}'
+    if value >= 10:
+        return f'{value:.1f}'
+    return f'{value:.2f}'
+
+
+def ratio(ours: Optional[float], theirs: Optional[float]) -> str:
+    """Format ours / theirs as ``0.42x``."""
+    if ours is None or theirs is None or not theirs > 0:
+        return '-'
+    return f'{ours / theirs:.2f}x'

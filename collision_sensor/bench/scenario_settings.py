@@ -1,0 +1,38 @@
+"""How much the benchmark measures: the default run, and ``--quick`` for a smoke run."""
+from dataclasses import dataclass
+from typing import Tuple
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Counts of one benchmark run.
+
+    :ivar configurations: random configurations per robot (scenarios 1 and 5).
+    :ivar stream_steps: steps per coherent stream (scenario 2).
+    :ivar scale_configurations: configurations per terrain size (scenario 4).
+    :ivar terrain_triangles: the terrain sizes of scenario 4, ascending.
+    :ivar rounds: interleaved timing passes; each figure is the best of them.
+    :ivar box_pairs, box_repeat: box-test pairs per set and loops over them (scenario 5).
+    :ivar fits: the bounding-volume fits compared in scenario 5.
+    """
+
+    seed: int = 1998
+    quick: bool = False
+    configurations: int = 2000
+    stream_steps: int = 2000
+    scale_configurations: int = 1000
+    terrain_triangles: Tuple[int, ...] = (10_000, 100_000, 1_000_000)
+    rounds: int = 5
+    box_pairs: int = 100_000
+    box_repeat: int = 10
+    fits: Tuple[str, ...] = ('pca', 'hull_pca', 'min_volume')
+
+    @classmethod
+    def for_run(cls, quick: bool, seed: int) -> 'Settings':
+        """Return the default counts, or the small ones of ``--quick``."""
+        if not quick:
+            return cls(seed=seed)
+        # min_volume is left out of the smoke run: its Panda build alone takes ~15 s.
+        return cls(seed=seed, quick=True, configurations=60, stream_steps=60,
+                   scale_configurations=20, terrain_triangles=(1_000, 3_000, 10_000), rounds=2,
+                   box_pairs=2_000, box_repeat=2, fits=('pca', 'hull_pca'))

@@ -1,0 +1,86 @@
+"""Scenario 2: coherent streams where one, three or all joints move per step.
+
+The streams come from :func:`collision_sensor.bench.engine.stream` (random joints step by
+N(0, 0.02) each step). ``update`` (incremental, paper sec. 4.2) is timed against ``check`` on
+the same steps, and against the peers, which have no incremental mode and check every step in
+full. Before timing, ``update``'s answers are compared with ``check``'s on every step.
+"""
+from collision_sensor.bench.engine import stream
+from collision_sensor.bench.scenario_measure import Candidate, interleaved_us
+from collision_sensor.bench.scenario_peers import FclCell, optional_peer, pinocchio_peer
+from collision_sensor.bench.scenario_report import Section, ratio, us
+
+TITLE = 'Scenario 2: coherent streams, update against check and the peers'
+TARGET_RATIO = 0.2          # one joint moving: update <= 0.2x check
+
+
+def run(settings, cells) -> Section:
+    """Measure every cell; return the section (target: one joint, update <= 0.2x check)."""
+    section = Section(2, TITLE)
+    section.text(
+        f'{settings.stream_steps} steps per stream; each step moves 1, 3 or all joints '
+        '(chosen at random) by N(0, 0.02) rad or m (not clipped to the limits), or none (the '
+        'same q again: what a call costs when nothing is re-checked). Time per step, best of '
+        f'{settings.rounds} interleaved passes; `update` starts each pass from a full check of '
+        'the first step (untimed). Peers check every step in full (pinocchio+coal with its own '
+        'FK; python-fcl placed with our poses, FK not counted).')
+    plot = {}
+    for cell in cells:
+        checker = cell.checker()
+        pin, pin_missing = optional_peer(pinocchio_peer, cell, checker)
+        fcl_cell, fcl_missing = optional_peer(FclCell, checker, cell.scene)
+        rows = []
+        n_joints = len(checker.joint_names)
+        for moving in sorted({0, 1, 3, n_joints}):
+            rows.append(_measure(checker, pin, fcl_cell, moving, settings, section, cell.name,
+                                 pin_missing, fcl_missing, plot))
+        section.text('', f'#### {cell.name} ({n_joints} joints)')
+        section.table(['joints moving', '`update` us', '`check` us', 'update / check',
+                       'pinocchio+coal us', 'python-fcl us', 'update / pinocchio',
+                       'update / fcl', 'pairs re-checked / step', 'update == check'], rows)
+    section.plot['streams'] = plot
+    return section
+
+
+def _measure(checker, pin, fcl_cell, moving, settings, section, name, pin_missing,
+             fcl_missing, plot):
+    frames = stream(checker, settings.stream_steps, moving, settings.seed)
+    expected, poses = [], []
+    for q in frames:
+        expected.append(checker.check(q).colliding_pairs)
+        poses.append(checker.link_poses())
+    checker.check(frames[0])
+    mismatches, rechecked = 0, 0
+    for q, want in zip(frames, expected):
+        result = checker.update(q)
+        mismatches += result.colliding_pairs != want
+        rechecked += result.rechecked_pairs
+
+    candidates = [Candidate('update', checker.update, frames,
+                            before=lambda: checker.check(frames[0])),
+                  Candidate('check', checker.check, frames)]
+    if pin is not None:
+        candidates.append(Candidate('pinocchio', pin.check,
+                                    [pin.configuration(checker, q) for q in frames]))
+    if fcl_cell is not None:
+        candidates.append(Candidate('fcl', lambda P: (fcl_cell.place(P), fcl_cell.check()),
+                                    poses))
+    times = interleaved_us(candidates, settings.rounds)
+    update, check = times['update'], times['check']
+    if moving == 1:
+        verdict = section.judge(
+            f'S2 {name}: one joint moving, update <= {TARGET_RATIO}x check',
+            f'{ratio(update, check)} ({us(update)} vs {us(check)} us)',
+            update <= TARGET_RATIO * check)
+        label = f'1 (target <= {TARGET_RATIO}x: **{verdict.word}**)'
+    elif moving == 0:
+        label = '0 (same q every step: the cost of a call)'
+    else:
+        label = str(moving)
+    plot.setdefault(name, {})[moving] = times
+    return [label, us(update), us(check), ratio(update, check),
+            us(times['pinocchio']) if pin is not None else pin_missing,
+            us(times['fcl']) if fcl_cell is not None else fcl_missing,
+            ratio(update, times.get('pinocchio')), ratio(update, times.get('fcl')),
+            f'{rechecked / len(frames):.1f} of {len(checker.checked_pairs)}',
+            'yes' if mismatches == 0 else f'NO: {mismatches} steps differ']
