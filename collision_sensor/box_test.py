@@ -231,13 +231,73 @@ def _edge_axis_separates(ti1, ti2, r_i1j, r_i2j, ha_i1, ha_i2, hb_j1, hb_j2, r_i
 
 
 @numba.njit(cache=True, inline='always')
+def _finite_scalars(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                    t0, t1, t2):
+    # :func:`_finite` over the 18 numbers of a box pair: x * 0 is NaN exactly for NaN or inf.
+    acc = (a0 * 0.0 + b0 * 0.0 + t0 * 0.0) + (r00 * 0.0 + r01 * 0.0 + r02 * 0.0)
+    acc += (a1 * 0.0 + b1 * 0.0 + t1 * 0.0) + (r10 * 0.0 + r11 * 0.0 + r12 * 0.0)
+    acc += (a2 * 0.0 + b2 * 0.0 + t2 * 0.0) + (r20 * 0.0 + r21 * 0.0 + r22 * 0.0)
+    return acc == 0.0
+
+
+@numba.njit(cache=True, inline='always')
+def separated_sat(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                  t0, t1, t2):
+    """Return True iff boxes A and B are separated: the 15-axis test on 18 scalars.
+
+    The arithmetic of :func:`boxes_disjoint_sat` (which is this function applied to
+    ``ha, hb, R, t``), taking the numbers themselves so that compiled callers (the traversal's
+    inner loop) pass registers, not arrays: an array passed to a function, even an inlined
+    one, costs reference-count updates that cost more than this whole test.
+    """
+    tol = BOX_EPS_REL * (a0 + a1 + a2 + b0 + b1 + b2)
+    thr_face = tol * (1.0 + BOX_EPS_PARALLEL)
+    # L = e_k: r_A = ha_k, r_B = sum_j |R[k, j]| hb_j.
+    if ((abs(t0) - ((abs(r00 * b0) + abs(r01 * b1)) + abs(r02 * b2))) - a0 > thr_face
+            or (abs(t1) - ((abs(r10 * b0) + abs(r11 * b1)) + abs(r12 * b2))) - a1 > thr_face
+            or (abs(t2) - ((abs(r20 * b0) + abs(r21 * b1)) + abs(r22 * b2))) - a2 > thr_face):
+        return _finite_scalars(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21,
+                               r22, t0, t1, t2)
+    # L = b_j: t . b_j = (R^T t)_j, r_A = sum_k |R[k, j]| ha_k, r_B = hb_j.
+    if ((abs((r00 * t0 + r10 * t1) + r20 * t2)
+         - ((abs(r00 * a0) + abs(r10 * a1)) + abs(r20 * a2))) - b0 > thr_face
+            or (abs((r01 * t0 + r11 * t1) + r21 * t2)
+                - ((abs(r01 * a0) + abs(r11 * a1)) + abs(r21 * a2))) - b1 > thr_face
+            or (abs((r02 * t0 + r12 * t1) + r22 * t2)
+                - ((abs(r02 * a0) + abs(r12 * a1)) + abs(r22 * a2))) - b2 > thr_face):
+        return _finite_scalars(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21,
+                               r22, t0, t1, t2)
+    # L = e_i x b_j, only where A has edges along e_i (ha[i] > 0).
+    if a0 > 0.0 and (
+            _edge_axis_separates(t1, t2, r10, r20, a1, a2, b1, b2, r01, r02, tol)
+            or _edge_axis_separates(t1, t2, r11, r21, a1, a2, b2, b0, r02, r00, tol)
+            or _edge_axis_separates(t1, t2, r12, r22, a1, a2, b0, b1, r00, r01, tol)):
+        return _finite_scalars(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21,
+                               r22, t0, t1, t2)
+    if a1 > 0.0 and (
+            _edge_axis_separates(t2, t0, r20, r00, a2, a0, b1, b2, r11, r12, tol)
+            or _edge_axis_separates(t2, t0, r21, r01, a2, a0, b2, b0, r12, r10, tol)
+            or _edge_axis_separates(t2, t0, r22, r02, a2, a0, b0, b1, r10, r11, tol)):
+        return _finite_scalars(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21,
+                               r22, t0, t1, t2)
+    if a2 > 0.0 and (
+            _edge_axis_separates(t0, t1, r00, r10, a0, a1, b1, b2, r21, r22, tol)
+            or _edge_axis_separates(t0, t1, r01, r11, a0, a1, b2, b0, r22, r20, tol)
+            or _edge_axis_separates(t0, t1, r02, r12, a0, a1, b0, b1, r20, r21, tol)):
+        return _finite_scalars(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21,
+                               r22, t0, t1, t2)
+    return False
+
+
+@numba.njit(cache=True, inline='always')
 def boxes_disjoint_sat(ha, hb, R, t, scratch):
     """Return True iff boxes A and B are separated: the classical 15-axis separating-axis test.
 
     Axes, all in F_A: A's face normals e_k, B's face normals b_j (column j of R), and the
     edge-edge axes e_i x b_j for every i with ``ha[i] > 0`` (see the module docstring). Gaps
     count only beyond the module's tolerance rule, the same as the paper's test. The axes are
-    unrolled over scalars: this runs for every node pair of every traversal.
+    unrolled over scalars (:func:`separated_sat`): this runs for every node pair of every
+    traversal.
 
     :param ha: (3,) half extents of A.
     :param hb: (3,) half extents of B.
@@ -246,44 +306,9 @@ def boxes_disjoint_sat(ha, hb, R, t, scratch):
     :param scratch: (64,) float64 work buffer (unused; kept for a common signature).
     :return: True if separated, False if the closed boxes meet.
     """
-    a0, a1, a2 = ha[0], ha[1], ha[2]
-    b0, b1, b2 = hb[0], hb[1], hb[2]
-    r00, r01, r02 = R[0, 0], R[0, 1], R[0, 2]
-    r10, r11, r12 = R[1, 0], R[1, 1], R[1, 2]
-    r20, r21, r22 = R[2, 0], R[2, 1], R[2, 2]
-    t0, t1, t2 = t[0], t[1], t[2]
-    tol = BOX_EPS_REL * (a0 + a1 + a2 + b0 + b1 + b2)
-    thr_face = tol * (1.0 + BOX_EPS_PARALLEL)
-    # L = e_k: r_A = ha_k, r_B = sum_j |R[k, j]| hb_j.
-    if ((abs(t0) - ((abs(r00 * b0) + abs(r01 * b1)) + abs(r02 * b2))) - a0 > thr_face
-            or (abs(t1) - ((abs(r10 * b0) + abs(r11 * b1)) + abs(r12 * b2))) - a1 > thr_face
-            or (abs(t2) - ((abs(r20 * b0) + abs(r21 * b1)) + abs(r22 * b2))) - a2 > thr_face):
-        return _finite(ha, hb, R, t)
-    # L = b_j: t . b_j = (R^T t)_j, r_A = sum_k |R[k, j]| ha_k, r_B = hb_j.
-    if ((abs((r00 * t0 + r10 * t1) + r20 * t2)
-         - ((abs(r00 * a0) + abs(r10 * a1)) + abs(r20 * a2))) - b0 > thr_face
-            or (abs((r01 * t0 + r11 * t1) + r21 * t2)
-                - ((abs(r01 * a0) + abs(r11 * a1)) + abs(r21 * a2))) - b1 > thr_face
-            or (abs((r02 * t0 + r12 * t1) + r22 * t2)
-                - ((abs(r02 * a0) + abs(r12 * a1)) + abs(r22 * a2))) - b2 > thr_face):
-        return _finite(ha, hb, R, t)
-    # L = e_i x b_j, only where A has edges along e_i (ha[i] > 0).
-    if a0 > 0.0 and (
-            _edge_axis_separates(t1, t2, r10, r20, a1, a2, b1, b2, r01, r02, tol)
-            or _edge_axis_separates(t1, t2, r11, r21, a1, a2, b2, b0, r02, r00, tol)
-            or _edge_axis_separates(t1, t2, r12, r22, a1, a2, b0, b1, r00, r01, tol)):
-        return _finite(ha, hb, R, t)
-    if a1 > 0.0 and (
-            _edge_axis_separates(t2, t0, r20, r00, a2, a0, b1, b2, r11, r12, tol)
-            or _edge_axis_separates(t2, t0, r21, r01, a2, a0, b2, b0, r12, r10, tol)
-            or _edge_axis_separates(t2, t0, r22, r02, a2, a0, b0, b1, r10, r11, tol)):
-        return _finite(ha, hb, R, t)
-    if a2 > 0.0 and (
-            _edge_axis_separates(t0, t1, r00, r10, a0, a1, b1, b2, r21, r22, tol)
-            or _edge_axis_separates(t0, t1, r01, r11, a0, a1, b2, b0, r22, r20, tol)
-            or _edge_axis_separates(t0, t1, r02, r12, a0, a1, b0, b1, r20, r21, tol)):
-        return _finite(ha, hb, R, t)
-    return False
+    return separated_sat(ha[0], ha[1], ha[2], hb[0], hb[1], hb[2],
+                         R[0, 0], R[0, 1], R[0, 2], R[1, 0], R[1, 1], R[1, 2],
+                         R[2, 0], R[2, 1], R[2, 2], t[0], t[1], t[2])
 
 
 @numba.njit(cache=True, inline='always')

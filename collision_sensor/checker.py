@@ -22,11 +22,11 @@ from collision_sensor.checker_config import CheckerConfig
 from collision_sensor.errors import JointStateError, SceneError
 from collision_sensor.exception_list import adjacent_pairs, parse_pair_strings, sorted_pair
 from collision_sensor.kinematics import KinematicTree, build_kinematic_tree
-from collision_sensor.obb_tree import build_forest
+from collision_sensor.obb_tree import BOX_WIDTH, box_table, build_forest, node_table
 from collision_sensor.array_pack import ArrayPack
 from collision_sensor.query_kernel import FLOAT_SLOTS, INT_SLOTS, WORK_SIZE, packed_query
 from collision_sensor.robot_model import RobotModel, load_urdf
-from collision_sensor.traversal import N_COUNTERS
+from collision_sensor.traversal import N_COUNTERS, POSE_WIDTH
 from collision_sensor.scene import SceneObject, load_scene
 from collision_sensor.srdf import Srdf, load_srdf
 
@@ -167,17 +167,17 @@ class CollisionChecker:
         floats = dict(
             q_ref=np.zeros(n_joints), T_parent_joint=kin.T_parent_joint, axis=kin.axis,
             multiplier=kin.multiplier, offset=kin.offset, T_world_body=T_world_body,
-            body_center=self._body_center, body_axes=self._body_axes, body_half=self._body_half,
-            body_radius=np.sqrt((self._body_half ** 2).sum(axis=1)),
-            center=f.center, axes=f.axes, half=f.half, radius=f.radius, volume=f.volume,
-            gain=f.gain,
-            tris=f.tris, work=np.zeros(WORK_SIZE))
+            body_boxes=box_table(self._body_center, self._body_axes, self._body_half),
+            boxes=box_table(f.center, f.axes, f.half), volume=f.volume, gain=f.gain,
+            tris=f.tris, root_box=np.zeros((1, BOX_WIDTH)), pose=np.zeros(POSE_WIDTH),
+            work=np.zeros(WORK_SIZE), tri_work=np.zeros((2, 3, 3)))
         ints = dict(
             parent=kin.parent, joint_type=kin.joint_type, q_index=kin.q_index,
             is_scene=is_scene, body_elem_start=self._body_elem_start,
-            body_elem_end=self._body_elem_end, roots=f.roots, left=f.left, right=f.right,
-            first=f.first, count=f.count, pair_a=self._pair_a, pair_b=self._pair_b,
-            pair_path=self._pair_path, status=np.zeros(len(self.checked_pairs)),
+            body_elem_end=self._body_elem_end, roots=f.roots, nodes=node_table(f),
+            pair_a=self._pair_a, pair_b=self._pair_b, pair_path=self._pair_path,
+            status=np.zeros(len(self.checked_pairs)),
+            witness=np.full((len(self.checked_pairs), 2), -1),
             moved=np.zeros(n_joints), body_dirty=np.zeros(n_bodies),
             scene_culled=np.zeros(len(scene)), stack=np.zeros((2 * depth + 8, 3)),
             counters=np.zeros(N_COUNTERS))
@@ -313,12 +313,13 @@ class CollisionChecker:
                                   'send a finite value (nothing was changed)')
         self._q = q
         self._checked_once = True
-        if changed or full:
+        # The kernel reports whether any status changed, full check or not, so the names are
+        # gathered again only then (a few microseconds, as much as a whole Panda query).
+        hits = self._result.colliding_pairs
+        if changed:
             names = self.checked_pairs
-            hits = tuple(names[p] for p in np.flatnonzero(self._status))
-            self._result = CheckResult(bool(hits), hits, rechecked)
-        else:
-            self._result = self._result._replace(rechecked_pairs=rechecked)
+            hits = tuple([names[p] for p in np.flatnonzero(self._status)])
+        self._result = CheckResult(bool(hits), hits, rechecked)
         return self._result
 
     def check(self, positions: Positions) -> CheckResult:

@@ -27,6 +27,19 @@ from collision_sensor.bounding_volumes import (
     OBB_HULL_PCA, OBB_MIN_VOLUME, OBB_PCA, fit_obb, fit_obb_pca)
 
 
+# Columns of a box table (:func:`box_table`), one row per box, what the compiled traversal
+# reads: a box's numbers side by side in memory (128 bytes), rather than spread over four
+# arrays, and indexable without making array views.
+BOX_CENTER = 0          # 3: centre in the body frame
+BOX_AXES = 3            # 9: axes row-major; element 3 * i + k is row i of axis (column) k
+BOX_HALF = 12           # 3: half extents
+BOX_RADIUS = 15         # 1: radius of the sphere around the box, |half|
+BOX_WIDTH = 16
+# Columns of a node table (:func:`node_table`).
+NODE_LEFT, NODE_RIGHT, NODE_FIRST, NODE_COUNT = 0, 1, 2, 3
+NODE_WIDTH = 4
+
+
 @dataclass(frozen=True)
 class ObbForest:
     """All OBB trees of one checker, concatenated.
@@ -249,3 +262,21 @@ def build_forest(meshes, leaf_size: int = 2, fit: int = OBB_PCA) -> ObbForest:
         tris=cat('tris', (0, 3, 3), np.float64),
         roots=np.array([p['root'] for p in parts], dtype=np.int64),
         depth=np.array([p['depth'] for p in parts], dtype=np.int64))
+
+
+def box_table(center: np.ndarray, axes: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """Return the (N, BOX_WIDTH) float64 box table of boxes given as (N, 3), (N, 3, 3), (N, 3)."""
+    center = np.asarray(center, dtype=np.float64).reshape(-1, 3)
+    table = np.zeros((len(center), BOX_WIDTH))
+    table[:, BOX_CENTER:BOX_CENTER + 3] = center
+    table[:, BOX_AXES:BOX_AXES + 9] = np.asarray(axes, dtype=np.float64).reshape(-1, 9)
+    table[:, BOX_HALF:BOX_HALF + 3] = half
+    table[:, BOX_RADIUS] = np.sqrt((np.asarray(half) ** 2).sum(axis=1))
+    return table
+
+
+def node_table(forest: ObbForest) -> np.ndarray:
+    """Return the (N, NODE_WIDTH) int64 node table: left, right, first, count per node."""
+    return np.ascontiguousarray(
+        np.stack([forest.left, forest.right, forest.first, forest.count], axis=1),
+        dtype=np.int64).reshape(-1, NODE_WIDTH)

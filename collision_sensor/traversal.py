@@ -13,10 +13,29 @@ both are leaves, their triangles are tested exactly. Which side is expanded is t
 
 The answer never depends on the rule, only the work done; ``collision_sensor.bench`` measures
 which rule is fastest on real robots and the checker's default follows that measurement.
+
+Data, as the kernels take it (built by :func:`collision_sensor.obb_tree.box_table` and
+:func:`~collision_sensor.obb_tree.node_table` from an :class:`ObbForest`)::
+
+    boxes : (N, BOX_WIDTH) float64   one row per box: centre, axes (row-major, column k is
+                                     axis k), half extents, sphere radius (obb_tree.BOX_*)
+    nodes : (N, 4) int64             left child (-1 for a leaf), right child, first triangle,
+                                     triangle count
+    pose  : (POSE_WIDTH,) float64    body b in body a's frame: R_ab row-major, then t_ab
+
+Why one row per box and scalars everywhere in the loop: a node pair is ~60 multiplications,
+so anything else shows. Passing an array to a function, even one numba inlines, can cost two
+atomic reference-count updates per array (``NRT_incref``/``NRT_decref``, not pruned across the
+branches of an inlined body), which made them 60% of the traversal's time; the loop therefore
+reads a box row into a tuple (:func:`load_box`, straight-line, pruned) and calls only
+functions of numbers and tuples. The rare leaf pairs and the optional paper box test go to
+separate functions, whose reference counting is paid per call, not per box.
 """
 import numba
 
-from collision_sensor.box_test import boxes_disjoint
+from collision_sensor.box_test import BOX_TEST_PAPER, boxes_disjoint_paper, separated_sat
+from collision_sensor.obb_tree import (
+    BOX_AXES, BOX_CENTER, BOX_HALF, BOX_RADIUS, NODE_COUNT, NODE_FIRST, NODE_LEFT, NODE_RIGHT)
 from collision_sensor.tolerances import SPHERE_EPS_REL
 from collision_sensor.triangle_test import triangles_intersect
 
@@ -30,109 +49,191 @@ EXPANSION_RULES = {
 # skipped by the sphere pre-test.
 COUNT_BOX_TESTS, COUNT_TRIANGLE_TESTS, COUNT_SPHERE_SKIPS = 0, 1, 2
 N_COUNTERS = 3
+
+#: Length of a pose vector: R_ab (row-major), then t_ab.
+POSE_WIDTH = 12
+#: Floats of the ``work`` buffer the functions here need.
 TRAVERSAL_WORK = 100
 
 
 @numba.njit(cache=True, inline='always')
-def relative_box(center, axes, na, nb, R_ab, t_ab, R, t):
-    """Express box ``nb`` in box ``na``'s frame, writing ``R`` (3, 3) and ``t`` (3,).
-
-    Boxes live in their bodies' frames; ``R_ab, t_ab`` is body b's pose in body a's frame.
-    With ``T_a = [Ea, ca]`` and ``T_b = [Eb, cb]`` (``center``, ``axes`` rows ``na``, ``nb``)::
-
-        [R, t] = T_a^-1 [R_ab, t_ab] T_b = [Ea' R_ab Eb, Ea' (R_ab cb + t_ab - ca)]
-
-    Indices rather than row views: a view costs two atomic reference-count updates, which
-    in the traversal's inner loop cost more than the arithmetic.
-    """
-    for j in range(3):
-        # Column j of R_ab Eb, then its coordinates on Ea's axes.
-        w0 = R_ab[0, 0] * axes[nb, 0, j] + R_ab[0, 1] * axes[nb, 1, j] + R_ab[0, 2] * axes[nb, 2, j]
-        w1 = R_ab[1, 0] * axes[nb, 0, j] + R_ab[1, 1] * axes[nb, 1, j] + R_ab[1, 2] * axes[nb, 2, j]
-        w2 = R_ab[2, 0] * axes[nb, 0, j] + R_ab[2, 1] * axes[nb, 1, j] + R_ab[2, 2] * axes[nb, 2, j]
-        for i in range(3):
-            R[i, j] = axes[na, 0, i] * w0 + axes[na, 1, i] * w1 + axes[na, 2, i] * w2
-    d0 = (R_ab[0, 0] * center[nb, 0] + R_ab[0, 1] * center[nb, 1] + R_ab[0, 2] * center[nb, 2]
-          + t_ab[0] - center[na, 0])
-    d1 = (R_ab[1, 0] * center[nb, 0] + R_ab[1, 1] * center[nb, 1] + R_ab[1, 2] * center[nb, 2]
-          + t_ab[1] - center[na, 1])
-    d2 = (R_ab[2, 0] * center[nb, 0] + R_ab[2, 1] * center[nb, 1] + R_ab[2, 2] * center[nb, 2]
-          + t_ab[2] - center[na, 2])
-    for i in range(3):
-        t[i] = axes[na, 0, i] * d0 + axes[na, 1, i] * d1 + axes[na, 2, i] * d2
+def load_box(boxes, n):
+    """Row ``n`` of a box table as a 16-tuple (straight-line, so its reference counting is
+    pruned; the functions below then take only tuples of numbers)."""
+    return (boxes[n, 0], boxes[n, 1], boxes[n, 2], boxes[n, 3], boxes[n, 4], boxes[n, 5],
+            boxes[n, 6], boxes[n, 7], boxes[n, 8], boxes[n, 9], boxes[n, 10], boxes[n, 11],
+            boxes[n, 12], boxes[n, 13], boxes[n, 14], boxes[n, 15])
 
 
 @numba.njit(cache=True, inline='always')
-def spheres_apart(center, radius, na, nb, R_ab, t_ab):
-    """True iff the spheres around boxes ``na`` and ``nb`` are clearly apart.
+def load_pose(pose):
+    """A pose vector as a 12-tuple: R_ab row-major, then t_ab."""
+    return (pose[0], pose[1], pose[2], pose[3], pose[4], pose[5], pose[6], pose[7], pose[8],
+            pose[9], pose[10], pose[11])
+
+
+@numba.njit(cache=True, inline='always')
+def _centre_offset(A, B, P):
+    # d = R_ab cb + t_ab - ca: B's centre relative to A's, in body a's frame.
+    c = BOX_CENTER
+    d0 = P[0] * B[c] + P[1] * B[c + 1] + P[2] * B[c + 2] + P[9] - A[c]
+    d1 = P[3] * B[c] + P[4] * B[c + 1] + P[5] * B[c + 2] + P[10] - A[c + 1]
+    d2 = P[6] * B[c] + P[7] * B[c + 1] + P[8] * B[c + 2] + P[11] - A[c + 2]
+    return d0, d1, d2
+
+
+@numba.njit(cache=True, inline='always')
+def spheres_apart(A, B, P):
+    """True iff the spheres around boxes A (body a) and B (body b at pose P) are clearly apart.
 
     A cheap pre-test before the box test: the sphere around a box (centre the box centre,
     radius |half|) contains it, so spheres apart means boxes apart.
     """
-    d0 = (R_ab[0, 0] * center[nb, 0] + R_ab[0, 1] * center[nb, 1] + R_ab[0, 2] * center[nb, 2]
-          + t_ab[0] - center[na, 0])
-    d1 = (R_ab[1, 0] * center[nb, 0] + R_ab[1, 1] * center[nb, 1] + R_ab[1, 2] * center[nb, 2]
-          + t_ab[1] - center[na, 1])
-    d2 = (R_ab[2, 0] * center[nb, 0] + R_ab[2, 1] * center[nb, 1] + R_ab[2, 2] * center[nb, 2]
-          + t_ab[2] - center[na, 2])
-    reach = (radius[na] + radius[nb]) * (1.0 + SPHERE_EPS_REL)
+    d0, d1, d2 = _centre_offset(A, B, P)
+    reach = (A[BOX_RADIUS] + B[BOX_RADIUS]) * (1.0 + SPHERE_EPS_REL)
     return d0 * d0 + d1 * d1 + d2 * d2 > reach * reach
 
 
 @numba.njit(cache=True, inline='always')
-def copy_row(source, n, out):
-    """``out[:] = source[n]`` for (3,) rows, without making a view of ``source``."""
-    out[0] = source[n, 0]
-    out[1] = source[n, 1]
-    out[2] = source[n, 2]
+def box_in_frame(A, B, P):
+    """Return box B (body b, at pose P in body a) in box A's frame: 12-tuple R (row-major), t.
+
+    With box frames ``[Ea, ca]``, ``[Eb, cb]`` (rows of a box table)::
+
+        [R, t] = [Ea' R_ab Eb, Ea' (R_ab cb + t_ab - ca)]
+    """
+    d0, d1, d2 = _centre_offset(A, B, P)
+    # M = R_ab Eb: B's axes (columns) in body a's frame; Eb[i, k] = B[BOX_AXES + 3 i + k].
+    e = BOX_AXES
+    m00 = P[0] * B[e] + P[1] * B[e + 3] + P[2] * B[e + 6]
+    m01 = P[0] * B[e + 1] + P[1] * B[e + 4] + P[2] * B[e + 7]
+    m02 = P[0] * B[e + 2] + P[1] * B[e + 5] + P[2] * B[e + 8]
+    m10 = P[3] * B[e] + P[4] * B[e + 3] + P[5] * B[e + 6]
+    m11 = P[3] * B[e + 1] + P[4] * B[e + 4] + P[5] * B[e + 7]
+    m12 = P[3] * B[e + 2] + P[4] * B[e + 5] + P[5] * B[e + 8]
+    m20 = P[6] * B[e] + P[7] * B[e + 3] + P[8] * B[e + 6]
+    m21 = P[6] * B[e + 1] + P[7] * B[e + 4] + P[8] * B[e + 7]
+    m22 = P[6] * B[e + 2] + P[7] * B[e + 5] + P[8] * B[e + 8]
+    # R = Ea' M, t = Ea' d: row i of both uses A's axis i, column i of Ea.
+    return (A[e] * m00 + A[e + 3] * m10 + A[e + 6] * m20,
+            A[e] * m01 + A[e + 3] * m11 + A[e + 6] * m21,
+            A[e] * m02 + A[e + 3] * m12 + A[e + 6] * m22,
+            A[e + 1] * m00 + A[e + 4] * m10 + A[e + 7] * m20,
+            A[e + 1] * m01 + A[e + 4] * m11 + A[e + 7] * m21,
+            A[e + 1] * m02 + A[e + 4] * m12 + A[e + 7] * m22,
+            A[e + 2] * m00 + A[e + 5] * m10 + A[e + 8] * m20,
+            A[e + 2] * m01 + A[e + 5] * m11 + A[e + 8] * m21,
+            A[e + 2] * m02 + A[e + 5] * m12 + A[e + 8] * m22,
+            A[e] * d0 + A[e + 3] * d1 + A[e + 6] * d2,
+            A[e + 1] * d0 + A[e + 4] * d1 + A[e + 7] * d2,
+            A[e + 2] * d0 + A[e + 5] * d1 + A[e + 8] * d2)
 
 
 @numba.njit(cache=True, inline='always')
-def transform_triangle(tris, n, R_ab, t_ab, out):
-    """Write ``R_ab v + t_ab`` for each row ``v`` of ``tris[n]`` (3, 3) into ``out`` (3, 3)."""
+def sat_separates(A, B, T):
+    """True iff the 15-axis test separates boxes A and B, B in A's frame given by ``T``
+    (:func:`box_in_frame`)."""
+    h = BOX_HALF
+    return separated_sat(A[h], A[h + 1], A[h + 2], B[h], B[h + 1], B[h + 2],
+                         T[0], T[1], T[2], T[3], T[4], T[5], T[6], T[7], T[8],
+                         T[9], T[10], T[11])
+
+
+@numba.njit(cache=True, _nrt=False)
+def paper_separates(A, B, T, work):
+    """True iff the paper's test separates boxes A and B (as :func:`sat_separates`).
+
+    The paper's test takes arrays, so the numbers are laid out in ``work`` first. Not
+    inlined, and called only in its own branch: an array passed to an inlined function costs
+    reference counting on every path through it; besides, inlining this test everywhere made
+    compiling slow.
+    """
+    ha = work[0:3]
+    hb = work[3:6]
+    R = work[6:15].reshape(3, 3)
+    t = work[15:18]
+    for k in range(3):
+        ha[k] = A[BOX_HALF + k]
+        hb[k] = B[BOX_HALF + k]
+        t[k] = T[9 + k]
+        for j in range(3):
+            R[k, j] = T[3 * k + j]
+    return boxes_disjoint_paper(ha, hb, R, t, work[32:96])
+
+
+@numba.njit(cache=True, _nrt=False)
+def triangle_pair_collides(tris, ia, ib, pose, tri_work):
+    """Return True iff triangle ``tris[ia]`` (body a) meets ``tris[ib]`` (body b, at ``pose``).
+
+    :param tri_work: (2, 3, 3) float64 work buffer.
+    """
+    P = tri_work[0]
+    Q = tri_work[1]
     for k in range(3):
         for i in range(3):
-            out[k, i] = (R_ab[i, 0] * tris[n, k, 0] + R_ab[i, 1] * tris[n, k, 1]
-                         + R_ab[i, 2] * tris[n, k, 2] + t_ab[i])
+            P[k, i] = tris[ia, k, i]
+            Q[k, i] = (pose[3 * i] * tris[ib, k, 0] + pose[3 * i + 1] * tris[ib, k, 1]
+                       + pose[3 * i + 2] * tris[ib, k, 2] + pose[9 + i])
+    return triangles_intersect(P, Q)
+
+
+@numba.njit(cache=True, _nrt=False)
+def leaves_collide(tris, first_a, count_a, first_b, count_b, pose, tri_work):
+    """Test every triangle of leaf a against every triangle of leaf b (body b at ``pose``).
+
+    :param tri_work: (2, 3, 3) float64 work buffer.
+    :return: ``(hit, ia, ib, tested)``: the first meeting triangles (-1, -1 if none) and the
+        number of triangle pairs tested.
+    """
+    P = tri_work[0]
+    Q = tri_work[1]
+    tested = 0
+    for ib in range(first_b, first_b + count_b):
+        for k in range(3):
+            for i in range(3):
+                Q[k, i] = (pose[3 * i] * tris[ib, k, 0] + pose[3 * i + 1] * tris[ib, k, 1]
+                           + pose[3 * i + 2] * tris[ib, k, 2] + pose[9 + i])
+        for ia in range(first_a, first_a + count_a):
+            for k in range(3):
+                for i in range(3):
+                    P[k, i] = tris[ia, k, i]
+            tested += 1
+            if triangles_intersect(P, Q):
+                return True, ia, ib, tested
+    return False, -1, -1, tested
 
 
 @numba.njit(cache=True, inline='always')
-def copy_triangle(tris, n, out):
-    """``out[:, :] = tris[n]`` without making a view of ``tris``."""
-    for k in range(3):
-        for i in range(3):
-            out[k, i] = tris[n, k, i]
-
-
-@numba.njit(cache=True, inline='always')
-def trees_collide(root_a, root_b, R_ab, t_ab, center, axes, half, radius, volume, gain, left,
-                  right, first, count, tris, box_method, expansion, stack, work, counters):
-    """Return True iff any triangle of tree ``root_a`` meets any triangle of tree ``root_b``.
+def trees_collide(root_a, root_b, pose, boxes, nodes, volume, gain, tris, box_method,
+                  expansion, stack, work, tri_work, counters):
+    """Return ``(hit, ia, ib)``: does any triangle of tree ``root_a`` meet one of ``root_b``?
 
     Contract in plain Python::
 
-        any(triangles_intersect(P, R_ab @ Q + t_ab)
-            for P in triangles(root_a) for Q in triangles(root_b))
+        hit = any(triangles_intersect(P, R_ab @ Q + t_ab)
+                  for P in triangles(root_a) for Q in triangles(root_b))
 
-    computed by descending both trees and pruning node pairs whose boxes are disjoint.
+    computed by descending both trees and pruning node pairs whose boxes are disjoint;
+    ``ia, ib`` are the rows of ``tris`` of the first meeting pair found (-1 if none), a
+    witness the caller may test first next time.
 
-    :param R_ab, t_ab: (3, 3), (3,): tree b's body pose in tree a's body frame.
-    :param center, axes, half, radius, volume, gain, left, right, first, count, tris: the
-        :class:`~collision_sensor.obb_tree.ObbForest` arrays.
+    :param pose: (POSE_WIDTH,) tree b's body pose in tree a's body frame.
+    :param boxes, nodes: the node tables (module docstring); ``volume, gain``: (N,) float64,
+        read by the 'larger' and 'promising' rules.
+    :param tris: (T, 3, 3) float64, triangles in their body frames.
     :param box_method: ``box_test.BOX_TEST_PAPER`` or ``BOX_TEST_SAT``.
     :param expansion: one of the ``EXPAND_*`` rules.
     :param stack: (S, 3) int64 work stack; S >= depth(a) + depth(b) + 2.
-    :param work: (TRAVERSAL_WORK,) float64 work buffer.
+    :param work: (TRAVERSAL_WORK,) float64; ``tri_work``: (2, 3, 3) float64.
     :param counters: (N_COUNTERS,) int64, work done is added to it.
     """
-    # Views made once: making one in the loop costs more than a box test.
-    R = work[0:9].reshape(3, 3)
-    t = work[9:12]
-    ha = work[12:15]
-    hb = work[15:18]
-    P = work[18:27].reshape(3, 3)
-    Q = work[27:36].reshape(3, 3)
-    scratch = work[36:100]
+    P = load_pose(pose)
+    n_boxes = 0
+    n_spheres = 0
+    n_triangles = 0
+    hit = False
+    ia = -1
+    ib = -1
     stack[0, 0] = root_a
     stack[0, 1] = root_b
     stack[0, 2] = 0
@@ -142,25 +243,27 @@ def trees_collide(root_a, root_b, R_ab, t_ab, center, axes, half, radius, volume
         na = stack[top, 0]
         nb = stack[top, 1]
         level = stack[top, 2]
-        if spheres_apart(center, radius, na, nb, R_ab, t_ab):
-            counters[COUNT_SPHERE_SKIPS] += 1
+        A = load_box(boxes, na)
+        B = load_box(boxes, nb)
+        if spheres_apart(A, B, P):
+            n_spheres += 1
             continue
-        relative_box(center, axes, na, nb, R_ab, t_ab, R, t)
-        copy_row(half, na, ha)
-        copy_row(half, nb, hb)
-        counters[COUNT_BOX_TESTS] += 1
-        if boxes_disjoint(box_method, ha, hb, R, t, scratch):
+        n_boxes += 1
+        T = box_in_frame(A, B, P)
+        if box_method == BOX_TEST_PAPER:
+            if paper_separates(A, B, T, work):
+                continue
+        elif sat_separates(A, B, T):
             continue
-        leaf_a = left[na] < 0
-        leaf_b = left[nb] < 0
+        leaf_a = nodes[na, NODE_LEFT] < 0
+        leaf_b = nodes[nb, NODE_LEFT] < 0
         if leaf_a and leaf_b:
-            for ib in range(first[nb], first[nb] + count[nb]):
-                transform_triangle(tris, ib, R_ab, t_ab, Q)
-                for ia in range(first[na], first[na] + count[na]):
-                    counters[COUNT_TRIANGLE_TESTS] += 1
-                    copy_triangle(tris, ia, P)
-                    if triangles_intersect(P, Q):
-                        return True
+            hit, ia, ib, tested = leaves_collide(
+                tris, nodes[na, NODE_FIRST], nodes[na, NODE_COUNT], nodes[nb, NODE_FIRST],
+                nodes[nb, NODE_COUNT], pose, tri_work)
+            n_triangles += tested
+            if hit:
+                break
             continue
         if leaf_a:
             expand_a = False
@@ -175,10 +278,14 @@ def trees_collide(root_a, root_b, R_ab, t_ab, center, axes, half, radius, volume
         else:
             expand_a = gain[na] >= gain[nb]
         if expand_a:
-            stack[top, 0], stack[top, 1], stack[top, 2] = right[na], nb, level + 1
-            stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2] = left[na], nb, level + 1
+            stack[top, 0], stack[top, 1], stack[top, 2] = nodes[na, NODE_RIGHT], nb, level + 1
+            stack[top + 1, 0], stack[top + 1, 1] = nodes[na, NODE_LEFT], nb
         else:
-            stack[top, 0], stack[top, 1], stack[top, 2] = na, right[nb], level + 1
-            stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2] = na, left[nb], level + 1
+            stack[top, 0], stack[top, 1], stack[top, 2] = na, nodes[nb, NODE_RIGHT], level + 1
+            stack[top + 1, 0], stack[top + 1, 1] = na, nodes[nb, NODE_LEFT]
+        stack[top + 1, 2] = level + 1
         top += 2
-    return False
+    counters[COUNT_BOX_TESTS] += n_boxes
+    counters[COUNT_SPHERE_SKIPS] += n_spheres
+    counters[COUNT_TRIANGLE_TESTS] += n_triangles
+    return hit, ia, ib
