@@ -25,6 +25,7 @@ import math
 import numba
 import numpy as np
 
+from collision_sensor.kernel_cache import bind_to_kernel_sources
 from collision_sensor.tolerances import RANK_EPS_REL
 
 OBB_PCA, OBB_HULL_PCA, OBB_MIN_VOLUME = 0, 1, 2
@@ -382,3 +383,6 @@ def ritter_sphere(points):
     if rb < r:
         return cb, rb
     return c, r
+
+
+bind_to_kernel_sources(globals())

@@ -38,6 +38,7 @@ import math
 import numba
 import numpy as np
 
+from collision_sensor.kernel_cache import bind_to_kernel_sources
 from collision_sensor.tolerances import BOX_EPS_PARALLEL, BOX_EPS_REL
 
 BOX_TEST_PAPER, BOX_TEST_SAT = 0, 1
@@ -321,3 +322,6 @@ def boxes_disjoint(method, ha, hb, R, t, scratch):
     if method == BOX_TEST_PAPER:
         return boxes_disjoint_paper(ha, hb, R, t, scratch)
     return boxes_disjoint_sat(ha, hb, R, t, scratch)
+
+
+bind_to_kernel_sources(globals())

@@ -21,16 +21,19 @@ from collision_sensor.bounding_volumes import fit_obb
 from collision_sensor.checker_config import CheckerConfig
 from collision_sensor.errors import JointStateError, SceneError
 from collision_sensor.exception_list import adjacent_pairs, parse_pair_strings, sorted_pair
-from collision_sensor.kinematics import KinematicTree, build_kinematic_tree
-from collision_sensor.obb_tree import BOX_WIDTH, box_table, build_forest, node_table
+from collision_sensor.kinematics import JOINT_PRISMATIC, KinematicTree, build_kinematic_tree
+from collision_sensor.obb_tree import BOX_WIDTH, box_table, build_forest, forest_view, node_table
 from collision_sensor.array_pack import ArrayPack
-from collision_sensor.query_kernel import FLOAT_SLOTS, INT_SLOTS, WORK_SIZE, packed_query
+from collision_sensor.query_kernel import (
+    FLOAT_SLOTS, HEADER_SIZE, INT_SLOTS, N_SCALARS, S_TOLERANCE, WORK_SIZE, packed_query,
+    write_header)
 from collision_sensor.robot_model import RobotModel, load_urdf
 from collision_sensor.traversal import N_COUNTERS, POSE_WIDTH
 from collision_sensor.scene import SceneObject, load_scene
 from collision_sensor.srdf import Srdf, load_srdf
 
 Pair = Tuple[str, str]
+_FLOAT64 = np.dtype(np.float64)
 Positions = Union[Mapping[str, float], Sequence[float], np.ndarray]
 
 
@@ -95,8 +98,8 @@ class CollisionChecker:
         order = np.argsort(np.asarray(owners, dtype=np.int64), kind='stable')
         meshes = [meshes[i] for i in order]
         owners = np.asarray(owners, dtype=np.int64)[order]
-        self.forest = build_forest(meshes, leaf_size=self.config.leaf_size,
-                                   fit=self.config.obb_fit_code)
+        forest = build_forest(meshes, leaf_size=self.config.leaf_size,
+                              fit=self.config.obb_fit_code)
         counts = np.bincount(owners, minlength=n_bodies) if len(owners) else np.zeros(
             n_bodies, dtype=np.int64)
         self._body_elem_end = np.cumsum(counts).astype(np.int64)
@@ -144,6 +147,12 @@ class CollisionChecker:
         self._pair_a = np.asarray(pair_a, dtype=np.int64)
         self._pair_b = np.asarray(pair_b, dtype=np.int64)
         self._pair_path = self._pair_paths(n_links)
+        vertex_radius = np.zeros(n_bodies)
+        for e, owner in enumerate(owners):
+            if len(meshes[e][0]):
+                vertex_radius[owner] = max(vertex_radius[owner],
+                                           float(np.sqrt((meshes[e][0] ** 2).sum(axis=1).max())))
+        self._pair_reach, self._pair_reach_ext = self._pair_reaches(n_links, vertex_radius)
 
         self.joint_names: Tuple[str, ...] = tuple(kin.joint_names)
         self._joint_index = {name: j for j, name in enumerate(self.joint_names)}
@@ -160,19 +169,26 @@ class CollisionChecker:
         for s, obj in enumerate(scene):
             T_world_body[n_links + s] = obj.T_world_object
         n_joints = len(self.joint_names)
-        depth = int(self.forest.depth.max()) if len(self.forest.depth) else 1
-        f = self.forest
+        depth = int(forest.depth.max()) if len(forest.depth) else 1
+        f = forest
         # Everything the kernel reads or keeps, in two flat buffers (see array_pack): static
         # model data and the carried state (q_ref, poses, statuses) alike.
+        scalars = np.zeros(N_SCALARS)
+        scalars[S_TOLERANCE] = self.config.motion_tolerance
         floats = dict(
-            q_ref=np.zeros(n_joints), T_parent_joint=kin.T_parent_joint, axis=kin.axis,
+            scalars=scalars, q_last=np.zeros(n_joints), q_ref=np.zeros(n_joints),
+            T_parent_joint=kin.T_parent_joint, axis=kin.axis,
             multiplier=kin.multiplier, offset=kin.offset, T_world_body=T_world_body,
             body_boxes=box_table(self._body_center, self._body_axes, self._body_half),
             boxes=box_table(f.center, f.axes, f.half), volume=f.volume, gain=f.gain,
             tris=f.tris, root_box=np.zeros((1, BOX_WIDTH)), pose=np.zeros(POSE_WIDTH),
-            work=np.zeros(WORK_SIZE), tri_work=np.zeros((2, 3, 3)))
+            work=np.zeros(WORK_SIZE), tri_work=np.zeros((2, 3, 3)),
+            clearance=np.zeros(len(self.checked_pairs)),
+            q_eval=np.zeros((len(self.checked_pairs), n_joints)), reach=self._pair_reach,
+            reach_ext=self._pair_reach_ext)
         ints = dict(
-            parent=kin.parent, joint_type=kin.joint_type, q_index=kin.q_index,
+            header=np.zeros(HEADER_SIZE), parent=kin.parent, joint_type=kin.joint_type,
+            q_index=kin.q_index,
             is_scene=is_scene, body_elem_start=self._body_elem_start,
             body_elem_end=self._body_elem_end, roots=f.roots, nodes=node_table(f),
             pair_a=self._pair_a, pair_b=self._pair_b, pair_path=self._pair_path,
@@ -183,12 +199,20 @@ class CollisionChecker:
             counters=np.zeros(N_COUNTERS))
         self._F, self._F_layout, float_views = self._pack(np.float64, FLOAT_SLOTS, floats)
         self._I, self._I_layout, int_views = self._pack(np.int64, INT_SLOTS, ints)
+        # The forest is only a view of the kernel's tables: nothing is held twice (scenario 4).
+        self.forest = forest_view(float_views['boxes'], int_views['nodes'],
+                                  float_views['volume'], float_views['gain'],
+                                  float_views['tris'], int_views['roots'], forest.depth)
+        del forest, f, floats, ints
+        write_header(self._I, self._F_layout, self._I_layout, n_links,
+                     self.config.box_test_code, self.config.expansion_code)
         self._q_ref = float_views['q_ref']
         self._T_world_body = float_views['T_world_body']
         self._status = int_views['status']
         self.counters = int_views['counters']  # work done, see traversal.COUNT_* (benchmarks)
-        self._q = np.zeros(n_joints)
-        self._checked_once = False
+        # The joint vector of the last call; the kernel writes it (read-only for Python).
+        self._q = float_views['q_last']
+        self._q_shape = self._q.shape
         self._result = CheckResult(False, (), 0)
 
     @classmethod
@@ -259,6 +283,49 @@ class CollisionChecker:
                     path[p, kin.q_index[k]] = 1
         return path
 
+    def _pair_reaches(self, n_links: int, vertex_radius: np.ndarray) -> np.ndarray:
+        """Return ``reach, reach_ext`` (P, J) float64: how far a point of either body can move,
+        relative to the other, per unit of variable j: ``reach + reach_ext * E``, where E is
+        the sum of |value| of every prismatic joint at the current state (0 off the path).
+
+        A joint k on the path moves the body on its side (relative to the pair's common
+        ancestor). Revolute: every point of body x below k stays within the distance from
+        k's origin (on its axis) to x's origin, at most the sum of the joint offsets
+        ``|t_parent_joint|`` from k down to x plus the extensions of the prismatic joints
+        between them (at most E), plus x's vertex radius around its origin. Prismatic: 1.
+        Both times |multiplier|, summed over the joints variable j drives. E is taken at the
+        new state: moving the prismatic variables first, then the others, is a path from the
+        old state along which every bound holds.
+        """
+        kin = self.kinematics
+        n_joints = len(kin.joint_names)
+        offset_norm = np.linalg.norm(kin.T_parent_joint[:, :3, 3], axis=1)
+        reach = np.zeros((len(self._pair_a), n_joints))
+        reach_ext = np.zeros((len(self._pair_a), n_joints))
+        for p, (a, b) in enumerate(zip(self._pair_a, self._pair_b)):
+            chains = {}
+            for x in (a, b) if b < n_links else (a,):
+                chain, k = [], int(x)
+                while k > 0:
+                    chain.append(k)  # x and its ancestors, up to (excluding) the root
+                    k = int(kin.parent[k])
+                chains[int(x)] = chain
+            for x, chain in chains.items():
+                other = chains.get(int(b) if x == a else int(a), [])
+                for depth, k in enumerate(chain):
+                    if k in other or kin.q_index[k] < 0:
+                        continue  # above the common ancestor, or not driven
+                    below = chain[:depth]  # from x up to, excluding, k
+                    m = abs(kin.multiplier[k]) * (1.0 + 1e-9)
+                    if kin.joint_type[k] == JOINT_PRISMATIC:
+                        reach[p, kin.q_index[k]] += m
+                        continue
+                    reach[p, kin.q_index[k]] += m * (float(offset_norm[below].sum())
+                                                     + vertex_radius[x])
+                    if any(kin.joint_type[c] == JOINT_PRISMATIC for c in below):
+                        reach_ext[p, kin.q_index[k]] += m
+        return reach, reach_ext
+
     # ------------------------------------------------------------------ queries
     def _merged(self, positions: Positions) -> np.ndarray:
         """Return the current joint vector with ``positions`` applied.
@@ -267,7 +334,7 @@ class CollisionChecker:
         """
         if (isinstance(positions, np.ndarray) and positions.shape == self._q.shape
                 and positions.dtype == np.float64):
-            return positions.astype(np.float64)  # a copy: the caller may reuse its array
+            return np.ascontiguousarray(positions)  # the kernel copies it before keeping it
         q = self._q.copy()
         if isinstance(positions, Mapping):
             unknown = [name for name in positions
@@ -298,29 +365,33 @@ class CollisionChecker:
             raise JointStateError(
                 f'expected {len(q)} positions in the order of joint_names '
                 f'({", ".join(self.joint_names)}), got shape {values.shape}')
-        return values.copy()
+        return np.ascontiguousarray(values)
 
     def _run(self, positions: Positions, full: bool) -> CheckResult:
-        q = self._merged(positions)
-        full = full or not self._checked_once
-        rechecked, changed = packed_query(
-            q, full, self.config.motion_tolerance, self.config.box_test_code,
-            self.config.expansion_code, self._n_links, self._F, self._F_layout, self._I,
-            self._I_layout)
-        if rechecked < 0:
-            name = self.joint_names[-1 - rechecked]
-            raise JointStateError(f'joint "{name}": position {q[-1 - rechecked]} is not finite; '
-                                  'send a finite value (nothing was changed)')
-        self._q = q
-        self._checked_once = True
-        # The kernel reports whether any status changed, full check or not, so the names are
-        # gathered again only then (a few microseconds, as much as a whole Panda query).
-        hits = self._result.colliding_pairs
-        if changed:
+        # check and update inline this; keep the three in step.
+        if not (type(positions) is np.ndarray and positions.dtype is _FLOAT64
+                and positions.shape == self._q_shape and positions.flags.c_contiguous):
+            positions = self._merged(positions)
+        return self._answer(packed_query(positions, full, self._F, self._I), positions)
+
+    def _answer(self, code: int, positions: np.ndarray) -> CheckResult:
+        """Turn the kernel's code (:func:`packed_query`) into the result, or raise."""
+        if code < 0:
+            raise JointStateError(f'joint "{self.joint_names[-1 - code]}": position '
+                                  f'{positions[-1 - code]} is not finite; send a finite value '
+                                  '(nothing was changed)')
+        rechecked = code >> 1
+        result = self._result
+        if code & 1:
+            # The kernel reports whether any status changed, full check or not, so the names
+            # are gathered again only then (a few microseconds, as much as a Panda query).
             names = self.checked_pairs
             hits = tuple([names[p] for p in np.flatnonzero(self._status)])
-        self._result = CheckResult(bool(hits), hits, rechecked)
-        return self._result
+            result = self._result = CheckResult(bool(hits), hits, rechecked)
+        elif rechecked != result.rechecked_pairs:
+            result = self._result = CheckResult(result.in_collision, result.colliding_pairs,
+                                                rechecked)
+        return result
 
     def check(self, positions: Positions) -> CheckResult:
         """Check every pair from scratch at ``positions``; trust nothing carried over.
@@ -330,17 +401,32 @@ class CollisionChecker:
             in the order of :attr:`joint_names`.
         :raises JointStateError: on unknown names or non-finite values; nothing changes then.
         """
-        return self._run(positions, full=True)
+        # A float64 C-contiguous array of the right length goes to the kernel as it is (the
+        # kernel copies it before keeping it); each test here is a cheap attribute test.
+        if not (type(positions) is np.ndarray and positions.dtype is _FLOAT64
+                and positions.shape == self._q_shape and positions.flags.c_contiguous):
+            positions = self._merged(positions)
+        return self._answer(packed_query(positions, True, self._F, self._I), positions)
 
     def update(self, positions: Positions) -> CheckResult:
         """Check incrementally: re-check only pairs whose relative pose can have changed.
 
         A pair is re-checked only if a joint on the tree path between its two bodies moved by
         more than ``motion_tolerance`` since the state its status describes; every other
-        status, and every pose not below a moved joint, carries over (paper sec. 4.2).
+        status, and every pose not below a moved joint, carries over (paper sec. 4.2). A pair
+        last found apart by ``update`` with a known clearance is not re-checked either while
+        the joints on its path have not moved far enough, summed, to close that gap (see
+        :func:`~collision_sensor.query_kernel.query_kernel`).
         Same arguments and errors as :meth:`check`.
         """
-        return self._run(positions, full=False)
+        if not (type(positions) is np.ndarray and positions.dtype is _FLOAT64
+                and positions.shape == self._q_shape and positions.flags.c_contiguous):
+            positions = self._merged(positions)
+        code = packed_query(positions, False, self._F, self._I)
+        result = self._result
+        if code == 0 and result.rechecked_pairs == 0:
+            return result  # nothing moved, as in the last call: the same answer
+        return self._answer(code, positions)
 
     def check_batch(self, configurations: np.ndarray) -> np.ndarray:
         """Check many configurations from scratch; return (n, P) bool statuses.

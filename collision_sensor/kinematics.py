@@ -24,6 +24,7 @@ import numpy as np
 from numba import njit
 
 from collision_sensor.errors import JointStateError, RobotDescriptionError
+from collision_sensor.kernel_cache import bind_to_kernel_sources
 from collision_sensor.robot_model import RobotModel, resolve_mimics
 
 JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
@@ -248,3 +249,6 @@ def _document_order(model):
         return model.joints
     by_name = {joint.name: joint for joint in model.joints}
     return [by_name[name] for name in order]
+
+
+bind_to_kernel_sources(globals())

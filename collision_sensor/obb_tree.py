@@ -25,6 +25,7 @@ import numpy as np
 
 from collision_sensor.bounding_volumes import (
     OBB_HULL_PCA, OBB_MIN_VOLUME, OBB_PCA, fit_obb, fit_obb_pca)
+from collision_sensor.kernel_cache import bind_to_kernel_sources
 
 
 # Columns of a box table (:func:`box_table`), one row per box, what the compiled traversal
@@ -275,8 +276,34 @@ def box_table(center: np.ndarray, axes: np.ndarray, half: np.ndarray) -> np.ndar
     return table
 
 
+def forest_view(boxes: np.ndarray, nodes: np.ndarray, volume: np.ndarray, gain: np.ndarray,
+                tris: np.ndarray, roots: np.ndarray, depth: np.ndarray) -> ObbForest:
+    """Return an :class:`ObbForest` whose arrays are views of a box and a node table.
+
+    The checker keeps the tables its kernel reads (:func:`box_table`, :func:`node_table`);
+    the forest it shows is these views, so no number is held twice. ``center``, ``half``,
+    ``left`` ... are then strided views (columns of the tables), not contiguous arrays.
+
+    :param boxes: (N, BOX_WIDTH) float64; ``nodes``: (N, NODE_WIDTH) int64;
+        ``volume, gain``: (N,) float64; ``tris``: (T, 3, 3) float64; ``roots, depth``: (E,).
+    """
+    forest = ObbForest(
+        center=boxes[:, BOX_CENTER:BOX_CENTER + 3],
+        axes=boxes[:, BOX_AXES:BOX_AXES + 9].reshape(-1, 3, 3),
+        half=boxes[:, BOX_HALF:BOX_HALF + 3], radius=boxes[:, BOX_RADIUS],
+        volume=volume, gain=gain, left=nodes[:, NODE_LEFT], right=nodes[:, NODE_RIGHT],
+        first=nodes[:, NODE_FIRST], count=nodes[:, NODE_COUNT], tris=tris, roots=roots,
+        depth=depth)
+    # reshape copies silently when it cannot make a view; a copy here would double memory.
+    assert len(boxes) == 0 or np.shares_memory(forest.axes, boxes)
+    return forest
+
+
 def node_table(forest: ObbForest) -> np.ndarray:
     """Return the (N, NODE_WIDTH) int64 node table: left, right, first, count per node."""
     return np.ascontiguousarray(
         np.stack([forest.left, forest.right, forest.first, forest.count], axis=1),
         dtype=np.int64).reshape(-1, NODE_WIDTH)
+
+
+bind_to_kernel_sources(globals())

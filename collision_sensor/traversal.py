@@ -32,8 +32,10 @@ functions of numbers and tuples. The rare leaf pairs and the optional paper box 
 separate functions, whose reference counting is paid per call, not per box.
 """
 import numba
+import numpy as np
 
 from collision_sensor.box_test import BOX_TEST_PAPER, boxes_disjoint_paper, separated_sat
+from collision_sensor.kernel_cache import bind_to_kernel_sources
 from collision_sensor.obb_tree import (
     BOX_AXES, BOX_CENTER, BOX_HALF, BOX_RADIUS, NODE_COUNT, NODE_FIRST, NODE_LEFT, NODE_RIGHT)
 from collision_sensor.tolerances import SPHERE_EPS_REL
@@ -130,6 +132,42 @@ def box_in_frame(A, B, P):
 
 
 @numba.njit(cache=True, inline='always')
+def face_gap(A, B, T):
+    """Return a lower bound of the distance between boxes A and B (B in A's frame: ``T``).
+
+    The largest gap between the two boxes' projections on the six face normals (unit axes,
+    so each gap is at most the Euclidean distance; <= 0 if no face axis separates them):
+    ``|t . u| - r_A(u) - r_B(u)``. Rounding is the caller's to allow for (sec. 4.2 clearance).
+    """
+    h = BOX_HALF
+    a0, a1, a2, b0, b1, b2 = A[h], A[h + 1], A[h + 2], B[h], B[h + 1], B[h + 2]
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = T[0], T[1], T[2], T[3], T[4], T[5], T[6], \
+        T[7], T[8]
+    t0, t1, t2 = T[9], T[10], T[11]
+    g = abs(t0) - a0 - (abs(r00) * b0 + abs(r01) * b1 + abs(r02) * b2)
+    g = max(g, abs(t1) - a1 - (abs(r10) * b0 + abs(r11) * b1 + abs(r12) * b2))
+    g = max(g, abs(t2) - a2 - (abs(r20) * b0 + abs(r21) * b1 + abs(r22) * b2))
+    g = max(g, abs(r00 * t0 + r10 * t1 + r20 * t2) - b0
+            - (abs(r00) * a0 + abs(r10) * a1 + abs(r20) * a2))
+    g = max(g, abs(r01 * t0 + r11 * t1 + r21 * t2) - b1
+            - (abs(r01) * a0 + abs(r11) * a1 + abs(r21) * a2))
+    g = max(g, abs(r02 * t0 + r12 * t1 + r22 * t2) - b2
+            - (abs(r02) * a0 + abs(r12) * a1 + abs(r22) * a2))
+    return g
+
+
+@numba.njit(cache=True, inline='always')
+def box_pair_gap(A, B, P):
+    """Return a lower bound of the distance between boxes A and B (body b at pose P).
+
+    The larger of the spheres' gap and :func:`face_gap`; <= 0 when neither separates.
+    """
+    d0, d1, d2 = _centre_offset(A, B, P)
+    g = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) - (A[BOX_RADIUS] + B[BOX_RADIUS])
+    return max(g, face_gap(A, B, box_in_frame(A, B, P)))
+
+
+@numba.njit(cache=True, inline='always')
 def sat_separates(A, B, T):
     """True iff the 15-axis test separates boxes A and B, B in A's frame given by ``T``
     (:func:`box_in_frame`)."""
@@ -204,9 +242,18 @@ def leaves_collide(tris, first_a, count_a, first_b, count_b, pose, tri_work):
 
 
 @numba.njit(cache=True, inline='always')
+def _closer(boxes, m, n, x0, x1, x2):
+    """True iff box m's centre is nearer the point x than box n's (same body frame)."""
+    a0, a1, a2 = boxes[m, 0] - x0, boxes[m, 1] - x1, boxes[m, 2] - x2
+    b0, b1, b2 = boxes[n, 0] - x0, boxes[n, 1] - x1, boxes[n, 2] - x2
+    return a0 * a0 + a1 * a1 + a2 * a2 < b0 * b0 + b1 * b1 + b2 * b2
+
+
+@numba.njit(cache=True, inline='always')
 def trees_collide(root_a, root_b, pose, boxes, nodes, volume, gain, tris, box_method,
-                  expansion, stack, work, tri_work, counters):
-    """Return ``(hit, ia, ib)``: does any triangle of tree ``root_a`` meet one of ``root_b``?
+                  expansion, stack, work, tri_work, counters, track, wa, wb):
+    """Return ``(hit, ia, ib, gap)``: does any triangle of tree ``root_a`` meet one of
+    ``root_b``, and if not, how far apart are they at least?
 
     Contract in plain Python::
 
@@ -216,6 +263,21 @@ def trees_collide(root_a, root_b, pose, boxes, nodes, volume, gain, tris, box_me
     computed by descending both trees and pruning node pairs whose boxes are disjoint;
     ``ia, ib`` are the rows of ``tris`` of the first meeting pair found (-1 if none), a
     witness the caller may test first next time.
+
+    With ``track``, ``gap`` is a lower bound of the distance between the two trees'
+    triangles when they do not meet: the smallest gap of the node pairs pruned (sphere gap
+    ``|d| - r_a - r_b``, or :func:`face_gap` for a box test), 0 once a leaf pair had to be
+    tested triangle by triangle (no bound). Not rounded down: the caller allows for that.
+    Without ``track`` (full checks), ``gap`` is 0 and costs nothing.
+
+    Which child is visited first (only the work depends on it, never the answer): with a
+    witness ``wa, wb`` (rows of ``tris``, or -1), the one whose triangles include it (a
+    node's triangles are the range starting at its ``first``; the right child's starts
+    where the left's ends), so a contact that slid to a neighbouring triangle is found near
+    it; without one, the child whose centre is nearer the other box's centre. A colliding
+    pair stops at its first meeting triangles, so this finds them sooner (demo arm, random
+    configurations: 175 -> 112 box tests per check); a pair apart visits every overlapping
+    node pair either way.
 
     :param pose: (POSE_WIDTH,) tree b's body pose in tree a's body frame.
     :param boxes, nodes: the node tables (module docstring); ``volume, gain``: (N,) float64,
@@ -228,6 +290,7 @@ def trees_collide(root_a, root_b, pose, boxes, nodes, volume, gain, tris, box_me
     :param counters: (N_COUNTERS,) int64, work done is added to it.
     """
     P = load_pose(pose)
+    best = np.inf if track else 0.0
     n_boxes = 0
     n_spheres = 0
     n_triangles = 0
@@ -245,15 +308,27 @@ def trees_collide(root_a, root_b, pose, boxes, nodes, volume, gain, tris, box_me
         level = stack[top, 2]
         A = load_box(boxes, na)
         B = load_box(boxes, nb)
-        if spheres_apart(A, B, P):
+        # spheres_apart, keeping |d|^2 for the gap.
+        d0, d1, d2 = _centre_offset(A, B, P)
+        dd = d0 * d0 + d1 * d1 + d2 * d2
+        radii = A[BOX_RADIUS] + B[BOX_RADIUS]
+        apart = radii * (1.0 + SPHERE_EPS_REL)
+        if dd > apart * apart:
             n_spheres += 1
+            if track and best > 0.0:
+                bound = best + radii  # sqrt only when it can lower the bound
+                if dd < bound * bound:
+                    best = np.sqrt(dd) - radii
             continue
         n_boxes += 1
         T = box_in_frame(A, B, P)
         if box_method == BOX_TEST_PAPER:
-            if paper_separates(A, B, T, work):
-                continue
-        elif sat_separates(A, B, T):
+            separated = paper_separates(A, B, T, work)
+        else:
+            separated = sat_separates(A, B, T)
+        if separated:
+            if track:
+                best = min(best, face_gap(A, B, T))
             continue
         leaf_a = nodes[na, NODE_LEFT] < 0
         leaf_b = nodes[nb, NODE_LEFT] < 0
@@ -264,6 +339,7 @@ def trees_collide(root_a, root_b, pose, boxes, nodes, volume, gain, tris, box_me
             n_triangles += tested
             if hit:
                 break
+            best = min(best, 0.0)
             continue
         if leaf_a:
             expand_a = False
@@ -277,15 +353,40 @@ def trees_collide(root_a, root_b, pose, boxes, nodes, volume, gain, tris, box_me
             expand_a = volume[na] >= volume[nb]
         else:
             expand_a = gain[na] >= gain[nb]
+        # Visit first the child nearer the other box's centre (more likely to meet it:
+        # a colliding pair stops at its first meeting triangles), or the one holding the
+        # last witness.
         if expand_a:
-            stack[top, 0], stack[top, 1], stack[top, 2] = nodes[na, NODE_RIGHT], nb, level + 1
-            stack[top + 1, 0], stack[top + 1, 1] = nodes[na, NODE_LEFT], nb
+            first, second = nodes[na, NODE_LEFT], nodes[na, NODE_RIGHT]
+            if wa >= 0:
+                swap = wa >= nodes[second, NODE_FIRST]
+            else:
+                x0, x1, x2 = A[0] + d0, A[1] + d1, A[2] + d2  # B's centre in body a
+                swap = _closer(boxes, second, first, x0, x1, x2)
+            if swap:
+                first, second = second, first
+            stack[top, 0], stack[top, 1], stack[top, 2] = second, nb, level + 1
+            stack[top + 1, 0], stack[top + 1, 1] = first, nb
         else:
-            stack[top, 0], stack[top, 1], stack[top, 2] = na, nodes[nb, NODE_RIGHT], level + 1
-            stack[top + 1, 0], stack[top + 1, 1] = na, nodes[nb, NODE_LEFT]
+            first, second = nodes[nb, NODE_LEFT], nodes[nb, NODE_RIGHT]
+            if wb >= 0:
+                swap = wb >= nodes[second, NODE_FIRST]
+            else:
+                # A's centre in body b: R_ab' (ca - t_ab).
+                e0, e1, e2 = A[0] - P[9], A[1] - P[10], A[2] - P[11]
+                swap = _closer(boxes, second, first, P[0] * e0 + P[3] * e1 + P[6] * e2,
+                               P[1] * e0 + P[4] * e1 + P[7] * e2,
+                               P[2] * e0 + P[5] * e1 + P[8] * e2)
+            if swap:
+                first, second = second, first
+            stack[top, 0], stack[top, 1], stack[top, 2] = na, second, level + 1
+            stack[top + 1, 0], stack[top + 1, 1] = na, first
         stack[top + 1, 2] = level + 1
         top += 2
     counters[COUNT_BOX_TESTS] += n_boxes
     counters[COUNT_SPHERE_SKIPS] += n_spheres
     counters[COUNT_TRIANGLE_TESTS] += n_triangles
-    return hit, ia, ib
+    return hit, ia, ib, best
+
+
+bind_to_kernel_sources(globals())

@@ -24,6 +24,7 @@ import math
 
 import numba
 
+from collision_sensor.kernel_cache import bind_to_kernel_sources
 from collision_sensor.tolerances import TRIANGLE_EPS_REL
 
 _U = 2.0 ** -53                 # unit roundoff of float64
@@ -219,3 +220,6 @@ def triangles_intersect(P, Q):
             if _segment_segment_dist2(P[i], P[(i + 1) % 3], Q[j], Q[(j + 1) % 3]) <= tol2:
                 return True
     return False
+
+
+bind_to_kernel_sources(globals())
