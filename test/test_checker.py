@@ -340,3 +340,54 @@ def test_collision_boxes_contain_their_geometry(panda):
         world = element.vertices @ T[:3, :3].T + T[:3, 3]
         local = (world - T_world_box[:3, 3]) @ T_world_box[:3, :3]
         assert np.all(np.abs(local) <= half + 1e-9)
+
+
+# ---------------------------------------------------------------- clearance skip (update)
+
+def _clearances(checker):
+    from collision_sensor.query_kernel import F_CLEARANCE
+    layout = checker._F_layout
+    start, size = layout[F_CLEARANCE, 0], layout[F_CLEARANCE, 1]
+    return checker._F[start:start + size]
+
+
+def test_clearance_bounds_never_exceed_the_true_distance(panda, panda_urdf):
+    """update skips a pair while its motion bound stays below the clearance it recorded; that
+    is exact only if the clearance is a lower bound of the distance (python-fcl distance)."""
+    import fcl
+    oracle = FclOracle(panda, panda_urdf)
+    clearance = _clearances(panda)
+    compared = 0
+    for q in random_configurations(panda, 150, seed=14):
+        panda.check(q + 0.01)
+        panda.update(q)  # re-checks incrementally, recording clearances
+        poses = oracle.poses(q)
+        for p, (a, b) in enumerate(panda.checked_pairs):
+            if clearance[p] <= 0.0:
+                continue
+            distance = np.inf
+            for ma in oracle.models[a]:
+                for mb in oracle.models[b]:
+                    objects = [fcl.CollisionObject(m, fcl.Transform(poses[n][:3, :3],
+                                                                    poses[n][:3, 3]))
+                               for m, n in ((ma, a), (mb, b))]
+                    distance = min(distance, fcl.distance(
+                        objects[0], objects[1], fcl.DistanceRequest(), fcl.DistanceResult()))
+            assert clearance[p] <= distance + 1e-9, (list(q), a, b, clearance[p], distance)
+            compared += 1
+    assert compared > 500
+
+
+def test_small_motions_skip_pairs_that_stay_apart(panda):
+    rechecked, pairs = 0, 0
+    for q in random_configurations(panda, 20, seed=15):
+        panda.check(q)
+        q = q + 1e-3
+        panda.update(q)  # records clearances for every re-checked pair
+        for k in range(1, 10):
+            result = panda.update(q + k * 1e-5)
+            # A colliding pair is always re-checked (its witness first); most others are not.
+            assert result.rechecked_pairs >= len(result.colliding_pairs)
+            rechecked += result.rechecked_pairs
+            pairs += len(panda.checked_pairs)
+    assert rechecked < 0.25 * pairs
