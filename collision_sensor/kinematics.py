@@ -41,11 +41,13 @@ def set_link_pose(i, q, parent, joint_type, T_parent_joint, axis, q_index, multi
     ``value = multiplier[i] * q[q_index[i]] + offset[i]``; the root gets its origin alone.
     Parameters as for :func:`forward_kinematics_kernel`.
     """
-    J = T_parent_joint[i]
+    # Plain indexing, no row views: a view costs two atomic reference-count updates, more
+    # than the arithmetic of a link.
+    J = T_parent_joint
     # M = T_parent_joint @ motion, as 12 scalars (rotation m.., translation t.).
-    m00, m01, m02, t0 = J[0, 0], J[0, 1], J[0, 2], J[0, 3]
-    m10, m11, m12, t1 = J[1, 0], J[1, 1], J[1, 2], J[1, 3]
-    m20, m21, m22, t2 = J[2, 0], J[2, 1], J[2, 2], J[2, 3]
+    m00, m01, m02, t0 = J[i, 0, 0], J[i, 0, 1], J[i, 0, 2], J[i, 0, 3]
+    m10, m11, m12, t1 = J[i, 1, 0], J[i, 1, 1], J[i, 1, 2], J[i, 1, 3]
+    m20, m21, m22, t2 = J[i, 2, 0], J[i, 2, 1], J[i, 2, 2], J[i, 2, 3]
     kind = joint_type[i]
     if kind != 0:
         value = multiplier[i] * q[q_index[i]] + offset[i]
@@ -75,27 +77,26 @@ def set_link_pose(i, q, parent, joint_type, T_parent_joint, axis, q_index, multi
             t0 += value * (m00 * x + m01 * y + m02 * z)
             t1 += value * (m10 * x + m11 * y + m12 * z)
             t2 += value * (m20 * x + m21 * y + m22 * z)
-    out = T_world_link[i]
+    T = T_world_link
     p = parent[i]
     if p < 0:
-        out[0, 0], out[0, 1], out[0, 2], out[0, 3] = m00, m01, m02, t0
-        out[1, 0], out[1, 1], out[1, 2], out[1, 3] = m10, m11, m12, t1
-        out[2, 0], out[2, 1], out[2, 2], out[2, 3] = m20, m21, m22, t2
+        T[i, 0, 0], T[i, 0, 1], T[i, 0, 2], T[i, 0, 3] = m00, m01, m02, t0
+        T[i, 1, 0], T[i, 1, 1], T[i, 1, 2], T[i, 1, 3] = m10, m11, m12, t1
+        T[i, 2, 0], T[i, 2, 1], T[i, 2, 2], T[i, 2, 3] = m20, m21, m22, t2
     else:
-        P = T_world_link[p]
         for r in range(3):
-            p0, p1, p2 = P[r, 0], P[r, 1], P[r, 2]
-            out[r, 0] = p0 * m00 + p1 * m10 + p2 * m20
-            out[r, 1] = p0 * m01 + p1 * m11 + p2 * m21
-            out[r, 2] = p0 * m02 + p1 * m12 + p2 * m22
-            out[r, 3] = p0 * t0 + p1 * t1 + p2 * t2 + P[r, 3]
-    out[3, 0] = 0.0
-    out[3, 1] = 0.0
-    out[3, 2] = 0.0
-    out[3, 3] = 1.0
+            p0, p1, p2 = T[p, r, 0], T[p, r, 1], T[p, r, 2]
+            T[i, r, 0] = p0 * m00 + p1 * m10 + p2 * m20
+            T[i, r, 1] = p0 * m01 + p1 * m11 + p2 * m21
+            T[i, r, 2] = p0 * m02 + p1 * m12 + p2 * m22
+            T[i, r, 3] = p0 * t0 + p1 * t1 + p2 * t2 + T[p, r, 3]
+    T[i, 3, 0] = 0.0
+    T[i, 3, 1] = 0.0
+    T[i, 3, 2] = 0.0
+    T[i, 3, 3] = 1.0
 
 
-@njit(cache=True, nogil=True, fastmath=False)
+@njit(cache=True, nogil=True, fastmath=False, _nrt=False)
 def forward_kinematics_kernel(q, parent, joint_type, T_parent_joint, axis, q_index, multiplier,
                               offset, T_world_link):
     """Fill ``T_world_link`` with the pose of every link for configuration ``q``.
@@ -115,7 +116,7 @@ def forward_kinematics_kernel(q, parent, joint_type, T_parent_joint, axis, q_ind
                       offset, T_world_link)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def forward_kinematics_batch_kernel(Q, parent, joint_type, T_parent_joint, axis, q_index,
                                     multiplier, offset, T_out):
     """Fill ``T_out[k]`` with :func:`forward_kinematics_kernel` of ``Q[k]`` for every k.
