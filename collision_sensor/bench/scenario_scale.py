@@ -63,8 +63,8 @@ def run(settings) -> Section:
         'around the build per terrain triangle (`/proc/self/statm`'
         + (', free heap trimmed before and after, glibc mmap threshold pinned' if pinned
            else ', not glibc: expect noise') + '); ours minus the robot-only build; '
-        '`forest.nbytes()` counts the OBB forest\'s arrays alone; the checker also keeps a '
-        'packed copy of them for its kernel, hence its RSS near twice that. The smallest '
+        '`forest.nbytes()` counts the OBB forest\'s arrays (views into the buffers the '
+        'kernel reads, so the checker holds them once). The smallest '
         'size\'s RSS figures are the least precise (page and allocator granularity).')
     section.table(['terrain triangles', 'in contact', 'ours build s', 'fcl build s',
                    'ours query us', 'fcl query us', 'ours / fcl query',
