@@ -46,10 +46,11 @@ from typing import Dict, List, Optional, Sequence, Set, Tuple
 
 import numpy as np
 
+from collision_sensor.command_line import run_command
 from collision_sensor.errors import CollisionSensorError, ConfigError
 from collision_sensor.exception_list import adjacent_pairs, sorted_pair
-from collision_sensor.progress import MODES, ProgressBar
 from collision_sensor.mesh_loading import parse_package_paths
+from collision_sensor.progress import MODES, ProgressBar
 
 PROG = 'collision_sensor_acm'
 EXIT_OK, EXIT_ERROR = 0, 2
@@ -597,19 +598,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the tool; return the exit status (0 success, 2 error)."""
     start = time.monotonic()
     argv = list(sys.argv[1:] if argv is None else argv)
-    parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exit_request:  # --help (0) or a usage error (2, printed above)
-        return int(exit_request.code or 0) if not isinstance(exit_request.code, str) \
-            else EXIT_ERROR
-    try:
-        return _run(args, argv, start)
-    except (CollisionSensorError, OSError) as err:
-        message = str(err) if isinstance(err, CollisionSensorError) else \
-            f'{err.filename}: {err.strerror}' if getattr(err, 'filename', None) else str(err)
-        print(f'{PROG}: error: {" ".join(message.split())}', file=sys.stderr)
-        return EXIT_ERROR
+    return run_command(PROG, build_parser(), lambda args: _run(args, argv, start), argv)
 
 
 if __name__ == '__main__':

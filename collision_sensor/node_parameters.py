@@ -22,8 +22,8 @@ from typing import Any, Dict, List, Mapping, Optional, Tuple
 
 from collision_sensor.checker_config import BOX_TESTS, OBB_FITS, CheckerConfig
 from collision_sensor.errors import ConfigError
-from collision_sensor.traversal import EXPANSION_RULES
 from collision_sensor.mesh_loading import parse_package_paths
+from collision_sensor.traversal import EXPANSION_RULES
 
 #: Accepted values of ``joint_states_qos``.
 JOINT_STATES_QOS = ('sensor_data', 'reliable')

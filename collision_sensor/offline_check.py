@@ -20,10 +20,11 @@ from typing import Dict, List, Optional, Sequence, TextIO, Tuple
 
 import numpy as np
 
-from collision_sensor.errors import CollisionSensorError, ConfigError
+from collision_sensor.command_line import run_command
+from collision_sensor.errors import ConfigError
+from collision_sensor.mesh_loading import parse_package_paths
 from collision_sensor.progress import MODES, ProgressBar
 from collision_sensor.sequences import DEFAULT_TOPIC, JointSequence, read_sequence
-from collision_sensor.mesh_loading import parse_package_paths
 
 PROG = 'collision_sensor_check'
 EXIT_CLEAR, EXIT_COLLISION, EXIT_ERROR = 0, 1, 2
@@ -297,19 +298,7 @@ def _run(args) -> int:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the tool; return the exit status (0 clear, 1 collisions, 2 error)."""
-    parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exit_request:  # --help (0) or a usage error (2, printed by argparse)
-        return int(exit_request.code or 0) if not isinstance(exit_request.code, str) \
-            else EXIT_ERROR
-    try:
-        return _run(args)
-    except (CollisionSensorError, OSError) as err:
-        message = str(err) if isinstance(err, CollisionSensorError) else \
-            f'{err.filename}: {err.strerror}' if getattr(err, 'filename', None) else str(err)
-        print(f'{PROG}: error: {" ".join(message.split())}', file=sys.stderr)
-        return EXIT_ERROR
+    return run_command(PROG, build_parser(), _run, argv)
 
 
 if __name__ == '__main__':
