@@ -181,7 +181,8 @@ class CollisionChecker:
             multiplier=kin.multiplier, offset=kin.offset, T_world_body=T_world_body,
             body_boxes=box_table(self._body_center, self._body_axes, self._body_half),
             boxes=box_table(f.center, f.axes, f.half), volume=f.volume, gain=f.gain,
-            tris=f.tris, root_box=np.zeros((1, BOX_WIDTH)), pose=np.zeros(POSE_WIDTH),
+            tris=f.tris, subtree_boxes=np.zeros((max(n_links, 1), BOX_WIDTH)),
+            pose=np.zeros(POSE_WIDTH),
             work=np.zeros(WORK_SIZE), tri_work=np.zeros((2, 3, 3)),
             clearance=np.zeros(len(self.checked_pairs)),
             q_eval=np.zeros((len(self.checked_pairs), n_joints)), reach=self._pair_reach,
@@ -195,7 +196,8 @@ class CollisionChecker:
             status=np.zeros(len(self.checked_pairs)),
             witness=np.full((len(self.checked_pairs), 2), -1),
             moved=np.zeros(n_joints), body_dirty=np.zeros(n_bodies),
-            scene_culled=np.zeros(len(scene)), stack=np.zeros((2 * depth + 8, 3)),
+            scene_culled=np.zeros((len(scene), max(n_links, 1))),
+            stack=np.zeros((2 * depth + 8, 3)),
             counters=np.zeros(N_COUNTERS))
         self._F, self._F_layout, float_views = self._pack(np.float64, FLOAT_SLOTS, floats)
         self._I, self._I_layout, int_views = self._pack(np.int64, INT_SLOTS, ints)

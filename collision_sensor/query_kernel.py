@@ -5,11 +5,12 @@ A query takes joint positions and, without returning to the interpreter:
 1. decides which joint variables moved (by more than the motion tolerance) since the state
    that the carried statuses describe, and takes their new values into that state;
 2. recomputes the world pose of the links below a moved joint (forward kinematics, only where
-   needed) and the robot's root volume (a world box around all link boxes, rebuilt from the
-   link boxes, never from geometry: paper sec. 2.2);
+   needed) and, with a scene, the volumes spanning several links: for each link a world box
+   around its subtree's link boxes (the root's is the robot's root volume), rebuilt from the
+   link boxes, never from geometry (paper sec. 2.2);
 3. re-checks only the pairs whose relative pose can have changed: those with a moved joint on
    the tree path between their two bodies (sec. 4.2); every other pair keeps its status;
-4. checks a pair by culling with the robot root volume (scene pairs), then (incremental
+4. checks a pair by culling with those volumes (scene pairs), then (incremental
    calls) the pair's last meeting triangle pair, then the two bodies' boxes, then each
    sub-group tree against each (sec. 4.1, :func:`trees_collide`).
 
@@ -75,38 +76,51 @@ def _write_pair_pose(T_world_body, a, b, pose):
 
 
 @numba.njit(cache=True, _nrt=False)
-def _robot_root_box(T_world_body, n_links, body_elem_start, body_elem_end, body_boxes,
-                    root_box):
-    """Write the world axis-aligned box around every link box (the robot's root volume,
-    sec. 2.2) into ``root_box`` (1, BOX_WIDTH): identity axes."""
-    lo0 = lo1 = lo2 = np.inf
-    hi0 = hi1 = hi2 = -np.inf
-    for b in range(n_links):
-        if body_elem_end[b] == body_elem_start[b]:
+def _subtree_boxes(T_world_body, parent, n_links, body_elem_start, body_elem_end, body_boxes,
+                   subtree_boxes):
+    """Write, for every link k, the world axis-aligned box around the boxes of all links in
+    k's subtree into ``subtree_boxes[k]`` (identity axes): the volumes spanning several links
+    (paper sec. 2.2), rebuilt from the link boxes, never from geometry. Row 0 (the root) is
+    the robot's root volume. A subtree without geometry gets half extents -1 (empty).
+    """
+    for k in range(n_links):
+        for c in range(6):
+            subtree_boxes[k, c] = np.inf if c < 3 else -np.inf  # lo[0:3], hi[3:6] for now
+    for b in range(n_links - 1, -1, -1):  # children before parents
+        if body_elem_end[b] > body_elem_start[b]:
+            for i in range(3):
+                c = T_world_body[b, i, 3]
+                e = 0.0
+                for k in range(3):
+                    c += T_world_body[b, i, k] * body_boxes[b, BOX_CENTER + k]
+                    # |row i of R_world_box| . half: the box's half width along world axis i.
+                    ax = (T_world_body[b, i, 0] * body_boxes[b, BOX_AXES + k]
+                          + T_world_body[b, i, 1] * body_boxes[b, BOX_AXES + 3 + k]
+                          + T_world_body[b, i, 2] * body_boxes[b, BOX_AXES + 6 + k])
+                    e += abs(ax) * body_boxes[b, BOX_HALF + k]
+                subtree_boxes[b, i] = min(subtree_boxes[b, i], c - e)
+                subtree_boxes[b, 3 + i] = max(subtree_boxes[b, 3 + i], c + e)
+        p = parent[b]
+        if p >= 0:
+            for i in range(3):
+                subtree_boxes[p, i] = min(subtree_boxes[p, i], subtree_boxes[b, i])
+                subtree_boxes[p, 3 + i] = max(subtree_boxes[p, 3 + i], subtree_boxes[b, 3 + i])
+    for k in range(n_links):  # lo/hi -> a box row
+        lo0, lo1, lo2 = subtree_boxes[k, 0], subtree_boxes[k, 1], subtree_boxes[k, 2]
+        hi0, hi1, hi2 = subtree_boxes[k, 3], subtree_boxes[k, 4], subtree_boxes[k, 5]
+        for c in range(subtree_boxes.shape[1]):
+            subtree_boxes[k, c] = 0.0
+        subtree_boxes[k, BOX_AXES] = 1.0
+        subtree_boxes[k, BOX_AXES + 4] = 1.0
+        subtree_boxes[k, BOX_AXES + 8] = 1.0
+        if not lo0 <= hi0:
+            subtree_boxes[k, BOX_HALF] = -1.0  # no geometry below k
             continue
-        for i in range(3):
-            c = T_world_body[b, i, 3]
-            e = 0.0
-            for k in range(3):
-                c += T_world_body[b, i, k] * body_boxes[b, BOX_CENTER + k]
-                # |row i of R_world_box| . half: the box's half width along world axis i.
-                ax = (T_world_body[b, i, 0] * body_boxes[b, BOX_AXES + k]
-                      + T_world_body[b, i, 1] * body_boxes[b, BOX_AXES + 3 + k]
-                      + T_world_body[b, i, 2] * body_boxes[b, BOX_AXES + 6 + k])
-                e += abs(ax) * body_boxes[b, BOX_HALF + k]
-            if i == 0:
-                lo0, hi0 = min(lo0, c - e), max(hi0, c + e)
-            elif i == 1:
-                lo1, hi1 = min(lo1, c - e), max(hi1, c + e)
-            else:
-                lo2, hi2 = min(lo2, c - e), max(hi2, c + e)
-    root_box[0, :] = 0.0
-    root_box[0, BOX_AXES] = root_box[0, BOX_AXES + 4] = root_box[0, BOX_AXES + 8] = 1.0
-    h0, h1, h2 = 0.5 * (hi0 - lo0), 0.5 * (hi1 - lo1), 0.5 * (hi2 - lo2)
-    root_box[0, BOX_CENTER], root_box[0, BOX_HALF] = 0.5 * (lo0 + hi0), h0
-    root_box[0, BOX_CENTER + 1], root_box[0, BOX_HALF + 1] = 0.5 * (lo1 + hi1), h1
-    root_box[0, BOX_CENTER + 2], root_box[0, BOX_HALF + 2] = 0.5 * (lo2 + hi2), h2
-    root_box[0, 15] = np.sqrt(h0 * h0 + h1 * h1 + h2 * h2)
+        h0, h1, h2 = 0.5 * (hi0 - lo0), 0.5 * (hi1 - lo1), 0.5 * (hi2 - lo2)
+        subtree_boxes[k, BOX_CENTER], subtree_boxes[k, BOX_HALF] = 0.5 * (lo0 + hi0), h0
+        subtree_boxes[k, BOX_CENTER + 1], subtree_boxes[k, BOX_HALF + 1] = 0.5 * (lo1 + hi1), h1
+        subtree_boxes[k, BOX_CENTER + 2], subtree_boxes[k, BOX_HALF + 2] = 0.5 * (lo2 + hi2), h2
+        subtree_boxes[k, BOX_RADIUS] = np.sqrt(h0 * h0 + h1 * h1 + h2 * h2)
 
 
 @numba.njit(cache=True, _nrt=False)
@@ -121,12 +135,14 @@ def _boxes_apart(A, B, P, box_method, work):
 
 
 @numba.njit(cache=True, _nrt=False)
-def _scene_body_outside_root(T_world_body, s, body_boxes, root_box, box_method, work):
-    """True iff scene body ``s``'s box is disjoint from the robot's root volume."""
+def _scene_body_outside(T_world_body, s, body_boxes, subtree_boxes, k, box_method, work):
+    """True iff scene body ``s``'s box is disjoint from the volume of link k's subtree."""
+    if subtree_boxes[k, BOX_HALF] < 0.0:
+        return True  # nothing with geometry below k
     T = T_world_body[s]
     P = (T[0, 0], T[0, 1], T[0, 2], T[1, 0], T[1, 1], T[1, 2], T[2, 0], T[2, 1], T[2, 2],
          T[0, 3], T[1, 3], T[2, 3])
-    A = load_box(root_box, 0)
+    A = load_box(subtree_boxes, k)
     B = load_box(body_boxes, s)
     return _boxes_apart(A, B, P, box_method, work)
 
@@ -152,8 +168,8 @@ def query_kernel(q, q_ref, tolerance, full,
                  T_world_body, n_links, is_scene, body_elem_start, body_elem_end, body_boxes,
                  roots, boxes, nodes, volume, gain, tris,
                  pair_a, pair_b, pair_path, status, witness, clearance, q_eval, reach,
-                 reach_ext, box_method, expansion, moved, body_dirty, scene_culled, root_box, pose,
-                 stack, work, tri_work, counters):
+                 reach_ext, box_method, expansion, moved, body_dirty, scene_culled,
+                 subtree_boxes, pose, stack, work, tri_work, counters):
     """Bring ``status`` up to date with ``q``; return (pairs re-checked, any status changed).
 
     Contract in plain Python (``full`` or tolerance 0 makes it exact for the given ``q``)::
@@ -198,8 +214,9 @@ def query_kernel(q, q_ref, tolerance, full,
     :param clearance, q_eval: (P,), (P, J) float64, carried (see above); ``reach``,
         ``reach_ext``: (P, J) float64, 0 off the pair's path (``CollisionChecker``).
     :param moved, body_dirty: (J,), (B,) int64 work arrays.
-    :param scene_culled: (S,) int64, 1 where a scene object is outside the robot's root volume.
-    :param root_box: (1, BOX_WIDTH), the robot's root volume (kept between calls).
+    :param scene_culled: (S, L) int64, 1 where scene object s is outside the volume of link
+        k's subtree or of one of its ancestors' (row 0: the robot's root volume).
+    :param subtree_boxes: (L, BOX_WIDTH), each link's subtree volume (kept between calls).
     :param pose: (POSE_WIDTH,) float64 work: the pair's relative pose.
     :param stack, work, tri_work, counters: see :func:`trees_collide`.
     """
@@ -227,12 +244,18 @@ def query_kernel(q, q_ref, tolerance, full,
             set_link_pose(i, q_ref, parent, joint_type, T_parent_joint, axis, q_index,
                           multiplier, offset, T_world_body)
             any_link_moved = True
-    if (any_link_moved or full) and scene_culled.shape[0] > 0:  # the root box culls scenes
-        _robot_root_box(T_world_body, n_links, body_elem_start, body_elem_end, body_boxes,
-                        root_box)
+    if (any_link_moved or full) and scene_culled.shape[0] > 0:
+        # First culling against the scene by the volumes spanning several links, top down: a
+        # link is culled for an object when its subtree's volume, or an ancestor's, misses it.
+        _subtree_boxes(T_world_body, parent, n_links, body_elem_start, body_elem_end,
+                       body_boxes, subtree_boxes)
         for s in range(scene_culled.shape[0]):
-            scene_culled[s] = _scene_body_outside_root(T_world_body, n_links + s, body_boxes,
-                                                       root_box, box_method, work)
+            for k in range(n_links):
+                if parent[k] >= 0 and scene_culled[s, parent[k]]:
+                    scene_culled[s, k] = 1
+                else:
+                    scene_culled[s, k] = _scene_body_outside(
+                        T_world_body, n_links + s, body_boxes, subtree_boxes, k, box_method, work)
     rechecked = 0
     changed = False
     track = not full
@@ -260,7 +283,7 @@ def query_kernel(q, q_ref, tolerance, full,
         b = pair_b[p]
         hit = False
         gap = 0.0
-        if not (is_scene[b] and scene_culled[b - n_links]):
+        if not (is_scene[b] and scene_culled[b - n_links, a]):
             _write_pair_pose(T_world_body, a, b, pose)
             wa = witness[p, 0] if track else -1
             wb = witness[p, 1] if track else -1
@@ -306,13 +329,13 @@ def query_kernel(q, q_ref, tolerance, full,
 # layout tables, so that a call passes three arrays and a flag (numba types every argument
 # on every call); the first float slot holds the float scalars.
 FLOAT_SLOTS = ('scalars', 'q_last', 'q_ref', 'T_parent_joint', 'axis', 'multiplier', 'offset',
-               'T_world_body', 'body_boxes', 'boxes', 'volume', 'gain', 'tris', 'root_box',
+               'T_world_body', 'body_boxes', 'boxes', 'volume', 'gain', 'tris', 'subtree_boxes',
                'pose', 'work', 'tri_work', 'clearance', 'q_eval', 'reach', 'reach_ext')
 INT_SLOTS = ('header', 'parent', 'joint_type', 'q_index', 'is_scene', 'body_elem_start',
              'body_elem_end', 'roots', 'nodes', 'pair_a', 'pair_b', 'pair_path', 'status',
              'witness', 'moved', 'body_dirty', 'scene_culled', 'stack', 'counters')
 (F_SCALARS, F_Q_LAST, F_Q_REF, F_T_PARENT_JOINT, F_AXIS, F_MULTIPLIER, F_OFFSET,
- F_T_WORLD_BODY, F_BODY_BOXES, F_BOXES, F_VOLUME, F_GAIN, F_TRIS, F_ROOT_BOX, F_POSE, F_WORK,
+ F_T_WORLD_BODY, F_BODY_BOXES, F_BOXES, F_VOLUME, F_GAIN, F_TRIS, F_SUBTREE_BOXES, F_POSE, F_WORK,
  F_TRI_WORK, F_CLEARANCE, F_Q_EVAL, F_REACH, F_REACH_EXT) = range(len(FLOAT_SLOTS))
 (I_HEADER, I_PARENT, I_JOINT_TYPE, I_Q_INDEX, I_IS_SCENE, I_BODY_ELEM_START, I_BODY_ELEM_END,
  I_ROOTS, I_NODES, I_PAIR_A, I_PAIR_B, I_PAIR_PATH, I_STATUS, I_WITNESS, I_MOVED,
@@ -380,7 +403,7 @@ def packed_query(q, full, F, I):
         view2(F, F_layout, F_REACH_EXT), I[H_BOX_METHOD], I[H_EXPANSION],
         view1(I, I_layout, I_MOVED),
         view1(I, I_layout, I_BODY_DIRTY),
-        view1(I, I_layout, I_SCENE_CULLED), view2(F, F_layout, F_ROOT_BOX),
+        view2(I, I_layout, I_SCENE_CULLED), view2(F, F_layout, F_SUBTREE_BOXES),
         view1(F, F_layout, F_POSE), view2(I, I_layout, I_STACK),
         view1(F, F_layout, F_WORK), view3(F, F_layout, F_TRI_WORK),
         view1(I, I_layout, I_COUNTERS))

@@ -391,3 +391,26 @@ def test_small_motions_skip_pairs_that_stay_apart(panda):
             rechecked += result.rechecked_pairs
             pairs += len(panda.checked_pairs)
     assert rechecked < 0.25 * pairs
+
+
+def test_subtree_volumes_cull_scene_objects_without_changing_answers(
+        panda_urdf, panda_srdf, erd_package_paths):
+    """Volumes spanning several links (each link's subtree) cull scene objects before any pair
+    is looked at; the answers must stay python-fcl's."""
+    from collision_sensor.query_kernel import I_SCENE_CULLED
+    scene = {'objects': [
+        {'name': 'pedestal', 'box': {'size': [0.3, 0.3, 0.3]}, 'pose': {'xyz': [0.25, 0.0, 0.1]}},
+        {'name': 'shelf', 'box': {'size': [0.4, 0.8, 0.03]}, 'pose': {'xyz': [0.55, 0.0, 0.5]}},
+    ]}
+    checker = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                         package_paths=erd_package_paths, scene=scene)
+    oracle = FclOracle(checker, panda_urdf)
+    layout = checker._I_layout
+    start, size = layout[I_SCENE_CULLED, 0], layout[I_SCENE_CULLED, 1]
+    culled = checker._I[start:start + size].reshape(len(scene['objects']), -1)
+    below_root_only = 0
+    for q in random_configurations(checker, 1500, seed=16):
+        assert checker.check(q).colliding_pairs == oracle.colliding_pairs(q), list(q)
+        # The root volume meets the object, yet some subtree's volume misses it.
+        below_root_only += int(((culled[:, 0] == 0)[:, None] & (culled[:, 1:] == 1)).any())
+    assert below_root_only > 100
