@@ -370,11 +370,15 @@ class CollisionChecker:
         return np.ascontiguousarray(values)
 
     def _run(self, positions: Positions, full: bool) -> CheckResult:
-        # check and update inline this; keep the three in step.
+        # A float64 C-contiguous array of the right length goes to the kernel as it is (the
+        # kernel copies it before keeping it); each test here is a cheap attribute test.
         if not (type(positions) is np.ndarray and positions.dtype is _FLOAT64
                 and positions.shape == self._q_shape and positions.flags.c_contiguous):
             positions = self._merged(positions)
-        return self._answer(packed_query(positions, full, self._F, self._I), positions)
+        code = packed_query(positions, full, self._F, self._I)
+        if code == 0 and self._result.rechecked_pairs == 0:
+            return self._result  # nothing moved, as in the last call: the same answer
+        return self._answer(code, positions)
 
     def _answer(self, code: int, positions: np.ndarray) -> CheckResult:
         """Turn the kernel's code (:func:`packed_query`) into the result, or raise."""
@@ -403,12 +407,7 @@ class CollisionChecker:
             in the order of :attr:`joint_names`.
         :raises JointStateError: on unknown names or non-finite values; nothing changes then.
         """
-        # A float64 C-contiguous array of the right length goes to the kernel as it is (the
-        # kernel copies it before keeping it); each test here is a cheap attribute test.
-        if not (type(positions) is np.ndarray and positions.dtype is _FLOAT64
-                and positions.shape == self._q_shape and positions.flags.c_contiguous):
-            positions = self._merged(positions)
-        return self._answer(packed_query(positions, True, self._F, self._I), positions)
+        return self._run(positions, full=True)
 
     def update(self, positions: Positions) -> CheckResult:
         """Check incrementally: re-check only pairs whose relative pose can have changed.
@@ -421,14 +420,7 @@ class CollisionChecker:
         :func:`~collision_sensor.query_kernel.query_kernel`).
         Same arguments and errors as :meth:`check`.
         """
-        if not (type(positions) is np.ndarray and positions.dtype is _FLOAT64
-                and positions.shape == self._q_shape and positions.flags.c_contiguous):
-            positions = self._merged(positions)
-        code = packed_query(positions, False, self._F, self._I)
-        result = self._result
-        if code == 0 and result.rechecked_pairs == 0:
-            return result  # nothing moved, as in the last call: the same answer
-        return self._answer(code, positions)
+        return self._run(positions, full=False)
 
     def check_batch(self, configurations: np.ndarray) -> np.ndarray:
         """Check many configurations from scratch; return (n, P) bool statuses.
