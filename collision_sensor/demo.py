@@ -32,7 +32,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import sysconfig
 import threading
 import time
 from dataclasses import dataclass, field
@@ -460,37 +459,26 @@ _SHOWN_LINKS = ('panda_link4', 'panda_link7', 'panda_hand', 'panda_hand_tcp',
                 'panda_leftfinger')
 
 
-def find_example_robot_data() -> Optional[str]:
-    """Return ``.../share/example-robot-data`` of the installed wheel, or None if absent."""
-    # The example-robot-data wheel has no Python module; its files sit in cmeel.prefix.
-    share = os.path.join(sysconfig.get_paths()['purelib'], 'cmeel.prefix', 'share',
-                         'example-robot-data')
-    return share if os.path.isdir(share) else None
-
-
 def describe_panda() -> int:
     """Load the Panda and print its tree, collision elements and a few link poses.
 
     :return: the exit status: 0 on success, 2 when example-robot-data is missing, 1 on a
         description error.
     """
-    share = find_example_robot_data()
-    if share is None:
-        print(f'{PROG}: example-robot-data is not installed; install it with '
-              '`pip install example-robot-data` (or `pip install -e ".[test]"`)',
-              file=sys.stderr)
-        return 2
+    from collision_sensor.example_robots import example_robot
     from collision_sensor.kinematics import build_kinematic_tree
     from collision_sensor.robot_model import load_urdf
     from collision_sensor.srdf import load_srdf
 
-    robot_dir = os.path.join(share, 'robots', 'panda_description')
     try:
-        model = load_urdf(os.path.join(robot_dir, 'urdf', 'panda.urdf'),
-                          {'example-robot-data': share})
+        panda = example_robot('panda')
+    except CollisionSensorError as exc:  # example-robot-data is not installed
+        print(f'{PROG}: {exc} (or `pip install -e ".[test]"`)', file=sys.stderr)
+        return 2
+    try:
+        model = load_urdf(panda.urdf, panda.package_paths)
         tree = build_kinematic_tree(model)
-        srdf = load_srdf(os.path.join(robot_dir, 'srdf', 'panda.srdf'), model.links,
-                         [joint.name for joint in model.joints])
+        srdf = load_srdf(panda.srdf, model.links, [joint.name for joint in model.joints])
     except CollisionSensorError as exc:
         print(f'{PROG}: {exc}', file=sys.stderr)
         return 1

@@ -10,21 +10,11 @@ os.environ.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'SHM')
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.SystemRandom().randint(1, 100)))
 
 
-def _erd_share():
-    # The example-robot-data wheel has no Python module; its files sit in cmeel.prefix.
-    import sysconfig
-    candidate = os.path.join(
-        sysconfig.get_paths()['purelib'], 'cmeel.prefix', 'share', 'example-robot-data')
-    if not os.path.isdir(candidate):
-        raise RuntimeError(f'example-robot-data not found at {candidate}; '
-                           'install the test extra: pip install -e ".[test]"')
-    return candidate
-
-
 @pytest.fixture(scope='session')
 def erd_share():
     """Directory ``.../share/example-robot-data`` (holds ``robots/``)."""
-    return _erd_share()
+    from collision_sensor.example_robots import example_robot_data_dir
+    return example_robot_data_dir()
 
 
 @pytest.fixture(scope='session')

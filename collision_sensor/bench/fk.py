@@ -14,23 +14,11 @@ Also reported: the first call of the kernels in this process (a disk-cache load 
 is warm, a compilation when it is cold).
 """
 import argparse
-import os
-import sys
-import sysconfig
 import time
 
 import numpy as np
 
-
-def _erd_robot(robot):
-    share = os.path.join(sysconfig.get_paths()['purelib'], 'cmeel.prefix', 'share',
-                         'example-robot-data')
-    relative = {'panda': 'panda_description/urdf/panda.urdf',
-                'ur5': 'ur_description/urdf/ur5_robot.urdf'}[robot]
-    path = os.path.join(share, 'robots', relative)
-    if not os.path.isfile(path):
-        sys.exit(f'example-robot-data not found at {share}; pip install example-robot-data')
-    return path, {'example-robot-data': share}
+from collision_sensor.example_robots import example_robot
 
 
 def _per_call(function, repeats):
@@ -57,7 +45,8 @@ def main(argv=None):
     from collision_sensor.kinematics import build_kinematic_tree
     from collision_sensor.robot_model import load_urdf
 
-    urdf, package_paths = _erd_robot(args.robot)
+    robot = example_robot(args.robot)
+    urdf, package_paths = robot.urdf, robot.package_paths
     model = load_urdf(urdf, package_paths)
     tree = build_kinematic_tree(model)
     rng = np.random.default_rng(0)
