@@ -5,6 +5,7 @@ test sees another's topics or parameters, and everything is torn down even when 
 DDS stays in shared memory, in this run's domain (``test/conftest.py``).
 """
 import re
+import threading
 import time
 import uuid
 from typing import Callable, List
@@ -103,3 +104,27 @@ def reliable(depth: int = 10, latched: bool = False) -> QoSProfile:
     return QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE,
                       durability=(DurabilityPolicy.TRANSIENT_LOCAL if latched
                                   else DurabilityPolicy.VOLATILE))
+
+
+class PlayerThread:
+    """``collision_sensor.player.main(argv)`` in a thread, with an rclpy Context of its own."""
+
+    def __init__(self, argv):
+        from collision_sensor import player
+        self.context = rclpy.Context()
+        self.status = None
+        self.thread = threading.Thread(
+            target=lambda: setattr(self, 'status', player.main(argv, context=self.context)),
+            daemon=True)
+        self.thread.start()
+
+    def join(self, timeout=30.0):
+        """Wait for the player to finish; return its exit status (None if still running)."""
+        self.thread.join(timeout)
+        return self.status
+
+    def stop(self, timeout=10.0):
+        """Shut the player's context down and wait for it; return its exit status."""
+        rclpy.try_shutdown(context=self.context)
+        self.thread.join(timeout)
+        return self.status

@@ -3,7 +3,6 @@ rclpy in this process: the player runs ``main`` in a thread with a Context of it
 node of the test's harness records what arrives, in a namespace per test.
 """
 import os
-import threading
 
 import numpy as np
 import pytest
@@ -57,33 +56,14 @@ def ros(request):
     harness.close()
 
 
+def PlayerThread(argv):  # noqa: N802 (stands for the class, imported late: rclpy)
+    from ros_helpers import PlayerThread as player_thread
+    return player_thread(argv)
+
+
 def _keep_all():
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
     return QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
-
-
-class PlayerThread:
-    """``player.main(argv)`` in a thread, with an rclpy Context of its own."""
-
-    def __init__(self, argv):
-        import rclpy
-        self.context = rclpy.Context()
-        self.status = None
-        self.thread = threading.Thread(target=self._run, args=(argv,), daemon=True)
-        self.thread.start()
-
-    def _run(self, argv):
-        self.status = player.main(argv, context=self.context)
-
-    def stop(self, timeout=10.0):
-        import rclpy
-        rclpy.try_shutdown(context=self.context)
-        self.thread.join(timeout)
-        return self.status
-
-    def join(self, timeout=10.0):
-        self.thread.join(timeout)
-        return self.status
 
 
 def test_as_fast_as_possible_delivers_every_frame_in_order(ros):

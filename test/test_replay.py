@@ -8,7 +8,6 @@ thread with another Context, so every frame crosses real DDS (shared memory). Th
 recorded time), so a lost, repeated or reordered frame shows as a mismatch at that frame.
 """
 import json
-import threading
 
 import pytest
 
@@ -23,7 +22,7 @@ from std_msgs.msg import Bool  # noqa: E402
 from collision_sensor import offline_check, player  # noqa: E402
 from collision_sensor.demo import demo_cell_parameters  # noqa: E402
 from collision_sensor.node import CollisionSensorNode  # noqa: E402
-from ros_helpers import RosHarness  # noqa: E402
+from ros_helpers import PlayerThread, RosHarness  # noqa: E402
 
 #: Every verdict, including one published before the probe matched (transient local).
 EVERY_VERDICT = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
@@ -52,27 +51,6 @@ def stamp_ns(stamp) -> int:
 
 def pairs_of(msg: DiagnosticArray):
     return [status.name.split(':', 1) for status in msg.status]
-
-
-class PlayerThread:
-    """``player.main(argv)`` in a thread, with an rclpy Context of its own."""
-
-    def __init__(self, argv):
-        self.context = rclpy.Context()
-        self.status = None
-        self.thread = threading.Thread(target=self._run, args=(argv,), daemon=True)
-        self.thread.start()
-
-    def _run(self, argv):
-        self.status = player.main(argv, context=self.context)
-
-    def join(self, timeout=30.0):
-        self.thread.join(timeout)
-        return self.status
-
-    def stop(self):
-        rclpy.try_shutdown(context=self.context)
-        self.thread.join(10.0)
 
 
 @pytest.mark.parametrize('name', offline_check.BUNDLED_SEQUENCES)
