@@ -51,6 +51,7 @@ from collision_sensor.errors import CollisionSensorError, ConfigError
 from collision_sensor.exception_list import adjacent_pairs, sorted_pair
 from collision_sensor.mesh_loading import parse_package_paths
 from collision_sensor.progress import MODES, ProgressBar
+from collision_sensor.sampling import sampling_bounds, uniform_configurations
 
 PROG = 'collision_sensor_acm'
 EXIT_OK, EXIT_ERROR = 0, 2
@@ -127,23 +128,6 @@ class CollisionMatrix:
 
 
 # ------------------------------------------------------------------ the matrix, no I/O
-
-def sampling_bounds(checker) -> Tuple[np.ndarray, np.ndarray]:
-    """Return ``(lower, upper)``, ``(J,) float``, in the order of ``checker.joint_names``.
-
-    Infinite limits (continuous joints) become [-pi, pi].
-    """
-    lower = np.array([checker.joint_limits[name][0] for name in checker.joint_names])
-    upper = np.array([checker.joint_limits[name][1] for name in checker.joint_names])
-    return (np.where(np.isfinite(lower), lower, -math.pi),
-            np.where(np.isfinite(upper), upper, math.pi))
-
-
-def random_configurations(lower: np.ndarray, upper: np.ndarray, n: int,
-                          rng: np.random.Generator) -> np.ndarray:
-    """Return ``(n, J) float`` configurations uniform in ``[lower, upper]``."""
-    return lower + (upper - lower) * rng.random((n, len(lower)))
-
 
 def find_adjacent(model, link_names: Sequence[str]) -> Set[Pair]:
     """Return each link with geometry paired with its nearest ancestor that has geometry.
@@ -256,7 +240,7 @@ def compute_matrix(base, *, srdf=None, default_state: Optional[str] = None,
     always_before: Set[Pair] = set()
     while rounds < max_rounds:
         rounds += 1
-        Q = random_configurations(lower, upper, samples_per_round, rng)
+        Q = uniform_configurations(lower, upper, samples_per_round, rng)
         drawn.append(Q)
         with ProgressBar(samples_per_round, f'Always, round {rounds}', progress) as bar:
             hits += count_collisions(sampler, Q, bar)
@@ -277,7 +261,7 @@ def compute_matrix(base, *, srdf=None, default_state: Optional[str] = None,
         quiet = [pair for pair, h in zip(columns, hits) if h == 0]
         extra = max(0, never_samples - n_always)
         if quiet and extra:
-            Q = random_configurations(lower, upper, extra, rng)
+            Q = uniform_configurations(lower, upper, extra, rng)
             drawn.append(Q)
             never_sampler = pair_checker(base, quiet)
             with ProgressBar(extra, 'Never', progress) as bar:

@@ -101,13 +101,3 @@ class FclOracle:
             if found:
                 hits.append((a, b))
         return tuple(hits)
-
-
-def random_configurations(checker, n, seed):
-    """(n, J) configurations uniform within the joint limits (continuous: [-pi, pi])."""
-    rng = np.random.default_rng(seed)
-    lower = np.array([checker.joint_limits[name][0] for name in checker.joint_names])
-    upper = np.array([checker.joint_limits[name][1] for name in checker.joint_names])
-    lower = np.where(np.isfinite(lower), lower, -np.pi)
-    upper = np.where(np.isfinite(upper), upper, np.pi)
-    return lower + (upper - lower) * rng.random((n, len(lower)))

@@ -13,6 +13,7 @@ import pytest
 import yaml
 
 from collision_sensor import CollisionChecker, acm
+from collision_sensor.sampling import sampling_bounds, uniform_configurations
 from collision_sensor.share import config_path
 from collision_sensor.srdf import load_srdf
 from collision_sensor.srdf_merge import merge_disable_collisions, new_srdf
@@ -78,8 +79,8 @@ def panda_matrix(panda_base):
 
 @pytest.fixture(scope='module')
 def fresh_panda(panda_base):
-    lower, upper = acm.sampling_bounds(panda_base)
-    return acm.random_configurations(lower, upper, FRESH, np.random.default_rng(2024))
+    lower, upper = sampling_bounds(panda_base)
+    return uniform_configurations(lower, upper, FRESH, np.random.default_rng(2024))
 
 
 def test_panda_compared_with_the_shipped_srdf(panda_matrix, panda_srdf):
@@ -225,7 +226,7 @@ def test_slider_always_rates_match_the_closed_form(slider_base):
     matrix = acm.compute_matrix(slider_base, always_fraction=0.4, samples_per_round=SAMPLES,
                                 seed=6)
     assert set(matrix.pairs(acm.ALWAYS)) == {('base', 'slider'), ('gate', 'slider')}
-    fresh = acm.random_configurations(*acm.sampling_bounds(slider_base), FRESH,
+    fresh = uniform_configurations(*sampling_bounds(slider_base), FRESH,
                                       np.random.default_rng(99))
     q = fresh[:, 0]
     closed_form = {('base', 'slider'): np.mean(q >= 0.02), ('gate', 'slider'): np.mean(q >= 0.5)}

@@ -5,7 +5,6 @@
 * brute force over all triangle pairs on small generated robots and scenes;
 * ``update`` against a from-scratch ``check`` along long random walks.
 """
-import os
 import textwrap
 
 import numba
@@ -13,8 +12,9 @@ import numpy as np
 import pytest
 
 from collision_sensor import CollisionChecker, ConfigError, JointStateError
+from collision_sensor.sampling import random_configurations, sampling_bounds
 from collision_sensor.triangle_test import triangles_intersect
-from engine_oracles import FclOracle, random_configurations
+from engine_oracles import FclOracle
 
 N_FCL_CONFIGURATIONS = 10_000
 
@@ -172,10 +172,7 @@ def test_small_robot_and_scene_match_brute_force(leaf_size):
 
 def _walk(checker, steps, rng, mode):
     q = random_configurations(checker, 1, seed=int(rng.integers(1 << 30)))[0]
-    lower = np.array([checker.joint_limits[n][0] for n in checker.joint_names])
-    upper = np.array([checker.joint_limits[n][1] for n in checker.joint_names])
-    lower = np.where(np.isfinite(lower), lower, -np.pi)
-    upper = np.where(np.isfinite(upper), upper, np.pi)
+    lower, upper = sampling_bounds(checker)
     for _ in range(steps):
         step = np.zeros_like(q)
         if mode == 'one':

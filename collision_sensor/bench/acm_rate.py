@@ -18,11 +18,11 @@ import time
 
 import numpy as np
 
-from collision_sensor.acm import find_adjacent, pair_checker, random_configurations, \
-    sampling_bounds
+from collision_sensor.acm import find_adjacent, pair_checker
 from collision_sensor.bench.peers import PinocchioPeer
 from collision_sensor.checker import CollisionChecker
 from collision_sensor.example_robots import example_robot
+from collision_sensor.sampling import sampling_bounds, uniform_configurations
 
 
 def best_rate(run, n, repeats):
@@ -49,7 +49,7 @@ def main(argv=None) -> int:
     checker = CollisionChecker.from_urdf(robot.urdf, package_paths=robot.package_paths,
                                          config={'ignore_adjacent': False})
     lower, upper = sampling_bounds(checker)
-    Q = random_configurations(lower, upper, args.configurations,
+    Q = uniform_configurations(lower, upper, args.configurations,
                               np.random.default_rng(args.seed))
     checker.check_batch(Q[:2])  # compile before timing
     rows = [(f'collision_sensor check_batch, all {len(checker.checked_pairs)} link pairs',

@@ -15,16 +15,7 @@ import numpy as np
 from collision_sensor.checker import CollisionChecker
 from collision_sensor.example_robots import example_robot
 from collision_sensor.bench.peers import FclPeer, PinocchioPeer
-
-
-def random_configurations(checker, n, seed=0):
-    """(n, J) configurations uniform within the joint limits (continuous: [-pi, pi])."""
-    lower = np.array([checker.joint_limits[name][0] for name in checker.joint_names])
-    upper = np.array([checker.joint_limits[name][1] for name in checker.joint_names])
-    lower = np.where(np.isfinite(lower), lower, -np.pi)
-    upper = np.where(np.isfinite(upper), upper, np.pi)
-    rng = np.random.default_rng(seed)
-    return lower + (upper - lower) * rng.random((n, len(lower)))
+from collision_sensor.sampling import random_configurations
 
 
 def per_call_us(function, items, repeats=3):

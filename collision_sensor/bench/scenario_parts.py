@@ -9,12 +9,12 @@
 No targets: these tables choose the checker's defaults.
 """
 from collision_sensor.bench import box_tests
-from collision_sensor.bench.engine import random_configurations
 from collision_sensor.bench.scenario_cells import robot_cell
 from collision_sensor.bench.scenario_measure import (
     Candidate, interleaved_us, seconds, work_per_check)
 from collision_sensor.bench.scenario_report import Section, ratio, us
 from collision_sensor.checker_config import CheckerConfig
+from collision_sensor.sampling import random_configurations
 from collision_sensor.traversal import EXPANSION_RULES
 
 TITLE = 'Scenario 5: the parts (box tests, expansion rules, bounding-volume fits)'

@@ -10,12 +10,12 @@ Per robot, the same seeded configurations (uniform within the joint limits) go t
 
 Every peer's colliding pair sets are compared with ours on every configuration (untimed).
 """
-from collision_sensor.bench.engine import random_configurations
 from collision_sensor.bench.scenario_measure import Candidate, interleaved_us, work_per_check
 from collision_sensor.bench.scenario_peers import (
     FclCell, PinocchioFkFcl, agreement, optional_peer, pinocchio_colliding_pairs,
     pinocchio_peer)
 from collision_sensor.bench.scenario_report import Section, ratio, us
+from collision_sensor.sampling import random_configurations
 
 TITLE = 'Scenario 1: random configurations, full check including kinematics'
 TARGET_RATIO = 0.5

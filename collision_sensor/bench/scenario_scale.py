@@ -13,12 +13,12 @@ import tempfile
 
 import numpy as np
 
-from collision_sensor.bench.engine import random_configurations
 from collision_sensor.bench.scenario_cells import robot_cell, robot_pair_exceptions, terrain_object
 from collision_sensor.bench.scenario_measure import (
     Candidate, interleaved_us, pin_mmap_threshold, resident_growth, work_per_check)
 from collision_sensor.bench.scenario_peers import FclCell, agreement, fcl_bvh
 from collision_sensor.bench.scenario_report import Section, ratio, us
+from collision_sensor.sampling import random_configurations
 
 TITLE = 'Scenario 4: scale, the Panda against scene meshes of growing size'
 LOG_RESIDUAL = 0.10         # a log fit within 10 % of every point counts as log growth
