@@ -9,7 +9,7 @@ This is the API the node, the command-line tools and the benchmarks build on::
     result.in_collision, result.colliding_pairs
 
 Everything between ``positions`` and the pair statuses runs in one compiled kernel
-(:func:`collision_sensor.query_kernel.query_kernel`); this module turns files into flat arrays
+(:func:`collision_sensor.query_kernel.packed_query`); this module turns files into flat arrays
 once, and names back into answers.
 """
 import math
@@ -25,8 +25,8 @@ from collision_sensor.kinematics import JOINT_PRISMATIC, KinematicTree, build_ki
 from collision_sensor.obb_tree import BOX_WIDTH, box_table, build_forest, forest_view, node_table
 from collision_sensor.array_pack import ArrayPack
 from collision_sensor.query_kernel import (
-    FLOAT_SLOTS, HEADER_SIZE, INT_SLOTS, N_SCALARS, S_TOLERANCE, WORK_SIZE, packed_query,
-    write_header)
+    FLOAT_SLOTS, HEADER_SIZE, INT_SLOTS, N_SCALARS, S_TOLERANCE, WORK_SIZE, packed_batch,
+    packed_poses, packed_query, write_header)
 from collision_sensor.robot_model import RobotModel, load_urdf
 from collision_sensor.traversal import N_COUNTERS, POSE_WIDTH
 from collision_sensor.scene import SceneObject, load_scene
@@ -146,7 +146,7 @@ class CollisionChecker:
             pair_b.append(ib)
         self._pair_a = np.asarray(pair_a, dtype=np.int64)
         self._pair_b = np.asarray(pair_b, dtype=np.int64)
-        self._pair_path = self._pair_paths(n_links)
+        pair_path = self._pair_paths(n_links)
         vertex_radius = np.zeros(n_bodies)
         for e, owner in enumerate(owners):
             if len(meshes[e][0]):
@@ -169,6 +169,10 @@ class CollisionChecker:
         for s, obj in enumerate(scene):
             T_world_body[n_links + s] = obj.T_world_object
         n_joints = len(self.joint_names)
+        n_pairs = len(self.checked_pairs)
+        # Each variable's pairs (those with it on their path), as one list cut per variable.
+        on_path = pair_path.T.nonzero()
+        joint_pairs_start = np.searchsorted(on_path[0], np.arange(n_joints + 1))
         depth = int(forest.depth.max()) if len(forest.depth) else 1
         f = forest
         # Everything the kernel reads or keeps, in two flat buffers (see array_pack): static
@@ -184,18 +188,17 @@ class CollisionChecker:
             tris=f.tris, subtree_boxes=np.zeros((max(n_links, 1), BOX_WIDTH)),
             pose=np.zeros(POSE_WIDTH),
             work=np.zeros(WORK_SIZE), tri_work=np.zeros((2, 3, 3)),
-            clearance=np.zeros(len(self.checked_pairs)),
-            q_eval=np.zeros((len(self.checked_pairs), n_joints)), reach=self._pair_reach,
-            reach_ext=self._pair_reach_ext)
+            clearance=np.zeros(n_pairs), q_eval=np.zeros((n_pairs, n_joints)),
+            reach=self._pair_reach, reach_ext=self._pair_reach_ext, travel=np.zeros(n_pairs))
         ints = dict(
             header=np.zeros(HEADER_SIZE), parent=kin.parent, joint_type=kin.joint_type,
             q_index=kin.q_index,
             is_scene=is_scene, body_elem_start=self._body_elem_start,
             body_elem_end=self._body_elem_end, roots=f.roots, nodes=node_table(f),
-            pair_a=self._pair_a, pair_b=self._pair_b, pair_path=self._pair_path,
-            status=np.zeros(len(self.checked_pairs)),
-            witness=np.full((len(self.checked_pairs), 2), -1),
-            moved=np.zeros(n_joints), body_dirty=np.zeros(n_bodies),
+            pair_a=self._pair_a, pair_b=self._pair_b, joint_pairs_start=joint_pairs_start,
+            joint_pairs=on_path[1], status=np.zeros(n_pairs), witness=np.full((n_pairs, 2), -1),
+            moved=np.zeros(n_joints), stale=np.zeros(n_bodies), chain=np.zeros(max(n_links, 1)),
+            pending=np.zeros(n_pairs), todo=np.zeros(n_pairs),
             scene_culled=np.zeros((len(scene), max(n_links, 1))),
             stack=np.zeros((2 * depth + 8, 3)),
             counters=np.zeros(N_COUNTERS))
@@ -391,9 +394,7 @@ class CollisionChecker:
         if code & 1:
             # The kernel reports whether any status changed, full check or not, so the names
             # are gathered again only then (a few microseconds, as much as a Panda query).
-            names = self.checked_pairs
-            hits = tuple([names[p] for p in np.flatnonzero(self._status)])
-            result = self._result = CheckResult(bool(hits), hits, rechecked)
+            result = self._result = self._result_from_status(rechecked)
         elif rechecked != result.rechecked_pairs:
             result = self._result = CheckResult(result.in_collision, result.colliding_pairs,
                                                 rechecked)
@@ -417,31 +418,64 @@ class CollisionChecker:
         status, and every pose not below a moved joint, carries over (paper sec. 4.2). A pair
         last found apart by ``update`` with a known clearance is not re-checked either while
         the joints on its path have not moved far enough, summed, to close that gap (see
-        :func:`~collision_sensor.query_kernel.query_kernel`).
+        :func:`~collision_sensor.query_kernel.plan_update`).
         Same arguments and errors as :meth:`check`.
         """
         return self._run(positions, full=False)
 
     def check_batch(self, configurations: np.ndarray) -> np.ndarray:
-        """Check many configurations from scratch; return (n, P) bool statuses.
+        """Check many configurations from scratch, in one compiled call; return (n, P) bool
+        statuses, columns in the order of :attr:`checked_pairs`.
 
-        Columns follow :attr:`checked_pairs`. The carried state is restored afterwards.
+        The carried state is restored afterwards: the next :meth:`update` goes on from the
+        positions of the last single call.
 
         :param configurations: (n, J) float, rows in the order of :attr:`joint_names`.
+        :raises JointStateError: on a wrong shape or a value that is not finite (naming the
+            row and joint); nothing changes then.
         """
-        Q = np.asarray(configurations, dtype=np.float64)
+        saved = self._q.copy()
+        statuses, _ = self._batch(configurations, full=True)
+        self._run(saved, full=True)
+        return statuses
+
+    def update_batch(self, configurations: np.ndarray) -> np.ndarray:
+        """Run :meth:`update` on each row in turn, in one compiled call: a recorded path
+        checked incrementally, without the interpreter between steps. Return (n, P) bool
+        statuses after each row, columns in the order of :attr:`checked_pairs`.
+
+        The state carries over as with single calls: afterwards the checker stands at the
+        last row (``update`` goes on from there, :attr:`positions` is that row).
+
+        :param configurations: (n, J) float, rows in the order of :attr:`joint_names`.
+        :raises JointStateError: as :meth:`check_batch`; nothing changes then.
+        """
+        statuses, codes = self._batch(configurations, full=False)
+        if len(codes):
+            self._result = self._result_from_status(int(codes[-1]) >> 1)
+        return statuses
+
+    def _batch(self, configurations, full: bool) -> Tuple[np.ndarray, np.ndarray]:
+        """Run the rows through the kernel; return (n, P) bool statuses and (n,) codes."""
+        Q = np.ascontiguousarray(configurations, dtype=np.float64)
         if Q.ndim != 2 or Q.shape[1] != len(self.joint_names):
             raise JointStateError(f'expected configurations of shape (n, {len(self.joint_names)})'
-                                  f', got {Q.shape}')
-        if not np.isfinite(Q).all():
-            raise JointStateError('configurations contain values that are not finite')
-        saved = self._q.copy()
-        out = np.zeros((len(Q), len(self.checked_pairs)), dtype=bool)
-        for i, q in enumerate(Q):
-            self._run(q, full=True)
-            out[i] = self._status != 0
-        self._run(saved, full=True)
-        return out
+                                  f' in the order of joint_names, got {Q.shape}')
+        bad = np.argwhere(~np.isfinite(Q))
+        if len(bad):
+            row, j = bad[0]
+            raise JointStateError(f'configuration {row}, joint "{self.joint_names[j]}": value '
+                                  f'{Q[row, j]} is not finite; send finite values (nothing was '
+                                  'changed)')
+        statuses = np.zeros((len(Q), len(self.checked_pairs)), dtype=np.uint8)
+        codes = np.zeros(len(Q), dtype=np.int64)
+        packed_batch(Q, full, self._F, self._I, statuses, codes)
+        return statuses.view(bool), codes
+
+    def _result_from_status(self, rechecked: int) -> CheckResult:
+        names = self.checked_pairs
+        hits = tuple([names[p] for p in np.flatnonzero(self._status)])
+        return CheckResult(bool(hits), hits, rechecked)
 
     # ------------------------------------------------------------------ inspection
     @property
@@ -452,7 +486,14 @@ class CollisionChecker:
     def link_poses(self) -> Dict[str, np.ndarray]:
         """World poses (4, 4) of every link and scene object at the last checked state."""
         names = list(self.kinematics.link_names) + list(self.scene_object_names)
-        return {name: self._T_world_body[b].copy() for b, name in enumerate(names)}
+        T_world_body = self._poses()
+        return {name: T_world_body[b].copy() for b, name in enumerate(names)}
+
+    def _poses(self) -> np.ndarray:
+        """(B, 4, 4) world poses of all bodies, brought up to date (``update`` computes a
+        link's pose only when a pair it re-checks needs it)."""
+        packed_poses(self._F, self._I)
+        return self._T_world_body
 
     def collision_boxes(self, names: Iterable[str]) -> List[Tuple[str, np.ndarray, np.ndarray]]:
         """Return each sub-group's root box of the named bodies, in the world.
@@ -462,6 +503,7 @@ class CollisionChecker:
         """
         boxes = []
         f = self.forest
+        T_world_body = self._poses()
         for name in names:
             b = self._body_index.get(name)
             if b is None:
@@ -471,5 +513,5 @@ class CollisionChecker:
                 T_body_box = np.eye(4)
                 T_body_box[:3, :3] = f.axes[node]
                 T_body_box[:3, 3] = f.center[node]
-                boxes.append((name, self._T_world_body[b] @ T_body_box, f.half[node].copy()))
+                boxes.append((name, T_world_body[b] @ T_body_box, f.half[node].copy()))
         return boxes

@@ -3,19 +3,26 @@
 A query takes joint positions and, without returning to the interpreter:
 
 1. decides which joint variables moved (by more than the motion tolerance) since the state
-   that the carried statuses describe, and takes their new values into that state;
-2. recomputes the world pose of the links below a moved joint (forward kinematics, only where
-   needed) and, with a scene, the volumes spanning several links: for each link a world box
-   around its subtree's link boxes (the root's is the robot's root volume), rebuilt from the
-   link boxes, never from geometry (paper sec. 2.2);
-3. re-checks only the pairs whose relative pose can have changed: those with a moved joint on
-   the tree path between their two bodies (sec. 4.2); every other pair keeps its status;
-4. checks a pair by culling with those volumes (scene pairs), then (incremental
-   calls) the pair's last meeting triangle pair, then the two bodies' boxes, then each
-   sub-group tree against each (sec. 4.1, :func:`trees_collide`).
+   that the carried statuses describe, and takes their new values into that state
+   (:func:`plan_update`; :func:`plan_full` takes them all);
+2. lists only the pairs whose relative pose can have changed: those with a moved joint on
+   the tree path between their two bodies (sec. 4.2), minus those whose recorded clearance
+   the motion cannot have closed; every other pair keeps its status;
+3. re-checks the listed pairs (:func:`recheck_pairs`): (full checks) culling with the
+   volumes spanning several links (scene pairs), (incremental calls) the pair's last
+   meeting triangle pair, then the two bodies' boxes, then each sub-group tree against
+   each (sec. 4.1, :func:`trees_collide`).
 
-Bodies are the robot's links (FK order, world == root link frame) followed by the scene
-objects, whose poses never change.
+Poses follow the joints lazily: a moved joint marks the links below it stale, and a link's
+world pose (forward kinematics) is recomputed only when a pair being re-checked needs it,
+or when Python asks for the poses (:func:`packed_poses`). A step that re-checks nothing
+costs the pairs on the moved joints' lists, not the kinematics. Full checks rebuild the
+volumes spanning several links (for each link a world box around its subtree's link boxes,
+the root's being the robot's root volume, from the link boxes, never from geometry: paper
+sec. 2.2) and cull scene pairs with them first.
+
+Bodies are the robot's links (FK order, parents first, world == root link frame) followed by
+the scene objects, whose poses never change.
 
 The kernels here and the traversal's leaf and box-test functions compile with ``_nrt=False``
 (numba's runtime off: no reference counting). They never allocate, and every array they see is
@@ -23,10 +30,8 @@ a view of the checker's two buffers, which the caller holds for the whole call. 
 runtime on, every array passed to a function or made into a view costs an atomic
 increment and decrement; that was more than half of a Panda query (4 of 8 us, ``perf``).
 
-numba's on-disk cache (``cache=True``) keys these kernels on a hash of this file only: the
-traversal, box, triangle and kinematics functions they inline are compiled into them, and
-a change there alone leaves the stale kernel in ``__pycache__``. After editing those modules,
-delete ``collision_sensor/__pycache__/query_kernel.*`` (or set ``NUMBA_CACHE_DIR``).
+numba's on-disk cache keys kernels on their own file only; :mod:`kernel_cache` binds every
+kernel module's cache to a digest of all of them, so editing any one recompiles them all.
 """
 import numba
 import numpy as np
@@ -45,6 +50,12 @@ WORK_SIZE = 256
 #: (``tolerances.TRIANGLE_EPS_REL`` of the largest coordinate, 1000 times over), boxes that
 #: hold their triangles only up to rounding, and the rounding of the gaps and of FK.
 CLEARANCE_EPS_REL = 1e-9
+#: A skipped pair's running travel sum is replaced by the exact sum once it reaches this
+#: fraction of the pair's clearance (see :func:`plan_update`).
+TRAVEL_GUARD = 1.0 - 1e-6
+#: ... and every tracked pair's, at least once in this many incremental calls: each call
+#: adds at most a few ulps of the clearance of rounding, far below 1 - TRAVEL_GUARD even then.
+TRAVEL_RESYNC_CALLS = 1 << 24
 
 
 @numba.njit(cache=True, inline='always')
@@ -163,42 +174,203 @@ def _bodies_gap(body_boxes, a, b, pose):
 
 
 @numba.njit(cache=True, _nrt=False)
-def query_kernel(q, q_ref, tolerance, full,
-                 parent, joint_type, T_parent_joint, axis, q_index, multiplier, offset,
-                 T_world_body, n_links, is_scene, body_elem_start, body_elem_end, body_boxes,
-                 roots, boxes, nodes, volume, gain, tris,
-                 pair_a, pair_b, pair_path, status, witness, clearance, q_eval, reach,
-                 reach_ext, box_method, expansion, moved, body_dirty, scene_culled,
-                 subtree_boxes, pose, stack, work, tri_work, counters):
-    """Bring ``status`` up to date with ``q``; return (pairs re-checked, any status changed).
+def _refresh_pose(i, q_ref, parent, joint_type, T_parent_joint, axis, q_index, multiplier,
+                  offset, T_world_body, stale, chain):
+    """Bring body i's world pose up to date with ``q_ref``: it and its stale ancestors, top
+    down (``chain``: (L,) int64 work). Scene bodies are never stale."""
+    n = 0
+    k = i
+    while k >= 0 and stale[k]:
+        chain[n] = k
+        n += 1
+        k = parent[k]
+    for t in range(n - 1, -1, -1):
+        k = chain[t]
+        set_link_pose(k, q_ref, parent, joint_type, T_parent_joint, axis, q_index, multiplier,
+                      offset, T_world_body)
+        stale[k] = 0
 
-    Contract in plain Python (``full`` or tolerance 0 makes it exact for the given ``q``)::
 
-        moved = full | (abs(q - q_ref) > tolerance);  q_ref[moved] = q[moved]
-        T_world_body[links] = forward_kinematics(q_ref)        # only links below a moved joint
-        for p in pairs:
-            if full or moved[pair_path[p]].any():
-                status[p] = bodies_collide(pair_a[p], pair_b[p])
+@numba.njit(cache=True, _nrt=False)
+def _refresh_all_poses(n_links, q_ref, parent, joint_type, T_parent_joint, axis, q_index,
+                       multiplier, offset, T_world_body, stale):
+    """Bring every stale link pose up to date (links come parents first)."""
+    for i in range(n_links):
+        if stale[i]:
+            set_link_pose(i, q_ref, parent, joint_type, T_parent_joint, axis, q_index,
+                          multiplier, offset, T_world_body)
+            stale[i] = 0
 
-    Incremental calls (not ``full``) first test the pair's witness, the triangle pair that
-    met when the pair last collided: under small motion a colliding pair usually still
-    collides there, which then costs one triangle test instead of a descent (the answer is
-    the same either way; a witness that no longer meets only costs that test). ``full``
-    calls use nothing carried over.
 
-    Incremental calls also skip a separated pair that cannot have closed its gap (sec. 4.2
-    taken further): a pair re-checked by an incremental call and found apart keeps
-    ``clearance[p]``, a lower bound of the distance between its two bodies' triangles, and
-    ``q_eval[p] = q_ref`` then. Moving variable j by dq moves no point of either body by more
-    than ``|dq| * (reach[p, j] + reach_ext[p, j] * E)`` relative to the other (E: the sum of
-    the prismatic joints' |value| at ``q_ref``), so while the sum of these over j, with
-    ``dq = q_ref[j] - q_eval[p, j]``, is below ``clearance[p]`` the pair is still apart and
-    is not re-checked. Full checks record no clearance (``clearance[p] = 0``).
+@numba.njit(cache=True, _nrt=False)
+def _refresh_culling(T_world_body, parent, n_links, body_elem_start, body_elem_end, body_boxes,
+                     subtree_boxes, scene_culled, box_method, work):
+    """First culling against the scene by the volumes spanning several links, top down: link
+    k is culled for object s when its subtree's volume, or an ancestor's, misses s's box.
+    Every link pose must be current."""
+    _subtree_boxes(T_world_body, parent, n_links, body_elem_start, body_elem_end, body_boxes,
+                   subtree_boxes)
+    for s in range(scene_culled.shape[0]):
+        for k in range(n_links):
+            if parent[k] >= 0 and scene_culled[s, parent[k]]:
+                scene_culled[s, k] = 1
+            else:
+                scene_culled[s, k] = _scene_body_outside(
+                    T_world_body, n_links + s, body_boxes, subtree_boxes, k, box_method, work)
 
-    :param q, q_ref: (J,) float64 requested positions, and the state the statuses describe
-        (updated in place).
-    :param parent, joint_type, T_parent_joint, axis, q_index, multiplier, offset: the
-        :class:`~collision_sensor.kinematics.KinematicTree` arrays of the ``n_links`` links.
+
+@numba.njit(cache=True, _nrt=False)
+def _extension(q_ref, n_links, joint_type, q_index, multiplier, offset):
+    """E: the sum of |value| of the prismatic joints at ``q_ref`` (see :func:`plan_update`)."""
+    extension = 0.0
+    for i in range(n_links):
+        if joint_type[i] == JOINT_PRISMATIC:
+            extension += abs(multiplier[i] * q_ref[q_index[i]] + offset[i])
+    return extension
+
+
+@numba.njit(cache=True, _nrt=False)
+def _travel(p, q_ref, q_eval, reach, reach_ext, extension):
+    """How far pair p's bodies can have moved towards each other since ``q_eval[p]``: the sum
+    over variables j of ``|q_ref[j] - q_eval[p, j]| * (reach[p, j] + reach_ext[p, j] * E)``
+    (both reaches are 0 off the pair's path)."""
+    travel = 0.0
+    for j in range(q_ref.shape[0]):
+        r = reach[p, j] + reach_ext[p, j] * extension
+        if r != 0.0:
+            travel += abs(q_ref[j] - q_eval[p, j]) * r
+    return travel
+
+
+@numba.njit(cache=True, _nrt=False)
+def plan_full(q, q_ref, n_links, parent, joint_type, T_parent_joint, axis, q_index, multiplier,
+              offset, T_world_body, stale, scalars):
+    """Start a full check: take all of ``q``, recompute every link pose and E."""
+    for j in range(q.shape[0]):
+        q_ref[j] = q[j]
+    for i in range(n_links):
+        stale[i] = 1
+    _refresh_all_poses(n_links, q_ref, parent, joint_type, T_parent_joint, axis, q_index,
+                       multiplier, offset, T_world_body, stale)
+    scalars[S_EXTENSION] = _extension(q_ref, n_links, joint_type, q_index, multiplier, offset)
+
+
+@numba.njit(cache=True, _nrt=False)
+def plan_update(q, q_ref, tolerance, moved, n_links, parent, joint_type, q_index, multiplier,
+                offset, stale, joint_pairs_start, joint_pairs, status, clearance, q_eval, reach,
+                reach_ext, travel, pending, todo, scalars, header):
+    """Take the joints of ``q`` that moved into ``q_ref``; list the pairs to re-check.
+
+    Contract in plain Python (paper sec. 4.2, taken further by the clearance)::
+
+        moved = abs(q - q_ref) > tolerance;  q_ref[moved] = q[moved]
+        stale[links below a moved joint] = 1          # poses follow on demand
+        todo = [p for p in pairs if moved[path(p)].any()
+                and not (status[p] == 0 and travel(p) < clearance[p])]
+
+    A pair re-checked incrementally and found apart keeps ``clearance[p]``, a lower bound of
+    the distance between its two bodies' triangles, and ``q_eval[p] = q_ref`` then (full
+    checks record none: ``clearance[p] = 0``). Moving variable j by dq moves no point of
+    either body by more than ``|dq| * (reach[p, j] + reach_ext[p, j] * E)`` relative to the
+    other (E: the sum of the prismatic joints' |value| at ``q_ref``), so while the sum of
+    these, ``travel(p)`` from ``q_eval[p]`` to ``q_ref``, stays below ``clearance[p]`` the
+    pair is still apart. Only the pairs on a moved variable's list are visited, and their
+    ``travel[p]`` moves by that variable's term alone, so a step costs the pairs it touches,
+    not pairs times joints. The running sums are recomputed exactly when a pair's sum comes
+    within ``TRAVEL_GUARD`` of its clearance, when E changes, and every
+    ``TRAVEL_RESYNC_CALLS`` calls: every term stays below the clearance while a pair is
+    skipped, so the rounding drift (a few ulps of the clearance per call) stays far below
+    the guard.
+
+    :param stale: (B,) int64, 1 where a link's pose is behind ``q_ref`` (kept between calls).
+    :param joint_pairs_start, joint_pairs: variable j's pairs (those with j on their path)
+        are ``joint_pairs[joint_pairs_start[j]:joint_pairs_start[j + 1]]``.
+    :param travel: (P,) float64, each tracked pair's running travel sum (kept between calls).
+    :param pending, todo: (P,) int64 work; ``pending`` is all 0 between calls.
+    :param scalars, header: the float scalars (E) and the int header (resync count).
+    :return: the number of pairs written to ``todo``.
+    """
+    extension = scalars[S_EXTENSION]
+    n = 0
+    any_moved = False
+    for j in range(q.shape[0]):
+        if abs(q[j] - q_ref[j]) > tolerance:
+            moved[j] = 1
+            any_moved = True
+            old = q_ref[j]
+            new = q[j]
+            for t in range(joint_pairs_start[j], joint_pairs_start[j + 1]):
+                p = joint_pairs[t]
+                if clearance[p] > 0.0:
+                    e = q_eval[p, j]
+                    travel[p] += ((reach[p, j] + reach_ext[p, j] * extension)
+                                  * (abs(new - e) - abs(old - e)))
+                if not pending[p]:
+                    pending[p] = 1
+                    todo[n] = p
+                    n += 1
+            q_ref[j] = new
+        else:
+            moved[j] = 0
+    if not any_moved:
+        return 0
+    for i in range(n_links):
+        k = q_index[i]
+        if (k >= 0 and moved[k]) or (parent[i] >= 0 and stale[parent[i]]):
+            stale[i] = 1
+    resync = False
+    new_extension = _extension(q_ref, n_links, joint_type, q_index, multiplier, offset)
+    if new_extension != extension:
+        scalars[S_EXTENSION] = extension = new_extension
+        resync = True
+    header[H_RESYNC_COUNTDOWN] -= 1
+    if header[H_RESYNC_COUNTDOWN] <= 0:
+        header[H_RESYNC_COUNTDOWN] = TRAVEL_RESYNC_CALLS
+        resync = True
+    if resync:
+        for p in range(clearance.shape[0]):
+            if clearance[p] > 0.0:
+                travel[p] = _travel(p, q_ref, q_eval, reach, reach_ext, extension)
+    kept = 0
+    for t in range(n):
+        p = todo[t]
+        pending[p] = 0
+        if status[p] == 0 and clearance[p] > 0.0:
+            if travel[p] < TRAVEL_GUARD * clearance[p]:
+                continue  # still apart: nothing moved far enough to close the gap
+            travel[p] = _travel(p, q_ref, q_eval, reach, reach_ext, extension)
+            if travel[p] < clearance[p]:
+                continue
+        todo[kept] = p
+        kept += 1
+    return kept
+
+
+@numba.njit(cache=True, _nrt=False)
+def recheck_pairs(n, full, todo, q_ref, parent, joint_type, T_parent_joint, axis, q_index,
+                  multiplier, offset, T_world_body, n_links, is_scene, body_elem_start,
+                  body_elem_end, body_boxes, roots, boxes, nodes, volume, gain, tris,
+                  pair_a, pair_b, status, witness, clearance, q_eval, travel, box_method,
+                  expansion, stale, chain, scene_culled, subtree_boxes, pose, stack, work,
+                  tri_work, counters):
+    """Re-check pairs ``todo[:n]`` (all pairs if ``full``); return (re-checked, any changed).
+
+    A full check first rebuilds the volumes spanning several links and culls scene pairs
+    with them; it uses nothing carried over and records no clearance. An incremental call
+    brings the two bodies' poses up to date (only those) and tests first the pair's witness,
+    the triangle pair that met when the pair last collided: under small motion a colliding
+    pair usually still collides there, which then costs one triangle test instead of a
+    descent (the answer is the same either way; a witness that no longer meets only costs
+    that test). It skips the culling: a pair it re-checks is one whose own clearance ran
+    out, and its own boxes give the next clearance, where a culling volume would only give
+    a looser one. Then the two bodies' boxes, then each sub-group tree against each
+    (sec. 4.1, :func:`trees_collide`); an incremental call records the clearance of each
+    pair found apart (see :func:`plan_update`).
+
+    Bodies are the robot's links (FK order, world == root link frame) followed by the scene
+    objects, whose poses never change. Parameters are those of :func:`plan_update` and the
+    :class:`~collision_sensor.kinematics.KinematicTree` arrays, plus:
+
     :param T_world_body: (B, 4, 4) body poses, links first, then scene objects (fixed).
     :param is_scene: (B,) int64, 1 for scene objects.
     :param body_elem_start, body_elem_end: (B,) int64, each body's trees are
@@ -208,82 +380,31 @@ def query_kernel(q, q_ref, tolerance, full,
     :param boxes, nodes, volume, gain, tris: the forest's tables (see
         :mod:`collision_sensor.traversal`).
     :param pair_a, pair_b: (P,) int64 bodies of each checked pair; a scene body is always b.
-    :param pair_path: (P, J) int64, 1 where variable j drives a joint on the pair's tree path.
     :param status: (P,) int64, 1 if the pair collides (updated in place).
     :param witness: (P, 2) int64, rows of ``tris`` that last met for each pair, or -1.
-    :param clearance, q_eval: (P,), (P, J) float64, carried (see above); ``reach``,
-        ``reach_ext``: (P, J) float64, 0 off the pair's path (``CollisionChecker``).
-    :param moved, body_dirty: (J,), (B,) int64 work arrays.
     :param scene_culled: (S, L) int64, 1 where scene object s is outside the volume of link
         k's subtree or of one of its ancestors' (row 0: the robot's root volume).
     :param subtree_boxes: (L, BOX_WIDTH), each link's subtree volume (kept between calls).
     :param pose: (POSE_WIDTH,) float64 work: the pair's relative pose.
     :param stack, work, tri_work, counters: see :func:`trees_collide`.
     """
-    n_joints = q.shape[0]
-    any_moved = False
-    for j in range(n_joints):
-        if full or abs(q[j] - q_ref[j]) > tolerance:
-            moved[j] = 1
-            q_ref[j] = q[j]
-            any_moved = True
-        else:
-            moved[j] = 0
-    if not any_moved and not full:
-        return 0, False
-    any_link_moved = False
-    for i in range(n_links):
-        dirty = full
-        k = q_index[i]
-        if k >= 0 and moved[k]:
-            dirty = True
-        elif parent[i] >= 0 and body_dirty[parent[i]]:
-            dirty = True
-        body_dirty[i] = dirty
-        if dirty:
-            set_link_pose(i, q_ref, parent, joint_type, T_parent_joint, axis, q_index,
-                          multiplier, offset, T_world_body)
-            any_link_moved = True
-    if (any_link_moved or full) and scene_culled.shape[0] > 0:
-        # First culling against the scene by the volumes spanning several links, top down: a
-        # link is culled for an object when its subtree's volume, or an ancestor's, misses it.
-        _subtree_boxes(T_world_body, parent, n_links, body_elem_start, body_elem_end,
-                       body_boxes, subtree_boxes)
-        for s in range(scene_culled.shape[0]):
-            for k in range(n_links):
-                if parent[k] >= 0 and scene_culled[s, parent[k]]:
-                    scene_culled[s, k] = 1
-                else:
-                    scene_culled[s, k] = _scene_body_outside(
-                        T_world_body, n_links + s, body_boxes, subtree_boxes, k, box_method, work)
-    rechecked = 0
-    changed = False
     track = not full
-    extension = 0.0  # E: how far the prismatic joints are out, at q_ref
-    if track:
-        for i in range(n_links):
-            if joint_type[i] == JOINT_PRISMATIC:
-                extension += abs(multiplier[i] * q_ref[q_index[i]] + offset[i])
-    for p in range(pair_a.shape[0]):
-        if track:
-            affected = False
-            travel = 0.0
-            for j in range(n_joints):
-                if pair_path[p, j]:
-                    affected |= moved[j] != 0
-                    dq = q_ref[j] - q_eval[p, j]
-                    if dq != 0.0:
-                        travel += abs(dq) * (reach[p, j] + reach_ext[p, j] * extension)
-            if not affected:
-                continue
-            if status[p] == 0 and travel < clearance[p]:
-                continue  # still apart: nothing moved far enough to close the gap
-        rechecked += 1
+    if full and scene_culled.shape[0] > 0:
+        _refresh_culling(T_world_body, parent, n_links, body_elem_start, body_elem_end,
+                         body_boxes, subtree_boxes, scene_culled, box_method, work)
+    changed = False
+    for t in range(n):
+        p = t if full else todo[t]
         a = pair_a[p]
         b = pair_b[p]
+        if track:
+            _refresh_pose(a, q_ref, parent, joint_type, T_parent_joint, axis, q_index,
+                          multiplier, offset, T_world_body, stale, chain)
+            _refresh_pose(b, q_ref, parent, joint_type, T_parent_joint, axis, q_index,
+                          multiplier, offset, T_world_body, stale, chain)
         hit = False
         gap = 0.0
-        if not (is_scene[b] and scene_culled[b - n_links, a]):
+        if track or not (is_scene[b] and scene_culled[b - n_links, a]):
             _write_pair_pose(T_world_body, a, b, pose)
             wa = witness[p, 0] if track else -1
             wb = witness[p, 1] if track else -1
@@ -317,11 +438,12 @@ def query_kernel(q, q_ref, tolerance, full,
             witness[p, 0] = -1
         clearance[p] = gap if track and not hit and gap > 0.0 else 0.0
         if clearance[p] > 0.0:
-            for j in range(n_joints):
+            travel[p] = 0.0
+            for j in range(q_ref.shape[0]):
                 q_eval[p, j] = q_ref[j]
         changed |= status[p] != hit
         status[p] = 1 if hit else 0
-    return rechecked, changed
+    return n, changed
 
 
 # Slots of the packed buffers (see collision_sensor.array_pack); CollisionChecker adds the
@@ -330,23 +452,26 @@ def query_kernel(q, q_ref, tolerance, full,
 # on every call); the first float slot holds the float scalars.
 FLOAT_SLOTS = ('scalars', 'q_last', 'q_ref', 'T_parent_joint', 'axis', 'multiplier', 'offset',
                'T_world_body', 'body_boxes', 'boxes', 'volume', 'gain', 'tris', 'subtree_boxes',
-               'pose', 'work', 'tri_work', 'clearance', 'q_eval', 'reach', 'reach_ext')
+               'pose', 'work', 'tri_work', 'clearance', 'q_eval', 'reach', 'reach_ext',
+               'travel')
 INT_SLOTS = ('header', 'parent', 'joint_type', 'q_index', 'is_scene', 'body_elem_start',
-             'body_elem_end', 'roots', 'nodes', 'pair_a', 'pair_b', 'pair_path', 'status',
-             'witness', 'moved', 'body_dirty', 'scene_culled', 'stack', 'counters')
+             'body_elem_end', 'roots', 'nodes', 'pair_a', 'pair_b', 'joint_pairs_start',
+             'joint_pairs', 'status', 'witness', 'moved', 'stale', 'chain', 'pending', 'todo',
+             'scene_culled', 'stack', 'counters')
 (F_SCALARS, F_Q_LAST, F_Q_REF, F_T_PARENT_JOINT, F_AXIS, F_MULTIPLIER, F_OFFSET,
  F_T_WORLD_BODY, F_BODY_BOXES, F_BOXES, F_VOLUME, F_GAIN, F_TRIS, F_SUBTREE_BOXES, F_POSE, F_WORK,
- F_TRI_WORK, F_CLEARANCE, F_Q_EVAL, F_REACH, F_REACH_EXT) = range(len(FLOAT_SLOTS))
+ F_TRI_WORK, F_CLEARANCE, F_Q_EVAL, F_REACH, F_REACH_EXT, F_TRAVEL) = range(len(FLOAT_SLOTS))
 (I_HEADER, I_PARENT, I_JOINT_TYPE, I_Q_INDEX, I_IS_SCENE, I_BODY_ELEM_START, I_BODY_ELEM_END,
- I_ROOTS, I_NODES, I_PAIR_A, I_PAIR_B, I_PAIR_PATH, I_STATUS, I_WITNESS, I_MOVED,
- I_BODY_DIRTY, I_SCENE_CULLED, I_STACK, I_COUNTERS) = range(len(INT_SLOTS))
+ I_ROOTS, I_NODES, I_PAIR_A, I_PAIR_B, I_JOINT_PAIRS_START, I_JOINT_PAIRS, I_STATUS, I_WITNESS,
+ I_MOVED, I_STALE, I_CHAIN, I_PENDING, I_TODO, I_SCENE_CULLED, I_STACK,
+ I_COUNTERS) = range(len(INT_SLOTS))
 # scalars[S_*] (float slot 0, at offset 0 of the float buffer).
-S_TOLERANCE = 0
-N_SCALARS = 1
+S_TOLERANCE, S_EXTENSION = range(2)
+N_SCALARS = 2
 # header[H_*] (int slot 0, at offset 0 of the int buffer), then the float buffer's layout
 # (len(FLOAT_SLOTS), LAYOUT_WIDTH), then the int buffer's.
-H_N_LINKS, H_BOX_METHOD, H_EXPANSION, H_CHECKED_ONCE = range(4)
-H_LAYOUTS = 4
+H_N_LINKS, H_BOX_METHOD, H_EXPANSION, H_CHECKED_ONCE, H_RESYNC_COUNTDOWN = range(5)
+H_LAYOUTS = 5
 H_I_LAYOUT = H_LAYOUTS + len(FLOAT_SLOTS) * LAYOUT_WIDTH
 HEADER_SIZE = H_I_LAYOUT + len(INT_SLOTS) * LAYOUT_WIDTH
 
@@ -355,16 +480,20 @@ def write_header(I, F_layout, I_layout, n_links, box_method, expansion):
     """Fill the int buffer's header (``I[:HEADER_SIZE]``) once, after packing."""
     I[H_N_LINKS], I[H_BOX_METHOD], I[H_EXPANSION], I[H_CHECKED_ONCE] = (
         n_links, box_method, expansion, 0)
+    I[H_RESYNC_COUNTDOWN] = TRAVEL_RESYNC_CALLS
     I[H_LAYOUTS:H_I_LAYOUT] = F_layout.ravel()
     I[H_I_LAYOUT:HEADER_SIZE] = I_layout.ravel()
 
 
 @numba.njit(cache=True, _nrt=False)
 def packed_query(q, full, F, I):
-    """Validate ``q``, copy it to the ``q_last`` slot, run :func:`query_kernel` on the buffers.
+    """Validate ``q``, copy it to the ``q_last`` slot, bring the statuses up to date with it.
 
-    The caller passes its own array (no copy): it is only read, before anything changes.
-    The first call always checks in full (``header[H_CHECKED_ONCE]`` is 0 until then).
+    A full check runs :func:`plan_full` then :func:`recheck_pairs` on every pair; an
+    incremental one runs :func:`plan_update` and stops there when it lists no pair, having
+    cut only the views that needs. The caller passes its own array (no copy): it is only
+    read, before anything changes. The first call always checks in full
+    (``header[H_CHECKED_ONCE]`` is 0 until then).
 
     :return: ``2 * rechecked + changed`` (pairs re-checked, any status changed), or
         ``-1 - j`` when ``q[j]`` is not finite; nothing changed then.
@@ -383,31 +512,75 @@ def packed_query(q, full, F, I):
         if abs(q[j] - q_ref[j]) > F[S_TOLERANCE]:
             any_moved = True
     if not any_moved:
-        return 0  # as query_kernel would, without cutting its forty views first
+        return 0
     I[H_CHECKED_ONCE] = 1
-    rechecked, changed = query_kernel(
-        q_last, q_ref, F[S_TOLERANCE], full,
-        view1(I, I_layout, I_PARENT), view1(I, I_layout, I_JOINT_TYPE),
-        view3(F, F_layout, F_T_PARENT_JOINT), view2(F, F_layout, F_AXIS),
-        view1(I, I_layout, I_Q_INDEX), view1(F, F_layout, F_MULTIPLIER),
-        view1(F, F_layout, F_OFFSET),
-        view3(F, F_layout, F_T_WORLD_BODY), I[H_N_LINKS], view1(I, I_layout, I_IS_SCENE),
+    n_links = I[H_N_LINKS]
+    parent, joint_type = view1(I, I_layout, I_PARENT), view1(I, I_layout, I_JOINT_TYPE)
+    q_index, multiplier = view1(I, I_layout, I_Q_INDEX), view1(F, F_layout, F_MULTIPLIER)
+    offset, stale = view1(F, F_layout, F_OFFSET), view1(I, I_layout, I_STALE)
+    T_parent_joint, axis = view3(F, F_layout, F_T_PARENT_JOINT), view2(F, F_layout, F_AXIS)
+    T_world_body = view3(F, F_layout, F_T_WORLD_BODY)
+    status, clearance = view1(I, I_layout, I_STATUS), view1(F, F_layout, F_CLEARANCE)
+    q_eval, travel = view2(F, F_layout, F_Q_EVAL), view1(F, F_layout, F_TRAVEL)
+    todo = view1(I, I_layout, I_TODO)
+    if full:
+        plan_full(q_last, q_ref, n_links, parent, joint_type, T_parent_joint, axis, q_index,
+                  multiplier, offset, T_world_body, stale, F)
+        n = status.shape[0]
+    else:
+        n = plan_update(
+            q_last, q_ref, F[S_TOLERANCE], view1(I, I_layout, I_MOVED), n_links, parent,
+            joint_type, q_index, multiplier, offset, stale,
+            view1(I, I_layout, I_JOINT_PAIRS_START), view1(I, I_layout, I_JOINT_PAIRS), status,
+            clearance, q_eval, view2(F, F_layout, F_REACH), view2(F, F_layout, F_REACH_EXT),
+            travel, view1(I, I_layout, I_PENDING), todo, F, I)
+        if n == 0:
+            return 0
+    rechecked, changed = recheck_pairs(
+        n, full, todo, q_ref, parent, joint_type, T_parent_joint, axis, q_index, multiplier,
+        offset, T_world_body, n_links, view1(I, I_layout, I_IS_SCENE),
         view1(I, I_layout, I_BODY_ELEM_START), view1(I, I_layout, I_BODY_ELEM_END),
-        view2(F, F_layout, F_BODY_BOXES),
-        view1(I, I_layout, I_ROOTS), view2(F, F_layout, F_BOXES), view2(I, I_layout, I_NODES),
-        view1(F, F_layout, F_VOLUME), view1(F, F_layout, F_GAIN), view3(F, F_layout, F_TRIS),
-        view1(I, I_layout, I_PAIR_A), view1(I, I_layout, I_PAIR_B),
-        view2(I, I_layout, I_PAIR_PATH), view1(I, I_layout, I_STATUS),
-        view2(I, I_layout, I_WITNESS), view1(F, F_layout, F_CLEARANCE),
-        view2(F, F_layout, F_Q_EVAL), view2(F, F_layout, F_REACH),
-        view2(F, F_layout, F_REACH_EXT), I[H_BOX_METHOD], I[H_EXPANSION],
-        view1(I, I_layout, I_MOVED),
-        view1(I, I_layout, I_BODY_DIRTY),
+        view2(F, F_layout, F_BODY_BOXES), view1(I, I_layout, I_ROOTS),
+        view2(F, F_layout, F_BOXES), view2(I, I_layout, I_NODES), view1(F, F_layout, F_VOLUME),
+        view1(F, F_layout, F_GAIN), view3(F, F_layout, F_TRIS), view1(I, I_layout, I_PAIR_A),
+        view1(I, I_layout, I_PAIR_B), status, view2(I, I_layout, I_WITNESS), clearance, q_eval,
+        travel, I[H_BOX_METHOD], I[H_EXPANSION], stale, view1(I, I_layout, I_CHAIN),
         view2(I, I_layout, I_SCENE_CULLED), view2(F, F_layout, F_SUBTREE_BOXES),
-        view1(F, F_layout, F_POSE), view2(I, I_layout, I_STACK),
-        view1(F, F_layout, F_WORK), view3(F, F_layout, F_TRI_WORK),
-        view1(I, I_layout, I_COUNTERS))
+        view1(F, F_layout, F_POSE), view2(I, I_layout, I_STACK), view1(F, F_layout, F_WORK),
+        view3(F, F_layout, F_TRI_WORK), view1(I, I_layout, I_COUNTERS))
     return 2 * rechecked + (1 if changed else 0)
+
+
+@numba.njit(cache=True, _nrt=False)
+def packed_batch(Q, full, F, I, statuses, codes):
+    """Run :func:`packed_query` on each row of ``Q`` in turn, in one call from Python.
+
+    :param statuses, codes: (n, P) uint8 and (n,) int64 out: the pair statuses after each
+        row, and :func:`packed_query`'s answer for it.
+    :return: the number of rows done: ``n``, or the first row with a value that is not
+        finite (that row changed nothing).
+    """
+    I_layout = reshape2(I[H_I_LAYOUT:HEADER_SIZE], (len(INT_SLOTS), LAYOUT_WIDTH))
+    status = view1(I, I_layout, I_STATUS)
+    for i in range(Q.shape[0]):
+        codes[i] = packed_query(Q[i], full, F, I)
+        if codes[i] < 0:
+            return i
+        for p in range(status.shape[0]):
+            statuses[i, p] = status[p]
+    return Q.shape[0]
+
+
+@numba.njit(cache=True, _nrt=False)
+def packed_poses(F, I):
+    """Bring every link pose up to date (incremental calls compute them only on demand)."""
+    F_layout = reshape2(I[H_LAYOUTS:H_I_LAYOUT], (len(FLOAT_SLOTS), LAYOUT_WIDTH))
+    I_layout = reshape2(I[H_I_LAYOUT:HEADER_SIZE], (len(INT_SLOTS), LAYOUT_WIDTH))
+    _refresh_all_poses(I[H_N_LINKS], view1(F, F_layout, F_Q_REF), view1(I, I_layout, I_PARENT),
+                       view1(I, I_layout, I_JOINT_TYPE), view3(F, F_layout, F_T_PARENT_JOINT),
+                       view2(F, F_layout, F_AXIS), view1(I, I_layout, I_Q_INDEX),
+                       view1(F, F_layout, F_MULTIPLIER), view1(F, F_layout, F_OFFSET),
+                       view3(F, F_layout, F_T_WORLD_BODY), view1(I, I_layout, I_STALE))
 
 
 bind_to_kernel_sources(globals())

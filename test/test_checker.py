@@ -225,6 +225,109 @@ def test_update_equals_check_along_random_walks(panda_urdf, panda_srdf, erd_pack
         assert skipped > 100  # and the incremental path really skipped work
 
 
+def _panda_with_scene(panda_urdf, panda_srdf, erd_package_paths):
+    scene = {'objects': [
+        {'name': 'table', 'box': {'size': [1.2, 1.2, 0.04]},
+         'pose': {'xyz': [0.5, 0.0, 0.3]}},
+        {'name': 'post', 'cylinder': {'radius': 0.05, 'length': 1.0},
+         'pose': {'xyz': [0.0, 0.45, 0.5]}},
+    ]}
+    return CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                      package_paths=erd_package_paths, scene=scene)
+
+
+@pytest.mark.parametrize('mode', ['one', 'mixed'])
+def test_update_batch_equals_check_on_every_row(panda_urdf, panda_srdf, erd_package_paths,
+                                                mode):
+    """A path checked incrementally in one call gives, row by row, the from-scratch answers;
+    afterwards the checker stands at the last row, with its poses (computed lazily by
+    update) equal to pinocchio's, and single updates go on from there."""
+    incremental = _panda_with_scene(panda_urdf, panda_srdf, erd_package_paths)
+    scratch = _panda_with_scene(panda_urdf, panda_srdf, erd_package_paths)
+    rng = np.random.default_rng({'one': 5, 'mixed': 8}[mode])
+    path = np.array(list(_walk(incremental, 1500, rng, mode)))
+    incremental.check(path[0])
+    statuses = incremental.update_batch(path)
+    assert statuses.shape == (len(path), len(incremental.checked_pairs))
+    names = incremental.checked_pairs
+    for q, row in zip(path, statuses):
+        expected = scratch.check(q).colliding_pairs
+        assert tuple(names[p] for p in np.flatnonzero(row)) == expected, list(q)
+    assert 5 < len({tuple(row) for row in statuses})  # the path went in and out of contact
+    assert np.array_equal(list(incremental.positions.values()), path[-1])
+    assert incremental.update(path[-1]).rechecked_pairs == 0
+    assert incremental.update(path[-1]).colliding_pairs == scratch.check(path[-1]).colliding_pairs
+    oracle = FclOracle(incremental, panda_urdf)
+    poses, expected_poses = incremental.link_poses(), oracle.poses(path[-1])
+    for name in incremental.link_names:
+        assert np.allclose(poses[name], expected_poses[name], atol=1e-9), name
+    for q in path[::-50]:  # single calls carry on from the batch's state
+        assert incremental.update(q).colliding_pairs == scratch.check(q).colliding_pairs
+
+
+def test_check_batch_equals_check_and_restores_the_state(panda):
+    configurations = random_configurations(panda, 300, seed=23)
+    start = random_configurations(panda, 1, seed=24)[0]
+    before = panda.check(start)
+    statuses = panda.check_batch(configurations)
+    for q, row in zip(configurations, statuses):
+        hits = tuple(panda.checked_pairs[p] for p in np.flatnonzero(row))
+        assert hits == panda.check(q).colliding_pairs
+    panda.check(start)
+    panda.check_batch(configurations)
+    assert np.array_equal(list(panda.positions.values()), start)
+    assert panda.update(start).colliding_pairs == before.colliding_pairs
+    assert 5 < statuses.any(axis=1).sum() < 295  # both answers occur
+
+
+def test_batches_reject_non_finite_values_and_change_nothing(panda):
+    start = random_configurations(panda, 1, seed=25)[0]
+    before = panda.check(start)
+    path = random_configurations(panda, 5, seed=26)
+    path[3, 2] = np.nan
+    for run in (panda.update_batch, panda.check_batch):
+        with pytest.raises(JointStateError, match=r'configuration 3, joint "panda_joint3"'):
+            run(path)
+        with pytest.raises(JointStateError, match=r'shape \(n, 8\)'):
+            run(path[:, :3])
+    assert np.array_equal(list(panda.positions.values()), start)
+    assert panda.update(start).rechecked_pairs == 0
+    assert panda.check(start) == before
+
+
+def test_running_travel_sums_equal_the_sums_recomputed_from_scratch(panda):
+    """update keeps each skipped pair's motion bound as a running sum over the moved joints'
+    terms; after a long walk it must equal the sum computed afresh from q_eval (and the
+    prismatic finger joint moving in between changes every coefficient)."""
+    from collision_sensor.query_kernel import (
+        F_CLEARANCE, F_Q_EVAL, F_Q_REF, F_REACH, F_REACH_EXT, F_TRAVEL, S_EXTENSION)
+
+    def slot(k, shape=None):
+        start, size = panda._F_layout[k, 0], panda._F_layout[k, 1]
+        view = panda._F[start:start + size]
+        return view if shape is None else view.reshape(shape)
+
+    n_pairs, n_joints = len(panda.checked_pairs), len(panda.joint_names)
+    rng = np.random.default_rng(27)
+    walk = list(_walk(panda, 3000, rng, 'one'))
+    panda.check(walk[0])
+    tracked = 0
+    for k, q in enumerate(walk):
+        panda.update(q)
+        if k % 500 == 499:
+            clearance, travel = slot(F_CLEARANCE), slot(F_TRAVEL)
+            q_ref, q_eval = slot(F_Q_REF), slot(F_Q_EVAL, (n_pairs, n_joints))
+            extension = panda._F[S_EXTENSION]
+            coefficient = (slot(F_REACH, (n_pairs, n_joints))
+                           + slot(F_REACH_EXT, (n_pairs, n_joints)) * extension)
+            exact = (np.abs(q_ref - q_eval) * coefficient).sum(axis=1)
+            on = clearance > 0
+            assert np.allclose(travel[on], exact[on], rtol=1e-9, atol=1e-12)
+            assert np.all(exact[on] < clearance[on])  # skipped pairs are still apart
+            tracked += int(on.sum())
+    assert tracked > 20
+
+
 def test_update_with_nothing_moving_rechecks_nothing(panda):
     q = random_configurations(panda, 1, seed=9)[0]
     first = panda.check(q)
