@@ -173,6 +173,19 @@ class CollisionChecker:
         # Each variable's pairs (those with it on their path), as one list cut per variable.
         on_path = pair_path.T.nonzero()
         joint_pairs_start = np.searchsorted(on_path[0], np.arange(n_joints + 1))
+        # Each variable's links (whose pose depends on it), and whether it drives a slider.
+        depends = np.zeros((n_joints, n_links), dtype=bool)
+        for i in range(n_links):  # parents come first
+            if kin.parent[i] >= 0:
+                depends[:, i] = depends[:, kin.parent[i]]
+            if kin.q_index[i] >= 0:
+                depends[kin.q_index[i], i] = True
+        joint_links = depends.nonzero()
+        joint_links_start = np.searchsorted(joint_links[0], np.arange(n_joints + 1))
+        joint_prismatic = np.zeros(n_joints)
+        for i in range(n_links):
+            if kin.q_index[i] >= 0 and kin.joint_type[i] == JOINT_PRISMATIC:
+                joint_prismatic[kin.q_index[i]] = 1
         depth = int(forest.depth.max()) if len(forest.depth) else 1
         f = forest
         # Everything the kernel reads or keeps, in two flat buffers (see array_pack): static
@@ -196,7 +209,9 @@ class CollisionChecker:
             is_scene=is_scene, body_elem_start=self._body_elem_start,
             body_elem_end=self._body_elem_end, roots=f.roots, nodes=node_table(f),
             pair_a=self._pair_a, pair_b=self._pair_b, joint_pairs_start=joint_pairs_start,
-            joint_pairs=on_path[1], status=np.zeros(n_pairs), witness=np.full((n_pairs, 2), -1),
+            joint_pairs=on_path[1], joint_links_start=joint_links_start,
+            joint_links=joint_links[1], joint_prismatic=joint_prismatic,
+            status=np.zeros(n_pairs), witness=np.full((n_pairs, 2), -1),
             moved=np.zeros(n_joints), stale=np.zeros(n_bodies), chain=np.zeros(max(n_links, 1)),
             pending=np.zeros(n_pairs), todo=np.zeros(n_pairs),
             scene_culled=np.zeros((len(scene), max(n_links, 1))),
@@ -461,9 +476,8 @@ class CollisionChecker:
         if Q.ndim != 2 or Q.shape[1] != len(self.joint_names):
             raise JointStateError(f'expected configurations of shape (n, {len(self.joint_names)})'
                                   f' in the order of joint_names, got {Q.shape}')
-        bad = np.argwhere(~np.isfinite(Q))
-        if len(bad):
-            row, j = bad[0]
+        if not np.isfinite(Q).all():
+            row, j = np.argwhere(~np.isfinite(Q))[0]
             raise JointStateError(f'configuration {row}, joint "{self.joint_names[j]}": value '
                                   f'{Q[row, j]} is not finite; send finite values (nothing was '
                                   'changed)')

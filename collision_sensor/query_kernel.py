@@ -36,7 +36,7 @@ kernel module's cache to a digest of all of them, so editing any one recompiles 
 import numba
 import numpy as np
 
-from collision_sensor.array_pack import LAYOUT_WIDTH, reshape2, view1, view2, view3
+from collision_sensor.array_pack import LAYOUT_WIDTH, view1, view2, view3, view_at2
 from collision_sensor.kernel_cache import bind_to_kernel_sources
 from collision_sensor.kinematics import JOINT_PRISMATIC, set_link_pose
 from collision_sensor.obb_tree import BOX_AXES, BOX_CENTER, BOX_HALF, BOX_RADIUS
@@ -255,10 +255,23 @@ def plan_full(q, q_ref, n_links, parent, joint_type, T_parent_joint, axis, q_ind
     scalars[S_EXTENSION] = _extension(q_ref, n_links, joint_type, q_index, multiplier, offset)
 
 
-@numba.njit(cache=True, _nrt=False)
-def plan_update(q, q_ref, tolerance, moved, n_links, parent, joint_type, q_index, multiplier,
-                offset, stale, joint_pairs_start, joint_pairs, status, clearance, q_eval, reach,
-                reach_ext, travel, pending, todo, scalars, header):
+@numba.njit(cache=True, inline='always')
+def _needs_recheck(p, status, clearance, travel, q_ref, q_eval, reach, reach_ext, extension):
+    """False iff pair p is known to be still apart: its travel is below its clearance."""
+    if status[p] != 0 or clearance[p] <= 0.0:
+        return True
+    if travel[p] < TRAVEL_GUARD * clearance[p]:
+        return False
+    travel[p] = _travel(p, q_ref, q_eval, reach, reach_ext, extension)  # resync near the edge
+    return travel[p] >= clearance[p]
+
+
+# Inlined into packed_query: passing its 25 arrays to a call cost 25 ns of a 150 ns step.
+@numba.njit(cache=True, _nrt=False, inline='always')
+def plan_update(q, q_ref, tolerance, moved, n_links, joint_type, q_index, multiplier, offset,
+                joint_links_start, joint_links, joint_prismatic, stale, joint_pairs_start,
+                joint_pairs, status, clearance, q_eval, reach, reach_ext, travel, pending, todo,
+                scalars, header):
     """Take the joints of ``q`` that moved into ``q_ref``; list the pairs to re-check.
 
     Contract in plain Python (paper sec. 4.2, taken further by the clearance)::
@@ -276,12 +289,17 @@ def plan_update(q, q_ref, tolerance, moved, n_links, parent, joint_type, q_index
     these, ``travel(p)`` from ``q_eval[p]`` to ``q_ref``, stays below ``clearance[p]`` the
     pair is still apart. Only the pairs on a moved variable's list are visited, and their
     ``travel[p]`` moves by that variable's term alone, so a step costs the pairs it touches,
-    not pairs times joints. The running sums are recomputed exactly when a pair's sum comes
+    not pairs times joints (one pass when one variable moved). The running sums are recomputed exactly when a pair's sum comes
     within ``TRAVEL_GUARD`` of its clearance, when E changes, and every
     ``TRAVEL_RESYNC_CALLS`` calls: every term stays below the clearance while a pair is
     skipped, so the rounding drift (a few ulps of the clearance per call) stays far below
     the guard.
 
+    :param moved: (J,) int64 work: the moved variables.
+    :param joint_links_start, joint_links, joint_prismatic: variable j's links (those whose
+        pose depends on it: the links it drives and all below them) are
+        ``joint_links[joint_links_start[j]:joint_links_start[j + 1]]``; ``joint_prismatic[j]``
+        is 1 if j drives a prismatic joint (E depends on it).
     :param stale: (B,) int64, 1 where a link's pose is behind ``q_ref`` (kept between calls).
     :param joint_pairs_start, joint_pairs: variable j's pairs (those with j on their path)
         are ``joint_pairs[joint_pairs_start[j]:joint_pairs_start[j + 1]]``.
@@ -290,44 +308,58 @@ def plan_update(q, q_ref, tolerance, moved, n_links, parent, joint_type, q_index
     :param scalars, header: the float scalars (E) and the int header (resync count).
     :return: the number of pairs written to ``todo``.
     """
-    extension = scalars[S_EXTENSION]
-    n = 0
-    any_moved = False
+    n_moved = 0
+    prismatic = False
     for j in range(q.shape[0]):
         if abs(q[j] - q_ref[j]) > tolerance:
-            moved[j] = 1
-            any_moved = True
-            old = q_ref[j]
-            new = q[j]
-            for t in range(joint_pairs_start[j], joint_pairs_start[j + 1]):
-                p = joint_pairs[t]
-                if clearance[p] > 0.0:
-                    e = q_eval[p, j]
-                    travel[p] += ((reach[p, j] + reach_ext[p, j] * extension)
-                                  * (abs(new - e) - abs(old - e)))
-                if not pending[p]:
-                    pending[p] = 1
-                    todo[n] = p
-                    n += 1
-            q_ref[j] = new
-        else:
-            moved[j] = 0
-    if not any_moved:
+            moved[n_moved] = j
+            n_moved += 1
+            prismatic |= joint_prismatic[j] != 0
+    if n_moved == 0:
         return 0
-    for i in range(n_links):
-        k = q_index[i]
-        if (k >= 0 and moved[k]) or (parent[i] >= 0 and stale[parent[i]]):
-            stale[i] = 1
-    resync = False
-    new_extension = _extension(q_ref, n_links, joint_type, q_index, multiplier, offset)
-    if new_extension != extension:
-        scalars[S_EXTENSION] = extension = new_extension
-        resync = True
+    for m in range(n_moved):
+        j = moved[m]
+        for t in range(joint_links_start[j], joint_links_start[j + 1]):
+            stale[joint_links[t]] = 1
     header[H_RESYNC_COUNTDOWN] -= 1
-    if header[H_RESYNC_COUNTDOWN] <= 0:
-        header[H_RESYNC_COUNTDOWN] = TRAVEL_RESYNC_CALLS
-        resync = True
+    resync = prismatic or header[H_RESYNC_COUNTDOWN] <= 0
+    extension = scalars[S_EXTENSION]  # E at the old q_ref; unchanged unless ``prismatic``
+    n = 0
+    if n_moved == 1 and not resync:
+        j = moved[0]
+        old = q_ref[j]
+        new = q_ref[j] = q[j]
+        for t in range(joint_pairs_start[j], joint_pairs_start[j + 1]):
+            p = joint_pairs[t]
+            if clearance[p] > 0.0:
+                e = q_eval[p, j]
+                travel[p] += ((reach[p, j] + reach_ext[p, j] * extension)
+                              * (abs(new - e) - abs(old - e)))
+            if _needs_recheck(p, status, clearance, travel, q_ref, q_eval, reach, reach_ext,
+                              extension):
+                todo[n] = p
+                n += 1
+        return n
+    for m in range(n_moved):
+        j = moved[m]
+        old = q_ref[j]
+        new = q_ref[j] = q[j]
+        for t in range(joint_pairs_start[j], joint_pairs_start[j + 1]):
+            p = joint_pairs[t]
+            if clearance[p] > 0.0 and not resync:
+                e = q_eval[p, j]
+                travel[p] += ((reach[p, j] + reach_ext[p, j] * extension)
+                              * (abs(new - e) - abs(old - e)))
+            if not pending[p]:
+                pending[p] = 1
+                todo[n] = p
+                n += 1
     if resync:
+        if header[H_RESYNC_COUNTDOWN] <= 0:
+            header[H_RESYNC_COUNTDOWN] = TRAVEL_RESYNC_CALLS
+        if prismatic:
+            scalars[S_EXTENSION] = extension = _extension(q_ref, n_links, joint_type, q_index,
+                                                          multiplier, offset)
         for p in range(clearance.shape[0]):
             if clearance[p] > 0.0:
                 travel[p] = _travel(p, q_ref, q_eval, reach, reach_ext, extension)
@@ -335,14 +367,10 @@ def plan_update(q, q_ref, tolerance, moved, n_links, parent, joint_type, q_index
     for t in range(n):
         p = todo[t]
         pending[p] = 0
-        if status[p] == 0 and clearance[p] > 0.0:
-            if travel[p] < TRAVEL_GUARD * clearance[p]:
-                continue  # still apart: nothing moved far enough to close the gap
-            travel[p] = _travel(p, q_ref, q_eval, reach, reach_ext, extension)
-            if travel[p] < clearance[p]:
-                continue
-        todo[kept] = p
-        kept += 1
+        if _needs_recheck(p, status, clearance, travel, q_ref, q_eval, reach, reach_ext,
+                          extension):
+            todo[kept] = p
+            kept += 1
     return kept
 
 
@@ -456,15 +484,16 @@ FLOAT_SLOTS = ('scalars', 'q_last', 'q_ref', 'T_parent_joint', 'axis', 'multipli
                'travel')
 INT_SLOTS = ('header', 'parent', 'joint_type', 'q_index', 'is_scene', 'body_elem_start',
              'body_elem_end', 'roots', 'nodes', 'pair_a', 'pair_b', 'joint_pairs_start',
-             'joint_pairs', 'status', 'witness', 'moved', 'stale', 'chain', 'pending', 'todo',
-             'scene_culled', 'stack', 'counters')
+             'joint_pairs', 'joint_links_start', 'joint_links', 'joint_prismatic', 'status',
+             'witness', 'moved', 'stale', 'chain', 'pending', 'todo', 'scene_culled', 'stack',
+             'counters')
 (F_SCALARS, F_Q_LAST, F_Q_REF, F_T_PARENT_JOINT, F_AXIS, F_MULTIPLIER, F_OFFSET,
  F_T_WORLD_BODY, F_BODY_BOXES, F_BOXES, F_VOLUME, F_GAIN, F_TRIS, F_SUBTREE_BOXES, F_POSE, F_WORK,
  F_TRI_WORK, F_CLEARANCE, F_Q_EVAL, F_REACH, F_REACH_EXT, F_TRAVEL) = range(len(FLOAT_SLOTS))
 (I_HEADER, I_PARENT, I_JOINT_TYPE, I_Q_INDEX, I_IS_SCENE, I_BODY_ELEM_START, I_BODY_ELEM_END,
- I_ROOTS, I_NODES, I_PAIR_A, I_PAIR_B, I_JOINT_PAIRS_START, I_JOINT_PAIRS, I_STATUS, I_WITNESS,
- I_MOVED, I_STALE, I_CHAIN, I_PENDING, I_TODO, I_SCENE_CULLED, I_STACK,
- I_COUNTERS) = range(len(INT_SLOTS))
+ I_ROOTS, I_NODES, I_PAIR_A, I_PAIR_B, I_JOINT_PAIRS_START, I_JOINT_PAIRS, I_JOINT_LINKS_START,
+ I_JOINT_LINKS, I_JOINT_PRISMATIC, I_STATUS, I_WITNESS, I_MOVED, I_STALE, I_CHAIN, I_PENDING,
+ I_TODO, I_SCENE_CULLED, I_STACK, I_COUNTERS) = range(len(INT_SLOTS))
 # scalars[S_*] (float slot 0, at offset 0 of the float buffer).
 S_TOLERANCE, S_EXTENSION = range(2)
 N_SCALARS = 2
@@ -501,8 +530,8 @@ def packed_query(q, full, F, I):
     for j in range(q.shape[0]):
         if not np.isfinite(q[j]):
             return -1 - j
-    F_layout = reshape2(I[H_LAYOUTS:H_I_LAYOUT], (len(FLOAT_SLOTS), LAYOUT_WIDTH))
-    I_layout = reshape2(I[H_I_LAYOUT:HEADER_SIZE], (len(INT_SLOTS), LAYOUT_WIDTH))
+    F_layout = view_at2(I, H_LAYOUTS, (len(FLOAT_SLOTS), LAYOUT_WIDTH))
+    I_layout = view_at2(I, H_I_LAYOUT, (len(INT_SLOTS), LAYOUT_WIDTH))
     q_last = view1(F, F_layout, F_Q_LAST)
     q_ref = view1(F, F_layout, F_Q_REF)
     full = full or I[H_CHECKED_ONCE] == 0
@@ -529,8 +558,9 @@ def packed_query(q, full, F, I):
         n = status.shape[0]
     else:
         n = plan_update(
-            q_last, q_ref, F[S_TOLERANCE], view1(I, I_layout, I_MOVED), n_links, parent,
-            joint_type, q_index, multiplier, offset, stale,
+            q_last, q_ref, F[S_TOLERANCE], view1(I, I_layout, I_MOVED), n_links, joint_type,
+            q_index, multiplier, offset, view1(I, I_layout, I_JOINT_LINKS_START),
+            view1(I, I_layout, I_JOINT_LINKS), view1(I, I_layout, I_JOINT_PRISMATIC), stale,
             view1(I, I_layout, I_JOINT_PAIRS_START), view1(I, I_layout, I_JOINT_PAIRS), status,
             clearance, q_eval, view2(F, F_layout, F_REACH), view2(F, F_layout, F_REACH_EXT),
             travel, view1(I, I_layout, I_PENDING), todo, F, I)
@@ -560,7 +590,7 @@ def packed_batch(Q, full, F, I, statuses, codes):
     :return: the number of rows done: ``n``, or the first row with a value that is not
         finite (that row changed nothing).
     """
-    I_layout = reshape2(I[H_I_LAYOUT:HEADER_SIZE], (len(INT_SLOTS), LAYOUT_WIDTH))
+    I_layout = view_at2(I, H_I_LAYOUT, (len(INT_SLOTS), LAYOUT_WIDTH))
     status = view1(I, I_layout, I_STATUS)
     for i in range(Q.shape[0]):
         codes[i] = packed_query(Q[i], full, F, I)
@@ -574,8 +604,8 @@ def packed_batch(Q, full, F, I, statuses, codes):
 @numba.njit(cache=True, _nrt=False)
 def packed_poses(F, I):
     """Bring every link pose up to date (incremental calls compute them only on demand)."""
-    F_layout = reshape2(I[H_LAYOUTS:H_I_LAYOUT], (len(FLOAT_SLOTS), LAYOUT_WIDTH))
-    I_layout = reshape2(I[H_I_LAYOUT:HEADER_SIZE], (len(INT_SLOTS), LAYOUT_WIDTH))
+    F_layout = view_at2(I, H_LAYOUTS, (len(FLOAT_SLOTS), LAYOUT_WIDTH))
+    I_layout = view_at2(I, H_I_LAYOUT, (len(INT_SLOTS), LAYOUT_WIDTH))
     _refresh_all_poses(I[H_N_LINKS], view1(F, F_layout, F_Q_REF), view1(I, I_layout, I_PARENT),
                        view1(I, I_layout, I_JOINT_TYPE), view3(F, F_layout, F_T_PARENT_JOINT),
                        view2(F, F_layout, F_AXIS), view1(I, I_layout, I_Q_INDEX),
