@@ -202,7 +202,7 @@ class CollisionChecker:
             pose=np.zeros(POSE_WIDTH),
             work=np.zeros(WORK_SIZE), tri_work=np.zeros((2, 3, 3)),
             clearance=np.zeros(n_pairs), q_eval=np.zeros((n_pairs, n_joints)),
-            reach=self._pair_reach, reach_ext=self._pair_reach_ext, travel=np.zeros(n_pairs))
+            reach=self._pair_reach, reach_ext=self._pair_reach_ext, travel=np.zeros((n_pairs, 2)))
         ints = dict(
             header=np.zeros(HEADER_SIZE), parent=kin.parent, joint_type=kin.joint_type,
             q_index=kin.q_index,

@@ -230,16 +230,18 @@ def _extension(q_ref, n_links, joint_type, q_index, multiplier, offset):
 
 
 @numba.njit(cache=True, _nrt=False)
-def _travel(p, q_ref, q_eval, reach, reach_ext, extension):
-    """How far pair p's bodies can have moved towards each other since ``q_eval[p]``: the sum
-    over variables j of ``|q_ref[j] - q_eval[p, j]| * (reach[p, j] + reach_ext[p, j] * E)``
-    (both reaches are 0 off the pair's path)."""
-    travel = 0.0
+def _resync_travel(p, q_ref, q_eval, reach, reach_ext, travel):
+    """Recompute pair p's two travel sums from scratch: over variables j,
+    ``|q_ref[j] - q_eval[p, j]|`` times ``reach[p, j]`` and times ``reach_ext[p, j]`` (both
+    0 off the pair's path)."""
+    fixed = 0.0
+    ext = 0.0
     for j in range(q_ref.shape[0]):
-        r = reach[p, j] + reach_ext[p, j] * extension
-        if r != 0.0:
-            travel += abs(q_ref[j] - q_eval[p, j]) * r
-    return travel
+        d = abs(q_ref[j] - q_eval[p, j])
+        fixed += d * reach[p, j]
+        ext += d * reach_ext[p, j]
+    travel[p, 0] = fixed
+    travel[p, 1] = ext
 
 
 @numba.njit(cache=True, _nrt=False)
@@ -256,14 +258,23 @@ def plan_full(q, q_ref, n_links, parent, joint_type, T_parent_joint, axis, q_ind
 
 
 @numba.njit(cache=True, inline='always')
+def _add_travel(p, j, old, new, q_eval, reach, reach_ext, travel):
+    """Move pair p's travel sums by variable j's terms going from ``old`` to ``new``."""
+    e = q_eval[p, j]
+    d = abs(new - e) - abs(old - e)
+    travel[p, 0] += d * reach[p, j]
+    travel[p, 1] += d * reach_ext[p, j]
+
+
+@numba.njit(cache=True, inline='always')
 def _needs_recheck(p, status, clearance, travel, q_ref, q_eval, reach, reach_ext, extension):
     """False iff pair p is known to be still apart: its travel is below its clearance."""
     if status[p] != 0 or clearance[p] <= 0.0:
         return True
-    if travel[p] < TRAVEL_GUARD * clearance[p]:
+    if travel[p, 0] + extension * travel[p, 1] < TRAVEL_GUARD * clearance[p]:
         return False
-    travel[p] = _travel(p, q_ref, q_eval, reach, reach_ext, extension)  # resync near the edge
-    return travel[p] >= clearance[p]
+    _resync_travel(p, q_ref, q_eval, reach, reach_ext, travel)  # exact near the edge
+    return travel[p, 0] + extension * travel[p, 1] >= clearance[p]
 
 
 # Inlined into packed_query: passing its 25 arrays to a call cost 25 ns of a 150 ns step.
@@ -287,13 +298,15 @@ def plan_update(q, q_ref, tolerance, moved, n_links, joint_type, q_index, multip
     either body by more than ``|dq| * (reach[p, j] + reach_ext[p, j] * E)`` relative to the
     other (E: the sum of the prismatic joints' |value| at ``q_ref``), so while the sum of
     these, ``travel(p)`` from ``q_eval[p]`` to ``q_ref``, stays below ``clearance[p]`` the
-    pair is still apart. Only the pairs on a moved variable's list are visited, and their
-    ``travel[p]`` moves by that variable's term alone, so a step costs the pairs it touches,
-    not pairs times joints (one pass when one variable moved). The running sums are recomputed exactly when a pair's sum comes
-    within ``TRAVEL_GUARD`` of its clearance, when E changes, and every
-    ``TRAVEL_RESYNC_CALLS`` calls: every term stays below the clearance while a pair is
-    skipped, so the rounding drift (a few ulps of the clearance per call) stays far below
-    the guard.
+    pair is still apart. Each pair keeps the two sums of ``|dq|`` times ``reach`` and times
+    ``reach_ext`` (``travel[p] = (fixed, ext)``, ``travel(p) = fixed + E * ext``), so a
+    slider moving changes E without touching any sum. Only the pairs on a moved variable's
+    list are visited, and their sums move by that variable's terms alone, so a step costs
+    the pairs it touches, not pairs times joints (one pass when one variable moved). The
+    running sums are recomputed exactly when a pair's travel comes within ``TRAVEL_GUARD``
+    of its clearance, and every ``TRAVEL_RESYNC_CALLS`` calls: every term stays below the
+    clearance while a pair is skipped, so the rounding drift (a few ulps of the clearance
+    per call) stays far below the guard.
 
     :param moved: (J,) int64 work: the moved variables.
     :param joint_links_start, joint_links, joint_prismatic: variable j's links (those whose
@@ -303,7 +316,7 @@ def plan_update(q, q_ref, tolerance, moved, n_links, joint_type, q_index, multip
     :param stale: (B,) int64, 1 where a link's pose is behind ``q_ref`` (kept between calls).
     :param joint_pairs_start, joint_pairs: variable j's pairs (those with j on their path)
         are ``joint_pairs[joint_pairs_start[j]:joint_pairs_start[j + 1]]``.
-    :param travel: (P,) float64, each tracked pair's running travel sum (kept between calls).
+    :param travel: (P, 2) float64, each tracked pair's running sums (kept between calls).
     :param pending, todo: (P,) int64 work; ``pending`` is all 0 between calls.
     :param scalars, header: the float scalars (E) and the int header (resync count).
     :return: the number of pairs written to ``todo``.
@@ -322,19 +335,20 @@ def plan_update(q, q_ref, tolerance, moved, n_links, joint_type, q_index, multip
         for t in range(joint_links_start[j], joint_links_start[j + 1]):
             stale[joint_links[t]] = 1
     header[H_RESYNC_COUNTDOWN] -= 1
-    resync = prismatic or header[H_RESYNC_COUNTDOWN] <= 0
-    extension = scalars[S_EXTENSION]  # E at the old q_ref; unchanged unless ``prismatic``
+    resync = header[H_RESYNC_COUNTDOWN] <= 0
+    extension = scalars[S_EXTENSION]
     n = 0
     if n_moved == 1 and not resync:
         j = moved[0]
         old = q_ref[j]
         new = q_ref[j] = q[j]
+        if prismatic:
+            scalars[S_EXTENSION] = extension = _extension(q_ref, n_links, joint_type, q_index,
+                                                          multiplier, offset)
         for t in range(joint_pairs_start[j], joint_pairs_start[j + 1]):
             p = joint_pairs[t]
             if clearance[p] > 0.0:
-                e = q_eval[p, j]
-                travel[p] += ((reach[p, j] + reach_ext[p, j] * extension)
-                              * (abs(new - e) - abs(old - e)))
+                _add_travel(p, j, old, new, q_eval, reach, reach_ext, travel)
             if _needs_recheck(p, status, clearance, travel, q_ref, q_eval, reach, reach_ext,
                               extension):
                 todo[n] = p
@@ -347,22 +361,19 @@ def plan_update(q, q_ref, tolerance, moved, n_links, joint_type, q_index, multip
         for t in range(joint_pairs_start[j], joint_pairs_start[j + 1]):
             p = joint_pairs[t]
             if clearance[p] > 0.0 and not resync:
-                e = q_eval[p, j]
-                travel[p] += ((reach[p, j] + reach_ext[p, j] * extension)
-                              * (abs(new - e) - abs(old - e)))
+                _add_travel(p, j, old, new, q_eval, reach, reach_ext, travel)
             if not pending[p]:
                 pending[p] = 1
                 todo[n] = p
                 n += 1
+    if prismatic:
+        scalars[S_EXTENSION] = extension = _extension(q_ref, n_links, joint_type, q_index,
+                                                      multiplier, offset)
     if resync:
-        if header[H_RESYNC_COUNTDOWN] <= 0:
-            header[H_RESYNC_COUNTDOWN] = TRAVEL_RESYNC_CALLS
-        if prismatic:
-            scalars[S_EXTENSION] = extension = _extension(q_ref, n_links, joint_type, q_index,
-                                                          multiplier, offset)
+        header[H_RESYNC_COUNTDOWN] = TRAVEL_RESYNC_CALLS
         for p in range(clearance.shape[0]):
             if clearance[p] > 0.0:
-                travel[p] = _travel(p, q_ref, q_eval, reach, reach_ext, extension)
+                _resync_travel(p, q_ref, q_eval, reach, reach_ext, travel)
     kept = 0
     for t in range(n):
         p = todo[t]
@@ -466,7 +477,8 @@ def recheck_pairs(n, full, todo, q_ref, parent, joint_type, T_parent_joint, axis
             witness[p, 0] = -1
         clearance[p] = gap if track and not hit and gap > 0.0 else 0.0
         if clearance[p] > 0.0:
-            travel[p] = 0.0
+            travel[p, 0] = 0.0
+            travel[p, 1] = 0.0
             for j in range(q_ref.shape[0]):
                 q_eval[p, j] = q_ref[j]
         changed |= status[p] != hit
@@ -550,7 +562,7 @@ def packed_query(q, full, F, I):
     T_parent_joint, axis = view3(F, F_layout, F_T_PARENT_JOINT), view2(F, F_layout, F_AXIS)
     T_world_body = view3(F, F_layout, F_T_WORLD_BODY)
     status, clearance = view1(I, I_layout, I_STATUS), view1(F, F_layout, F_CLEARANCE)
-    q_eval, travel = view2(F, F_layout, F_Q_EVAL), view1(F, F_layout, F_TRAVEL)
+    q_eval, travel = view2(F, F_layout, F_Q_EVAL), view2(F, F_layout, F_TRAVEL)
     todo = view1(I, I_layout, I_TODO)
     if full:
         plan_full(q_last, q_ref, n_links, parent, joint_type, T_parent_joint, axis, q_index,

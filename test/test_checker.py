@@ -299,6 +299,7 @@ def test_running_travel_sums_equal_the_sums_recomputed_from_scratch(panda):
     """update keeps each skipped pair's motion bound as a running sum over the moved joints'
     terms; after a long walk it must equal the sum computed afresh from q_eval (and the
     prismatic finger joint moving in between changes every coefficient)."""
+    from collision_sensor.kinematics import JOINT_PRISMATIC
     from collision_sensor.query_kernel import (
         F_CLEARANCE, F_Q_EVAL, F_Q_REF, F_REACH, F_REACH_EXT, F_TRAVEL, S_EXTENSION)
 
@@ -315,14 +316,21 @@ def test_running_travel_sums_equal_the_sums_recomputed_from_scratch(panda):
     for k, q in enumerate(walk):
         panda.update(q)
         if k % 500 == 499:
-            clearance, travel = slot(F_CLEARANCE), slot(F_TRAVEL)
+            clearance, travel = slot(F_CLEARANCE), slot(F_TRAVEL, (n_pairs, 2))
             q_ref, q_eval = slot(F_Q_REF), slot(F_Q_EVAL, (n_pairs, n_joints))
-            extension = panda._F[S_EXTENSION]
-            coefficient = (slot(F_REACH, (n_pairs, n_joints))
-                           + slot(F_REACH_EXT, (n_pairs, n_joints)) * extension)
-            exact = (np.abs(q_ref - q_eval) * coefficient).sum(axis=1)
+            moved = np.abs(q_ref - q_eval)
+            fixed = (moved * slot(F_REACH, (n_pairs, n_joints))).sum(axis=1)
+            ext = (moved * slot(F_REACH_EXT, (n_pairs, n_joints))).sum(axis=1)
             on = clearance > 0
-            assert np.allclose(travel[on], exact[on], rtol=1e-9, atol=1e-12)
+            assert np.allclose(travel[on, 0], fixed[on], rtol=1e-9, atol=1e-12)
+            assert np.allclose(travel[on, 1], ext[on], rtol=1e-9, atol=1e-12)
+            kin = panda.kinematics  # E: how far the sliders (the two fingers) are out
+            sliders = np.flatnonzero(kin.joint_type == JOINT_PRISMATIC)
+            extension = np.abs(kin.multiplier[sliders] * q_ref[kin.q_index[sliders]]
+                               + kin.offset[sliders]).sum()
+            assert len(sliders) == 2
+            assert panda._F[S_EXTENSION] == pytest.approx(extension, abs=1e-12)
+            exact = fixed + extension * ext
             assert np.all(exact[on] < clearance[on])  # skipped pairs are still apart
             tracked += int(on.sum())
     assert tracked > 20
