@@ -97,13 +97,9 @@ def run(settings, cell) -> Section:
                  ratio(check, PAPER_US), 'for the record only'])
     section.table(['implementation', 'us / robot-machine check', 'ours (`check`) / this',
                    'colliding pairs equal to ours'], rows)
-    if fcl_cell is not None:
-        passed = check <= TARGET_RATIO * times['fcl']
-        measured = f'{ratio(check, times["fcl"])} ({us(check)} vs {us(times["fcl"])} us)'
-    else:
-        passed, measured = None, f'python-fcl {fcl_missing}'
-    verdict = section.judge(f'S3 paper experiment: ours <= {TARGET_RATIO}x python-fcl per check',
-                            measured, passed)
+    verdict = section.judge_ratio(
+        f'S3 paper experiment: ours <= {TARGET_RATIO}x python-fcl per check', check,
+        times.get('fcl'), TARGET_RATIO, 'python-fcl', fcl_missing)
     section.text(f'Target `check` <= {TARGET_RATIO}x python-fcl (our poses): '
-                 f'**{verdict.word}** ({measured}).')
+                 f'**{verdict.word}** ({verdict.measured}).')
     return section

@@ -111,15 +111,11 @@ def _measure(cell, settings, section):
                                for g in pin.geom.geometryObjects):
         notes.append('pinocchio loads the URDF primitives (here boxes) as analytic coal shapes; '
                      'we and fcl check their triangulation (12 triangles per box).')
-    if pin is not None:
-        passed = ours <= TARGET_RATIO * times['pinocchio']
-        measured = f'{ratio(ours, times["pinocchio"])} ({us(ours)} vs {us(times["pinocchio"])} us)'
-    else:
-        passed, measured = None, f'pinocchio+coal {pin_missing}'
-    verdict = section.judge(f'S1 {cell.name}: ours <= {TARGET_RATIO}x pinocchio+coal per config',
-                            measured, passed)
+    verdict = section.judge_ratio(
+        f'S1 {cell.name}: ours <= {TARGET_RATIO}x pinocchio+coal per config', ours,
+        times.get('pinocchio'), TARGET_RATIO, 'pinocchio+coal', pin_missing)
     notes.append(f'Target ours <= {TARGET_RATIO}x pinocchio+coal: **{verdict.word}** '
-                 f'({measured}).')
+                 f'({verdict.measured}).')
     plot_times = {'collision_sensor (ours)': ours}
     if pin is not None:
         plot_times['pinocchio+coal'] = times['pinocchio']

@@ -44,6 +44,15 @@ class Section:
         self.verdicts.append(verdict)
         return verdict
 
+    def judge_ratio(self, target: str, ours: float, theirs: Optional[float], limit: float,
+                    peer: str, missing: Optional[str]) -> Verdict:
+        """Judge ``ours <= limit * theirs`` (times in us); ``theirs`` None: the peer is not
+        installed (``missing`` says why) and the target is not judged."""
+        if theirs is None:
+            return self.judge(target, f'{peer} {missing}', None)
+        return self.judge(target, f'{ratio(ours, theirs)} ({us(ours)} vs {us(theirs)} us)',
+                          ours <= limit * theirs)
+
 
 def us(value: Optional[float]) -> str:
     """Format microseconds with sensible precision."""

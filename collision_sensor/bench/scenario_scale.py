@@ -162,11 +162,9 @@ def _judge(section, points, fcl_missing):
     largest = points[-1]
     n = f'{largest["triangles"]:,}'
     if fcl_missing is None:
-        query = section.judge(
-            f'S4 query at {n} triangles <= python-fcl',
-            f'{ratio(largest["ours_query"], largest["fcl_query"])} '
-            f'({us(largest["ours_query"])} vs {us(largest["fcl_query"])} us)',
-            largest['ours_query'] <= largest['fcl_query'])
+        query = section.judge_ratio(
+            f'S4 query at {n} triangles <= python-fcl', largest['ours_query'],
+            largest['fcl_query'], 1.0, 'python-fcl', fcl_missing)
         arrays = section.judge(
             f'S4 memory/tri at {n}: forest.nbytes <= python-fcl RSS growth',
             f'{largest["ours_nbytes"]:.0f} vs {largest["fcl_rss"]:.0f} B/tri',
