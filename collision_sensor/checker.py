@@ -175,17 +175,15 @@ class CollisionChecker:
         joint_pairs_start = np.searchsorted(on_path[0], np.arange(n_joints + 1))
         # Each variable's links (whose pose depends on it), and whether it drives a slider.
         depends = np.zeros((n_joints, n_links), dtype=bool)
+        joint_prismatic = np.zeros(n_joints)
         for i in range(n_links):  # parents come first
             if kin.parent[i] >= 0:
                 depends[:, i] = depends[:, kin.parent[i]]
             if kin.q_index[i] >= 0:
                 depends[kin.q_index[i], i] = True
+                joint_prismatic[kin.q_index[i]] += kin.joint_type[i] == JOINT_PRISMATIC
         joint_links = depends.nonzero()
         joint_links_start = np.searchsorted(joint_links[0], np.arange(n_joints + 1))
-        joint_prismatic = np.zeros(n_joints)
-        for i in range(n_links):
-            if kin.q_index[i] >= 0 and kin.joint_type[i] == JOINT_PRISMATIC:
-                joint_prismatic[kin.q_index[i]] = 1
         depth = int(forest.depth.max()) if len(forest.depth) else 1
         f = forest
         # Everything the kernel reads or keeps, in two flat buffers (see array_pack): static
