@@ -242,52 +242,71 @@ def _finite_scalars(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r
 
 
 @numba.njit(cache=True, inline='always')
-def separated_sat(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                  t0, t1, t2):
-    """Return True iff boxes A and B are separated: the 15-axis test on 18 scalars.
+def separating_axis(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                    t0, t1, t2):
+    """Return the first axis of the 15-axis test that separates boxes A and B, or -1.
 
-    The arithmetic of :func:`boxes_disjoint_sat` (which is this function applied to
-    ``ha, hb, R, t``), taking the numbers themselves so that compiled callers (the traversal's
-    inner loop) pass registers, not arrays: an array passed to a function, even an inlined
-    one, costs reference-count updates that cost more than this whole test.
+    Axes are numbered in the order they are tried: 0-2 A's face normals e_k, 3-5 B's face
+    normals b_j, ``6 + 3 i + j`` the edge-edge axis e_i x b_j. Taking the 18 numbers
+    themselves, so that compiled callers (the traversal's inner loop) pass registers, not
+    arrays: an array passed to a function, even an inlined one, costs reference-count updates
+    that cost more than this whole test. The traversal keeps the axis of a node pair it
+    pruned, and an incremental re-check tries that axis alone first
+    (:func:`collision_sensor.traversal.axis_gap`, the same arithmetic for one axis).
     """
     tol = BOX_EPS_REL * (a0 + a1 + a2 + b0 + b1 + b2)
     thr_face = tol * (1.0 + BOX_EPS_PARALLEL)
     # L = e_k: r_A = ha_k, r_B = sum_j |R[k, j]| hb_j.
-    if ((abs(t0) - ((abs(r00 * b0) + abs(r01 * b1)) + abs(r02 * b2))) - a0 > thr_face
-            or (abs(t1) - ((abs(r10 * b0) + abs(r11 * b1)) + abs(r12 * b2))) - a1 > thr_face
-            or (abs(t2) - ((abs(r20 * b0) + abs(r21 * b1)) + abs(r22 * b2))) - a2 > thr_face):
-        return _finite_scalars(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21,
-                               r22, t0, t1, t2)
+    if (abs(t0) - ((abs(r00 * b0) + abs(r01 * b1)) + abs(r02 * b2))) - a0 > thr_face:
+        k = 0
+    elif (abs(t1) - ((abs(r10 * b0) + abs(r11 * b1)) + abs(r12 * b2))) - a1 > thr_face:
+        k = 1
+    elif (abs(t2) - ((abs(r20 * b0) + abs(r21 * b1)) + abs(r22 * b2))) - a2 > thr_face:
+        k = 2
     # L = b_j: t . b_j = (R^T t)_j, r_A = sum_k |R[k, j]| ha_k, r_B = hb_j.
-    if ((abs((r00 * t0 + r10 * t1) + r20 * t2)
-         - ((abs(r00 * a0) + abs(r10 * a1)) + abs(r20 * a2))) - b0 > thr_face
-            or (abs((r01 * t0 + r11 * t1) + r21 * t2)
-                - ((abs(r01 * a0) + abs(r11 * a1)) + abs(r21 * a2))) - b1 > thr_face
-            or (abs((r02 * t0 + r12 * t1) + r22 * t2)
-                - ((abs(r02 * a0) + abs(r12 * a1)) + abs(r22 * a2))) - b2 > thr_face):
-        return _finite_scalars(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21,
-                               r22, t0, t1, t2)
+    elif (abs((r00 * t0 + r10 * t1) + r20 * t2)
+          - ((abs(r00 * a0) + abs(r10 * a1)) + abs(r20 * a2))) - b0 > thr_face:
+        k = 3
+    elif (abs((r01 * t0 + r11 * t1) + r21 * t2)
+          - ((abs(r01 * a0) + abs(r11 * a1)) + abs(r21 * a2))) - b1 > thr_face:
+        k = 4
+    elif (abs((r02 * t0 + r12 * t1) + r22 * t2)
+          - ((abs(r02 * a0) + abs(r12 * a1)) + abs(r22 * a2))) - b2 > thr_face:
+        k = 5
     # L = e_i x b_j, only where A has edges along e_i (ha[i] > 0).
-    if a0 > 0.0 and (
-            _edge_axis_separates(t1, t2, r10, r20, a1, a2, b1, b2, r01, r02, tol)
-            or _edge_axis_separates(t1, t2, r11, r21, a1, a2, b2, b0, r02, r00, tol)
-            or _edge_axis_separates(t1, t2, r12, r22, a1, a2, b0, b1, r00, r01, tol)):
-        return _finite_scalars(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21,
-                               r22, t0, t1, t2)
-    if a1 > 0.0 and (
-            _edge_axis_separates(t2, t0, r20, r00, a2, a0, b1, b2, r11, r12, tol)
-            or _edge_axis_separates(t2, t0, r21, r01, a2, a0, b2, b0, r12, r10, tol)
-            or _edge_axis_separates(t2, t0, r22, r02, a2, a0, b0, b1, r10, r11, tol)):
-        return _finite_scalars(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21,
-                               r22, t0, t1, t2)
-    if a2 > 0.0 and (
-            _edge_axis_separates(t0, t1, r00, r10, a0, a1, b1, b2, r21, r22, tol)
-            or _edge_axis_separates(t0, t1, r01, r11, a0, a1, b2, b0, r22, r20, tol)
-            or _edge_axis_separates(t0, t1, r02, r12, a0, a1, b0, b1, r20, r21, tol)):
-        return _finite_scalars(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21,
-                               r22, t0, t1, t2)
-    return False
+    elif a0 > 0.0 and _edge_axis_separates(t1, t2, r10, r20, a1, a2, b1, b2, r01, r02, tol):
+        k = 6
+    elif a0 > 0.0 and _edge_axis_separates(t1, t2, r11, r21, a1, a2, b2, b0, r02, r00, tol):
+        k = 7
+    elif a0 > 0.0 and _edge_axis_separates(t1, t2, r12, r22, a1, a2, b0, b1, r00, r01, tol):
+        k = 8
+    elif a1 > 0.0 and _edge_axis_separates(t2, t0, r20, r00, a2, a0, b1, b2, r11, r12, tol):
+        k = 9
+    elif a1 > 0.0 and _edge_axis_separates(t2, t0, r21, r01, a2, a0, b2, b0, r12, r10, tol):
+        k = 10
+    elif a1 > 0.0 and _edge_axis_separates(t2, t0, r22, r02, a2, a0, b0, b1, r10, r11, tol):
+        k = 11
+    elif a2 > 0.0 and _edge_axis_separates(t0, t1, r00, r10, a0, a1, b1, b2, r21, r22, tol):
+        k = 12
+    elif a2 > 0.0 and _edge_axis_separates(t0, t1, r01, r11, a0, a1, b2, b0, r22, r20, tol):
+        k = 13
+    elif a2 > 0.0 and _edge_axis_separates(t0, t1, r02, r12, a0, a1, b0, b1, r20, r21, tol):
+        k = 14
+    else:
+        return -1
+    if _finite_scalars(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                       t0, t1, t2):
+        return k
+    return -1
+
+
+@numba.njit(cache=True, inline='always')
+def separated_sat(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                  t0, t1, t2):
+    """Return True iff boxes A and B are separated: the 15-axis test on 18 scalars
+    (:func:`separating_axis` finds an axis)."""
+    return separating_axis(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21,
+                           r22, t0, t1, t2) >= 0
 
 
 @numba.njit(cache=True, inline='always')

@@ -25,8 +25,8 @@ from collision_sensor.kinematics import JOINT_PRISMATIC, KinematicTree, build_ki
 from collision_sensor.obb_tree import BOX_WIDTH, box_table, build_forest, forest_view, node_table
 from collision_sensor.array_pack import ArrayPack
 from collision_sensor.query_kernel import (
-    FLOAT_SLOTS, HEADER_SIZE, INT_SLOTS, N_SCALARS, S_TOLERANCE, WORK_SIZE, packed_batch,
-    packed_poses, packed_query, write_header)
+    FLOAT_SLOTS, FRONT_POOL_ROWS, FRONT_ROWS_MAX, FRONT_ROWS_MIN, HEADER_SIZE, INT_SLOTS,
+    N_SCALARS, S_TOLERANCE, WORK_SIZE, packed_batch, packed_poses, packed_query, write_header)
 from collision_sensor.robot_model import RobotModel, load_urdf
 from collision_sensor.traversal import N_COUNTERS, POSE_WIDTH
 from collision_sensor.scene import SceneObject, load_scene
@@ -185,6 +185,13 @@ class CollisionChecker:
         joint_links = depends.nonzero()
         joint_links_start = np.searchsorted(joint_links[0], np.arange(n_joints + 1))
         depth = int(forest.depth.max()) if len(forest.depth) else 1
+        # Each pair's front (query_kernel._trees_of_pair) gets the same number of rows; the
+        # traversal's stack takes a front's node pairs, or a pair's root pairs, as seeds.
+        front_rows = int(np.clip(FRONT_POOL_ROWS // max(n_pairs, 1), FRONT_ROWS_MIN,
+                                 FRONT_ROWS_MAX))
+        elements = self._body_elem_end - self._body_elem_start
+        seeds = max([front_rows] + [int(elements[a] * elements[b])
+                                    for a, b in zip(self._pair_a, self._pair_b)])
         f = forest
         # Everything the kernel reads or keeps, in two flat buffers (see array_pack): static
         # model data and the carried state (q_ref, poses, statuses) alike.
@@ -200,7 +207,8 @@ class CollisionChecker:
             pose=np.zeros(POSE_WIDTH),
             work=np.zeros(WORK_SIZE), tri_work=np.zeros((2, 3, 3)),
             clearance=np.zeros(n_pairs), q_eval=np.zeros((n_pairs, n_joints)),
-            reach=self._pair_reach, reach_ext=self._pair_reach_ext, travel=np.zeros((n_pairs, 2)))
+            reach=self._pair_reach, reach_ext=self._pair_reach_ext, travel=np.zeros((n_pairs, 2)),
+            front_until=np.zeros((n_pairs + 1) * front_rows), front_travel=np.zeros(n_pairs))
         ints = dict(
             header=np.zeros(HEADER_SIZE), parent=kin.parent, joint_type=kin.joint_type,
             q_index=kin.q_index,
@@ -213,8 +221,9 @@ class CollisionChecker:
             moved=np.zeros(n_joints), stale=np.zeros(n_bodies), chain=np.zeros(max(n_links, 1)),
             pending=np.zeros(n_pairs), todo=np.zeros(n_pairs),
             scene_culled=np.zeros((len(scene), max(n_links, 1))),
-            stack=np.zeros((2 * depth + 8, 3)),
-            counters=np.zeros(N_COUNTERS))
+            stack=np.zeros((seeds + 2 * depth + 8, 3)),
+            counters=np.zeros(N_COUNTERS), front=np.zeros(((n_pairs + 1) * front_rows, 3)),
+            front_state=np.zeros((n_pairs, 2)))
         self._F, self._F_layout, float_views = self._pack(np.float64, FLOAT_SLOTS, floats)
         self._I, self._I_layout, int_views = self._pack(np.int64, INT_SLOTS, ints)
         # The forest is only a view of the kernel's tables: nothing is held twice (scenario 4).

@@ -11,7 +11,8 @@ A query takes joint positions and, without returning to the interpreter:
 3. re-checks the listed pairs (:func:`recheck_pairs`): (full checks) culling with the
    volumes spanning several links (scene pairs), (incremental calls) the pair's last
    meeting triangle pair, then the two bodies' boxes, then each sub-group tree against
-   each (sec. 4.1, :func:`trees_collide`).
+   each (sec. 4.1, :func:`trees_collide`); an incremental call starts a pair in near contact
+   from its front, the node pairs where its last proof stopped (:func:`_trees_of_pair`).
 
 Poses follow the joints lazily: a moved joint marks the links below it stale, and a link's
 world pose (forward kinematics) is recomputed only when a pair being re-checked needs it,
@@ -42,7 +43,8 @@ from collision_sensor.kinematics import JOINT_PRISMATIC, set_link_pose
 from collision_sensor.obb_tree import BOX_AXES, BOX_CENTER, BOX_HALF, BOX_RADIUS
 from collision_sensor.traversal import (
     BOX_TEST_PAPER, box_in_frame, box_pair_gap, load_box, load_pose, paper_separates,
-    sat_separates, spheres_apart, triangle_pair_collides, trees_collide)
+    COUNT_BOX_TESTS, COUNT_SPHERE_SKIPS, COUNT_TRIANGLE_TESTS, front_scan, sat_separates,
+    spheres_apart, triangle_pair_collides, trees_collide)
 
 WORK_SIZE = 256
 #: A pair's clearance is rounded down by this fraction of the pair's coordinate scale (its
@@ -56,6 +58,13 @@ TRAVEL_GUARD = 1.0 - 1e-6
 #: ... and every tracked pair's, at least once in this many incremental calls: each call
 #: adds at most a few ulps of the clearance of rounding, far below 1 - TRAVEL_GUARD even then.
 TRAVEL_RESYNC_CALLS = 1 << 24
+#: Rows of all pairs' fronts together, and the bounds of one pair's (a front larger than its
+#: rows is not kept: that pair descends from the roots every time, as a full check does).
+FRONT_POOL_ROWS = 1 << 16
+#: A pair keeps a front only while its clearance is at most this fraction of its size (the
+#: sum of its two body boxes' radii): below that, the clearance skips almost no step.
+FRONT_GAP_REL = 1e-3
+FRONT_ROWS_MIN, FRONT_ROWS_MAX = 64, 1024
 
 
 @numba.njit(cache=True, inline='always')
@@ -385,13 +394,93 @@ def plan_update(q, q_ref, tolerance, moved, n_links, joint_type, q_index, multip
     return kept
 
 
+@numba.njit(cache=True, inline='always')
+def _trees_of_pair(p, track, status, scale, travel, margin, first_a, end_a, first_b, end_b,
+                   roots, pose, boxes, nodes, volume, gain, tris, box_method, expansion, stack,
+                   work, tri_work, counters, wa, wb, front, front_until, front_state):
+
+    """Test every sub-group tree of pair p's body a against every one of body b's.
+
+    A full check descends from the roots. An incremental one starts from the pair's front
+    when it has one (:func:`~collision_sensor.traversal.front_scan`): the node pairs where
+    its last descent that found it apart stopped. A front covers every pair of triangles
+    whatever the poses, so it never goes stale, only costlier: it lies where the pair's
+    last proofs went, and no node pair on it is ever merged back into its parent. So it is
+    kept while a re-check from it tests at most as many node pairs and triangle pairs as the
+    last descent from the roots did; else the next re-check descends from the roots again
+    and records a fresh one. Only a pair that was
+    apart starts from its front: one that collided is likely to still collide, and a descent
+    from the roots towards its last meeting triangles stops at the first that meet, where a
+    front would be tried in full first. And only a pair whose clearance is tiny
+    (``FRONT_GAP_REL``) keeps one: a pair with a real clearance is skipped for whole steps,
+    and the finer node pairs of a front would only make that clearance smaller.
+
+    :param front, front_until: ((P + 1) * F, 3) int64 and ((P + 1) * F,) float64: pair p's
+        front in rows ``p * F`` on, the node pairs and their ``until`` (see
+        :func:`~collision_sensor.traversal.front_scan`); the last F rows are work, where a
+        front is recorded.
+    :param front_state: (P, 2) int64, each pair's front length (0: none) and the tests its
+        last descent from the roots made.
+    :param travel, margin: the pair's travel (``front_travel``) and rounding margin.
+    :return: ``(hit, ia, ib, gap)`` as :func:`~collision_sensor.traversal.trees_collide`.
+    """
+    n_old = front_state[p, 0] if track and status[p] == 0 else 0
+    capacity = start = done = 0
+    if track:
+        capacity = front.shape[0] // (front_state.shape[0] + 1)
+        start = p * capacity
+        done = (counters[COUNT_BOX_TESTS] + counters[COUNT_SPHERE_SKIPS]
+                + counters[COUNT_TRIANGLE_TESTS])
+    new = front_state.shape[0] * capacity  # the work rows (none needed by a full check)
+    front_new = front[new:]
+    front_new_until = front_until[new:]
+    if n_old > 0:
+        n_seeds, n_front, gap = front_scan(
+            front[start:start + n_old], front_until[start:start + n_old], n_old, pose, boxes,
+            travel, margin, stack, front_new, front_new_until, counters)
+    else:
+        n_seeds = 0
+        for ea in range(first_a, end_a):
+            for eb in range(first_b, end_b):
+                stack[n_seeds, 0], stack[n_seeds, 1], stack[n_seeds, 2] = roots[ea], roots[eb], 0
+                n_seeds += 1
+        n_front = 0 if track else -1
+        gap = np.inf
+    hit, ia, ib, tree_gap, n_front = trees_collide(
+        n_seeds, pose, boxes, nodes, volume, gain, tris, box_method, expansion, stack, work,
+        tri_work, counters, track, wa, wb, front_new, front_new_until, n_front, travel - margin)
+    if hit:
+        return hit, ia, ib, 0.0
+    gap = min(gap, tree_gap)
+    if n_front < 0 or gap > FRONT_GAP_REL * scale:
+        # A full check, a front too large to keep, or a pair with a clearance that can skip
+        # whole steps: a front's many finer node pairs would only make it smaller.
+        if track:
+            front_state[p, 0] = 0
+        return False, -1, -1, gap
+    done = (counters[COUNT_BOX_TESTS] + counters[COUNT_SPHERE_SKIPS]
+            + counters[COUNT_TRIANGLE_TESTS] - done)
+    if n_old == 0:
+        front_state[p, 1] = done
+    if done <= front_state[p, 1]:
+        for e in range(n_front):
+            for c in range(3):
+                front[start + e, c] = front_new[e, c]
+            front_until[start + e] = front_new_until[e]
+        front_state[p, 0] = n_front
+    else:
+        front_state[p, 0] = 0
+    return False, -1, -1, gap
+
+
 @numba.njit(cache=True, _nrt=False)
 def recheck_pairs(n, full, todo, q_ref, parent, joint_type, T_parent_joint, axis, q_index,
                   multiplier, offset, T_world_body, n_links, is_scene, body_elem_start,
                   body_elem_end, body_boxes, roots, boxes, nodes, volume, gain, tris,
                   pair_a, pair_b, status, witness, clearance, q_eval, travel, box_method,
                   expansion, stale, chain, scene_culled, subtree_boxes, pose, stack, work,
-                  tri_work, counters):
+                  tri_work, counters, front, front_until, front_state, front_travel, reach,
+                  reach_ext, extension):
     """Re-check pairs ``todo[:n]`` (all pairs if ``full``); return (re-checked, any changed).
 
     A full check first rebuilds the volumes spanning several links and culls scene pairs
@@ -403,8 +492,10 @@ def recheck_pairs(n, full, todo, q_ref, parent, joint_type, T_parent_joint, axis
     that test). It skips the culling: a pair it re-checks is one whose own clearance ran
     out, and its own boxes give the next clearance, where a culling volume would only give
     a looser one. Then the two bodies' boxes, then each sub-group tree against each
-    (sec. 4.1, :func:`trees_collide`); an incremental call records the clearance of each
-    pair found apart (see :func:`plan_update`).
+    (sec. 4.1, :func:`trees_collide`), or, incrementally, the pair's front
+    (:func:`_trees_of_pair`); an incremental call records the clearance of each pair found
+    apart (see :func:`plan_update`), and adds the pair's travel since its last incremental
+    re-check to ``front_travel``.
 
     Bodies are the robot's links (FK order, world == root link frame) followed by the scene
     objects, whose poses never change. Parameters are those of :func:`plan_update` and the
@@ -426,8 +517,15 @@ def recheck_pairs(n, full, todo, q_ref, parent, joint_type, T_parent_joint, axis
     :param subtree_boxes: (L, BOX_WIDTH), each link's subtree volume (kept between calls).
     :param pose: (POSE_WIDTH,) float64 work: the pair's relative pose.
     :param stack, work, tri_work, counters: see :func:`trees_collide`.
+    :param front, front_until, front_state: each pair's front, see :func:`_trees_of_pair`.
+    :param front_travel: (P,) float64, each pair's travel: the sum, over its incremental
+        re-checks, of its travel bound (:func:`plan_update`) from the previous one.
+    :param reach, reach_ext, extension: see :func:`plan_update`.
     """
     track = not full
+    if full:  # a full check uses nothing carried over; fronts are recorded afresh after it
+        for p in range(front_state.shape[0]):
+            front_state[p, 0] = 0
     if full and scene_culled.shape[0] > 0:
         _refresh_culling(T_world_body, parent, n_links, body_elem_start, body_elem_end,
                          body_boxes, subtree_boxes, scene_culled, box_method, work)
@@ -441,6 +539,11 @@ def recheck_pairs(n, full, todo, q_ref, parent, joint_type, T_parent_joint, axis
                           multiplier, offset, T_world_body, stale, chain)
             _refresh_pose(b, q_ref, parent, joint_type, T_parent_joint, axis, q_index,
                           multiplier, offset, T_world_body, stale, chain)
+            # The pair's travel since its last incremental re-check joins its running sum.
+            _resync_travel(p, q_ref, q_eval, reach, reach_ext, travel)
+            front_travel[p] += travel[p, 0] + extension * travel[p, 1]
+            for j in range(q_ref.shape[0]):
+                q_eval[p, j] = q_ref[j]
         hit = False
         gap = 0.0
         if track or not (is_scene[b] and scene_culled[b - n_links, a]):
@@ -455,20 +558,17 @@ def recheck_pairs(n, full, todo, q_ref, parent, joint_type, T_parent_joint, axis
                 # A body of one sub-group has its tree's root box as body box: the traversal
                 # tests that first, so the body box is only worth testing for several trees.
                 if single or not _bodies_apart(body_boxes, a, b, pose, box_method, work):
-                    gap = np.inf
-                    for ea in range(body_elem_start[a], body_elem_end[a]):
-                        for eb in range(body_elem_start[b], body_elem_end[b]):
-                            hit, ia, ib, tree_gap = trees_collide(
-                                roots[ea], roots[eb], pose, boxes, nodes, volume, gain, tris,
-                                box_method, expansion, stack, work, tri_work, counters, track,
-                                wa, wb)
-                            if hit:
-                                witness[p, 0] = ia
-                                witness[p, 1] = ib
-                                break
-                            gap = min(gap, tree_gap)
-                        if hit:
-                            break
+                    margin = _clearance_margin(body_boxes, a, b, pose) if track else 0.0
+                    hit, ia, ib, gap = _trees_of_pair(
+                        p, track, status, body_boxes[a, BOX_RADIUS] + body_boxes[b, BOX_RADIUS],
+                        front_travel[p], margin,
+                        body_elem_start[a], body_elem_end[a], body_elem_start[b],
+                        body_elem_end[b], roots, pose, boxes, nodes, volume, gain, tris,
+                        box_method, expansion, stack, work, tri_work, counters, wa, wb, front,
+                        front_until, front_state)
+                    if hit:
+                        witness[p, 0] = ia
+                        witness[p, 1] = ib
                 elif track:
                     gap = _bodies_gap(body_boxes, a, b, pose)
                 if track and not hit:
@@ -479,8 +579,6 @@ def recheck_pairs(n, full, todo, q_ref, parent, joint_type, T_parent_joint, axis
         if clearance[p] > 0.0:
             travel[p, 0] = 0.0
             travel[p, 1] = 0.0
-            for j in range(q_ref.shape[0]):
-                q_eval[p, j] = q_ref[j]
         changed |= status[p] != hit
         status[p] = 1 if hit else 0
     return n, changed
@@ -493,19 +591,20 @@ def recheck_pairs(n, full, todo, q_ref, parent, joint_type, T_parent_joint, axis
 FLOAT_SLOTS = ('scalars', 'q_last', 'q_ref', 'T_parent_joint', 'axis', 'multiplier', 'offset',
                'T_world_body', 'body_boxes', 'boxes', 'volume', 'gain', 'tris', 'subtree_boxes',
                'pose', 'work', 'tri_work', 'clearance', 'q_eval', 'reach', 'reach_ext',
-               'travel')
+               'travel', 'front_until', 'front_travel')
 INT_SLOTS = ('header', 'parent', 'joint_type', 'q_index', 'is_scene', 'body_elem_start',
              'body_elem_end', 'roots', 'nodes', 'pair_a', 'pair_b', 'joint_pairs_start',
              'joint_pairs', 'joint_links_start', 'joint_links', 'joint_prismatic', 'status',
              'witness', 'moved', 'stale', 'chain', 'pending', 'todo', 'scene_culled', 'stack',
-             'counters')
+             'counters', 'front', 'front_state')
 (F_SCALARS, F_Q_LAST, F_Q_REF, F_T_PARENT_JOINT, F_AXIS, F_MULTIPLIER, F_OFFSET,
  F_T_WORLD_BODY, F_BODY_BOXES, F_BOXES, F_VOLUME, F_GAIN, F_TRIS, F_SUBTREE_BOXES, F_POSE, F_WORK,
- F_TRI_WORK, F_CLEARANCE, F_Q_EVAL, F_REACH, F_REACH_EXT, F_TRAVEL) = range(len(FLOAT_SLOTS))
+ F_TRI_WORK, F_CLEARANCE, F_Q_EVAL, F_REACH, F_REACH_EXT, F_TRAVEL, F_FRONT_UNTIL,
+ F_FRONT_TRAVEL) = range(len(FLOAT_SLOTS))
 (I_HEADER, I_PARENT, I_JOINT_TYPE, I_Q_INDEX, I_IS_SCENE, I_BODY_ELEM_START, I_BODY_ELEM_END,
  I_ROOTS, I_NODES, I_PAIR_A, I_PAIR_B, I_JOINT_PAIRS_START, I_JOINT_PAIRS, I_JOINT_LINKS_START,
  I_JOINT_LINKS, I_JOINT_PRISMATIC, I_STATUS, I_WITNESS, I_MOVED, I_STALE, I_CHAIN, I_PENDING,
- I_TODO, I_SCENE_CULLED, I_STACK, I_COUNTERS) = range(len(INT_SLOTS))
+ I_TODO, I_SCENE_CULLED, I_STACK, I_COUNTERS, I_FRONT, I_FRONT_STATE) = range(len(INT_SLOTS))
 # scalars[S_*] (float slot 0, at offset 0 of the float buffer).
 S_TOLERANCE, S_EXTENSION = range(2)
 N_SCALARS = 2
@@ -589,7 +688,10 @@ def packed_query(q, full, F, I):
         travel, I[H_BOX_METHOD], I[H_EXPANSION], stale, view1(I, I_layout, I_CHAIN),
         view2(I, I_layout, I_SCENE_CULLED), view2(F, F_layout, F_SUBTREE_BOXES),
         view1(F, F_layout, F_POSE), view2(I, I_layout, I_STACK), view1(F, F_layout, F_WORK),
-        view3(F, F_layout, F_TRI_WORK), view1(I, I_layout, I_COUNTERS))
+        view3(F, F_layout, F_TRI_WORK), view1(I, I_layout, I_COUNTERS),
+        view2(I, I_layout, I_FRONT), view1(F, F_layout, F_FRONT_UNTIL),
+        view2(I, I_layout, I_FRONT_STATE), view1(F, F_layout, F_FRONT_TRAVEL),
+        view2(F, F_layout, F_REACH), view2(F, F_layout, F_REACH_EXT), F[S_EXTENSION])
     return 2 * rechecked + (1 if changed else 0)
 
 
