@@ -11,7 +11,7 @@ Extreme (a 6-DOF robot of more than 2000 triangles, a machine of more than 3000)
 from collision_sensor.bench.scenario_cells import robot_pair_exceptions
 from collision_sensor.bench.scenario_measure import Candidate, interleaved_us, work_per_check
 from collision_sensor.bench.scenario_peers import (
-    FclCell, PinocchioFkFcl, agreement, optional_peer, pinocchio_colliding_pairs,
+    FclCell, PinocchioFkFcl, agreement, fcl_answers, optional_peer, pinocchio_answers,
     pinocchio_peer)
 from collision_sensor.bench.scenario_report import Section, ratio, us
 from collision_sensor.sequences import read_sequence
@@ -70,11 +70,7 @@ def run(settings, cell) -> Section:
             ['collision_sensor `update` along the path (incremental)', us(times['update']),
              ratio(times['update'], check), '-']]
     if fcl_cell is not None:
-        sets = []
-        for P in poses:
-            fcl_cell.place(P)
-            fcl_cell.check()
-            sets.append(fcl_cell.colliding_pairs())
+        sets = fcl_answers(fcl_cell, poses)
         fcl_agree = agreement(ours_sets, sets)
         rows.append(['python-fcl, our poses (FK not counted)', us(times['fcl']),
                      ratio(check, times['fcl']), fcl_agree])
@@ -84,10 +80,7 @@ def run(settings, cell) -> Section:
     else:
         rows.append(['python-fcl', fcl_missing, '', ''])
     if pin is not None:
-        sets = []
-        for q in pin_qs:
-            pin.check(q)
-            sets.append(pinocchio_colliding_pairs(pin))
+        sets = pinocchio_answers(pin, pin_qs)
         rows.append([f'pinocchio+coal `computeCollisions` ({pin.pair_count} geometry pairs)',
                      us(times['pinocchio']), ratio(check, times['pinocchio']),
                      agreement(ours_sets, sets)])

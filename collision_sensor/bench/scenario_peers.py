@@ -12,7 +12,7 @@
 
 A peer that is not installed raises ImportError here; callers report it as missing.
 """
-from typing import Dict, FrozenSet, Iterable, Mapping, Optional, Sequence, Tuple
+from typing import Dict, FrozenSet, Iterable, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -64,6 +64,25 @@ def pinocchio_colliding_pairs(peer: PinocchioPeer) -> FrozenSet[Pair]:
         if peer.geom_data.collisionResults[k].isCollision():
             hits.add(tuple(sorted((peer.owners[pair.first], peer.owners[pair.second]))))
     return frozenset(hits)
+
+
+def pinocchio_answers(peer: PinocchioPeer, configurations) -> List[FrozenSet[Pair]]:
+    """Return the link pairs the peer finds colliding in each of its ``configurations``."""
+    answers = []
+    for q in configurations:
+        peer.check(q)
+        answers.append(pinocchio_colliding_pairs(peer))
+    return answers
+
+
+def fcl_answers(cell: 'FclCell', poses) -> List[FrozenSet[Pair]]:
+    """Return the link pairs python-fcl finds colliding with the links at each of ``poses``."""
+    answers = []
+    for P in poses:
+        cell.place(P)
+        cell.check()
+        answers.append(cell.colliding_pairs())
+    return answers
 
 
 def fcl_bvh(vertices: np.ndarray, faces: np.ndarray):

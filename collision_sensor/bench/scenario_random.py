@@ -12,7 +12,7 @@ Every peer's colliding pair sets are compared with ours on every configuration (
 """
 from collision_sensor.bench.scenario_measure import Candidate, interleaved_us, work_per_check
 from collision_sensor.bench.scenario_peers import (
-    FclCell, PinocchioFkFcl, agreement, optional_peer, pinocchio_colliding_pairs,
+    FclCell, PinocchioFkFcl, agreement, fcl_answers, optional_peer, pinocchio_answers,
     pinocchio_peer)
 from collision_sensor.bench.scenario_report import Section, ratio, us
 from collision_sensor.sampling import random_configurations
@@ -71,21 +71,14 @@ def _measure(cell, settings, section):
     rows = [['collision_sensor `check`', 'ours (in the kernel)', f'{n_pairs}', us(ours), '1.00x',
              '-']]
     if pin is not None:
-        sets = []
-        for q in pin_qs:
-            pin.check(q)
-            sets.append(pinocchio_colliding_pairs(pin))
+        sets = pinocchio_answers(pin, pin_qs)
         rows.append(['pinocchio+coal `computeCollisions`', 'pinocchio',
                      f'{n_pairs} ({pin.pair_count} geometry pairs)', us(times['pinocchio']),
                      ratio(ours, times['pinocchio']), agreement(ours_sets, sets)])
     else:
         rows.append(['pinocchio+coal', '', '', pin_missing, '', ''])
     if fcl_cell is not None:
-        sets = []
-        for P in poses:
-            fcl_cell.place(P)
-            fcl_cell.check()
-            sets.append(fcl_cell.colliding_pairs())
+        sets = fcl_answers(fcl_cell, poses)
         fcl_agree = agreement(ours_sets, sets)
         if fk_fcl is not None:
             rows.append(['python-fcl, one `collide` per pair', 'pinocchio (counted)',

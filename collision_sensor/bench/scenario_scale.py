@@ -16,7 +16,7 @@ import numpy as np
 from collision_sensor.bench.scenario_cells import robot_cell, robot_pair_exceptions, terrain_object
 from collision_sensor.bench.scenario_measure import (
     Candidate, interleaved_us, pin_mmap_threshold, resident_growth, work_per_check)
-from collision_sensor.bench.scenario_peers import FclCell, agreement, fcl_bvh
+from collision_sensor.bench.scenario_peers import FclCell, agreement, fcl_answers, fcl_bvh
 from collision_sensor.bench.scenario_report import Section, ratio, us
 from collision_sensor.sampling import random_configurations
 
@@ -96,11 +96,7 @@ def _measure_size(cell, allowed, size, workdir, configurations, poses, robot_rss
             lambda: fcl_bvh(terrain.vertices, terrain.faces))
         fcl_cell = FclCell(checker, [terrain], {terrain.name: model})
         point.update(fcl_build=fcl_build, fcl_rss=fcl_rss / triangles)
-        sets = []
-        for P in poses:
-            fcl_cell.place(P)
-            fcl_cell.check()
-            sets.append(fcl_cell.colliding_pairs())
+        sets = fcl_answers(fcl_cell, poses)
         point['agree'] = agreement(ours_sets, sets)
         candidates.append(Candidate('fcl', lambda P: (fcl_cell.place(P), fcl_cell.check()),
                                     poses))
