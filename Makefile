@@ -1,6 +1,7 @@
 # The two commands: `make demo` and `make test`. Each creates .venv when it is missing and
 # installs the package with its `ros` and `test` extras (editable, so tests run this tree);
-# the stamp makes a second run reinstall nothing until setup.py, setup.cfg or package.xml change.
+# the stamp makes a second run reinstall nothing until setup.py, setup.cfg, package.xml or the
+# engine's C++ sources (cpp/, compiled into the extension at install) change.
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
@@ -12,7 +13,7 @@ export ROS_DOMAIN_ID ?= 42
 
 .PHONY: demo test bench clean
 
-$(STAMP): setup.py setup.cfg package.xml
+$(STAMP): setup.py setup.cfg package.xml pyproject.toml $(wildcard cpp/*.cpp cpp/*.hpp)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip wheel
 	$(BIN)/python -m pip install --quiet -e '.[ros,test]'

@@ -1,8 +1,23 @@
-"""Install collision_sensor as an ament_python package (colcon) or a plain pip package."""
+"""Install collision_sensor as an ament_python package (colcon) or a plain pip package.
+
+The engine is C++17 (``cpp/``), compiled here into one extension module,
+``collision_sensor._engine``, with pybind11: under ``pip install``, ``make`` and ``colcon build``
+alike. pybind11 because it builds from a plain setup.py (``Pybind11Extension``), which colcon's
+ament_python runs as it is; nanobind wants CMake.
+"""
+import hashlib
 import os
+import sys
 from glob import glob
 
 from setuptools import find_packages, setup
+from setuptools.command.build_ext import build_ext
+
+try:
+    from pybind11.setup_helpers import Pybind11Extension
+except ImportError:  # colcon and 'python setup.py' run without pip's build isolation
+    sys.exit('collision_sensor: building the engine needs pybind11 (>= 2.11): '
+             '"pip install pybind11", or "apt install python3-pybind11" in a ROS workspace')
 
 PACKAGE = 'collision_sensor'
 
@@ -17,6 +32,41 @@ def share_tree(folder):
     return entries
 
 
+ENGINE_SOURCES = sorted(glob('cpp/*.cpp'))
+ENGINE_HEADERS = sorted(glob('cpp/*.hpp'))
+
+
+def source_digest(paths):
+    """Return the SHA-256 of the engine's sources (checked again at import: compiled.py)."""
+    sha = hashlib.sha256()
+    for path in paths:
+        with open(path, 'rb') as source:
+            sha.update(os.path.basename(path).encode() + b'\0' + source.read())
+    return sha.hexdigest()
+
+
+class BuildEngine(build_ext):
+    """Compile the engine's translation units two at a time; say what to do without a compiler."""
+
+    def build_extensions(self):
+        if self.parallel is None:
+            self.parallel = min(2, os.cpu_count() or 1)
+        try:
+            super().build_extensions()
+        except Exception as error:  # CompileError, a missing compiler (OSError), ...
+            raise SystemExit(
+                f'collision_sensor: the C++ engine did not build ({error}). It needs a C++17 '
+                'compiler (g++ >= 8 or clang >= 7): "apt install g++" on Debian/Ubuntu, '
+                'then run the install again') from error
+
+
+ENGINE = Pybind11Extension(
+    'collision_sensor._engine', ENGINE_SOURCES, include_dirs=['cpp'], cxx_std=17,
+    depends=ENGINE_HEADERS,
+    define_macros=[('COLLISION_SENSOR_SOURCE_DIGEST',
+                    '"%s"' % source_digest(ENGINE_SOURCES + ENGINE_HEADERS))],
+    extra_compile_args=['-O2', '-Wall', '-Wextra', '-fno-math-errno'])
+
 setup(
     name=PACKAGE,
     version='0.1.0',
@@ -28,7 +78,6 @@ setup(
     python_requires='>=3.10',
     install_requires=[
         'numpy>=1.24',
-        'numba>=0.59',
         'trimesh>=4.0',
         'yourdfpy>=0.0.56',
         'pycollada>=0.8',
@@ -44,6 +93,7 @@ setup(
             'ros-jazzy-common-interfaces',
         ],
         'test': [
+            'numba>=0.59',  # the reference kernels the C++ port is checked against (until removed)
             'pytest>=7',
             'python-fcl>=0.7',
             'pin>=3.0',
@@ -52,6 +102,8 @@ setup(
             'colcon-ros>=0.5',
         ],
     },
+    ext_modules=[ENGINE],
+    cmdclass={'build_ext': BuildEngine},
     zip_safe=False,
     maintainer='collision_sensor maintainers',
     maintainer_email='maintainers@collision-sensor.invalid',
