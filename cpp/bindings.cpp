@@ -7,6 +7,12 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
+#include "bounding_volumes.hpp"
+
+#include "obb_tree.hpp"
+
+#include "query.hpp"
+
 namespace py = pybind11;
 
 //: Bumped whenever the binding's functions or the packed layouts change; the Python side
@@ -21,4 +27,13 @@ PYBIND11_MODULE(_engine, m) {
 #else
     m.attr("SOURCE_DIGEST") = "";
 #endif
+
+    // ---- query engine (query.hpp, box_test.hpp, triangle_test.hpp, kinematics.hpp)
+
+    // ---- end of query engine
+
+
+    // ---- build-time kernels (bounding_volumes.hpp, obb_tree.hpp)
+
+    // ---- end of build-time kernels
 }

@@ -1,0 +1,2 @@
+// obb_tree: see bindings.cpp. (placeholder until its port lands)
+#pragma once

@@ -1,0 +1,2 @@
+// query: see bindings.cpp. (placeholder until its port lands)
+#pragma once
