@@ -49,6 +49,9 @@ class BuildEngine(build_ext):
     """Compile the engine's translation units two at a time; say what to do without a compiler."""
 
     def build_extensions(self):
+        # Always compile: the sources' digest is baked into the module (a macro, which
+        # setuptools' timestamp check does not see), so a stale object would carry an old one.
+        self.force = True
         if self.parallel is None:
             self.parallel = min(2, os.cpu_count() or 1)
         try:
@@ -64,7 +67,7 @@ ENGINE = Pybind11Extension(
     'collision_sensor._engine', ENGINE_SOURCES, include_dirs=['cpp'], cxx_std=17,
     depends=ENGINE_HEADERS,
     define_macros=[('COLLISION_SENSOR_SOURCE_DIGEST',
-                    '"%s"' % source_digest(ENGINE_SOURCES + ENGINE_HEADERS))],
+                    '"%s"' % source_digest(sorted(ENGINE_SOURCES + ENGINE_HEADERS)))],
     extra_compile_args=['-O2', '-Wall', '-Wextra', '-fno-math-errno'])
 
 setup(

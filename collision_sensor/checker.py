@@ -8,8 +8,8 @@ This is the API the node, the command-line tools and the benchmarks build on::
     result = checker.update(positions)   # incremental: re-checks only what the motion changed
     result.in_collision, result.colliding_pairs
 
-Everything between ``positions`` and the pair statuses runs in one compiled kernel
-(:func:`collision_sensor.query_kernel.packed_query`); this module turns files into flat arrays
+Everything between ``positions`` and the pair statuses runs in one call into the compiled
+engine (``cpp/query.hpp``: ``Engine::query``, C++17); this module turns files into flat arrays
 once, and names back into answers.
 """
 import math
@@ -24,11 +24,8 @@ from collision_sensor.exception_list import adjacent_pairs, parse_pair_strings, 
 from collision_sensor.kinematics import JOINT_PRISMATIC, KinematicTree, build_kinematic_tree
 from collision_sensor.obb_tree import BOX_WIDTH, box_table, build_forest, forest_view, node_table
 from collision_sensor.array_pack import ArrayPack
-from collision_sensor.query_kernel import (
-    FLOAT_SLOTS, FRONT_POOL_ROWS, FRONT_ROWS_MAX, FRONT_ROWS_MIN, HEADER_SIZE, INT_SLOTS,
-    N_SCALARS, S_TOLERANCE, WORK_SIZE, packed_batch, packed_poses, packed_query, write_header)
+from collision_sensor.compiled import engine
 from collision_sensor.robot_model import RobotModel, load_urdf
-from collision_sensor.traversal import N_COUNTERS, POSE_WIDTH
 from collision_sensor.scene import SceneObject, load_scene
 from collision_sensor.srdf import Srdf, load_srdf
 
@@ -185,18 +182,18 @@ class CollisionChecker:
         joint_links = depends.nonzero()
         joint_links_start = np.searchsorted(joint_links[0], np.arange(n_joints + 1))
         depth = int(forest.depth.max()) if len(forest.depth) else 1
-        # Each pair's front (query_kernel._trees_of_pair) gets the same number of rows; the
+        # Each pair's front (cpp/query.cpp: trees_of_pair) gets the same number of rows; the
         # traversal's stack takes a front's node pairs, or a pair's root pairs, as seeds.
-        front_rows = int(np.clip(FRONT_POOL_ROWS // max(n_pairs, 1), FRONT_ROWS_MIN,
-                                 FRONT_ROWS_MAX))
+        front_rows = int(np.clip(engine.FRONT_POOL_ROWS // max(n_pairs, 1),
+                                 engine.FRONT_ROWS_MIN, engine.FRONT_ROWS_MAX))
         elements = self._body_elem_end - self._body_elem_start
         seeds = max([front_rows] + [int(elements[a] * elements[b])
                                     for a, b in zip(self._pair_a, self._pair_b)])
         f = forest
         # Everything the kernel reads or keeps, in two flat buffers (see array_pack): static
         # model data and the carried state (q_ref, poses, statuses) alike.
-        scalars = np.zeros(N_SCALARS)
-        scalars[S_TOLERANCE] = self.config.motion_tolerance
+        scalars = np.zeros(engine.N_SCALARS)
+        scalars[engine.S_TOLERANCE] = self.config.motion_tolerance
         floats = dict(
             scalars=scalars, q_last=np.zeros(n_joints), q_ref=np.zeros(n_joints),
             T_parent_joint=kin.T_parent_joint, axis=kin.axis,
@@ -204,13 +201,11 @@ class CollisionChecker:
             body_boxes=box_table(self._body_center, self._body_axes, self._body_half),
             boxes=box_table(f.center, f.axes, f.half), volume=f.volume, gain=f.gain,
             tris=f.tris, subtree_boxes=np.zeros((max(n_links, 1), BOX_WIDTH)),
-            pose=np.zeros(POSE_WIDTH),
-            work=np.zeros(WORK_SIZE), tri_work=np.zeros((2, 3, 3)),
             clearance=np.zeros(n_pairs), q_eval=np.zeros((n_pairs, n_joints)),
             reach=self._pair_reach, reach_ext=self._pair_reach_ext, travel=np.zeros((n_pairs, 2)),
             front_until=np.zeros((n_pairs + 1) * front_rows), front_travel=np.zeros(n_pairs))
         ints = dict(
-            header=np.zeros(HEADER_SIZE), parent=kin.parent, joint_type=kin.joint_type,
+            header=np.zeros(engine.HEADER_SIZE), parent=kin.parent, joint_type=kin.joint_type,
             q_index=kin.q_index,
             is_scene=is_scene, body_elem_start=self._body_elem_start,
             body_elem_end=self._body_elem_end, roots=f.roots, nodes=node_table(f),
@@ -222,17 +217,18 @@ class CollisionChecker:
             pending=np.zeros(n_pairs), todo=np.zeros(n_pairs),
             scene_culled=np.zeros((len(scene), max(n_links, 1))),
             stack=np.zeros((seeds + 2 * depth + 8, 3)),
-            counters=np.zeros(N_COUNTERS), front=np.zeros(((n_pairs + 1) * front_rows, 3)),
+            counters=np.zeros(engine.N_COUNTERS), front=np.zeros(((n_pairs + 1) * front_rows, 3)),
             front_state=np.zeros((n_pairs, 2)))
-        self._F, self._F_layout, float_views = self._pack(np.float64, FLOAT_SLOTS, floats)
-        self._I, self._I_layout, int_views = self._pack(np.int64, INT_SLOTS, ints)
+        self._F, self._F_layout, float_views = self._pack(np.float64, engine.FLOAT_SLOTS, floats)
+        self._I, self._I_layout, int_views = self._pack(np.int64, engine.INT_SLOTS, ints)
         # The forest is only a view of the kernel's tables: nothing is held twice (scenario 4).
         self.forest = forest_view(float_views['boxes'], int_views['nodes'],
                                   float_views['volume'], float_views['gain'],
                                   float_views['tris'], int_views['roots'], forest.depth)
+        self._views = {**float_views, **int_views}
         del forest, f, floats, ints
-        write_header(self._I, self._F_layout, self._I_layout, n_links,
-                     self.config.box_test_code, self.config.expansion_code)
+        self._write_header(n_links)
+        self._engine = engine.Engine(self._F, self._I)
         self._q_ref = float_views['q_ref']
         self._T_world_body = float_views['T_world_body']
         self._status = int_views['status']
@@ -273,6 +269,21 @@ class CollisionChecker:
         for name in slots:  # the order the kernel's slot constants expect
             pack.add(name, arrays[name])
         return pack.pack()
+
+    def packed_array(self, name: str) -> np.ndarray:
+        """Return the engine's array ``name`` (``cpp/query.hpp``: CS_FLOAT_SLOTS, CS_INT_SLOTS)
+        as a view of the buffer the engine reads and writes in place: for tests, benchmarks and
+        inspection (writing to it changes what the engine sees)."""
+        return self._views[name]
+
+    def _write_header(self, n_links: int) -> None:
+        """Fill the int buffer's header (cpp/query.hpp: H_*) once, after packing."""
+        I, e = self._I, engine
+        I[e.H_N_LINKS], I[e.H_BOX_METHOD], I[e.H_EXPANSION] = (
+            n_links, self.config.box_test_code, self.config.expansion_code)
+        I[e.H_CHECKED_ONCE], I[e.H_RESYNC_COUNTDOWN] = 0, e.TRAVEL_RESYNC_CALLS
+        I[e.H_LAYOUTS:e.H_I_LAYOUT] = self._F_layout.ravel()
+        I[e.H_I_LAYOUT:e.HEADER_SIZE] = self._I_layout.ravel()
 
     def _exception_list(self, srdf: Optional[Srdf], link_names: List[str]) -> Dict[Pair, str]:
         excluded: Dict[Pair, str] = {}
@@ -400,13 +411,13 @@ class CollisionChecker:
         if not (type(positions) is np.ndarray and positions.dtype is _FLOAT64
                 and positions.shape == self._q_shape and positions.flags.c_contiguous):
             positions = self._merged(positions)
-        code = packed_query(positions, full, self._F, self._I)
+        code = self._engine.query(positions, full)
         if code == 0 and self._result.rechecked_pairs == 0:
             return self._result  # nothing moved, as in the last call: the same answer
         return self._answer(code, positions)
 
     def _answer(self, code: int, positions: np.ndarray) -> CheckResult:
-        """Turn the kernel's code (:func:`packed_query`) into the result, or raise."""
+        """Turn the engine's code (``Engine::query``) into the result, or raise."""
         if code < 0:
             raise JointStateError(f'joint "{self.joint_names[-1 - code]}": position '
                                   f'{positions[-1 - code]} is not finite; send a finite value '
@@ -440,7 +451,7 @@ class CollisionChecker:
         status, and every pose not below a moved joint, carries over (paper sec. 4.2). A pair
         last found apart by ``update`` with a known clearance is not re-checked either while
         the joints on its path have not moved far enough, summed, to close that gap (see
-        :func:`~collision_sensor.query_kernel.plan_update`).
+        ``plan_update`` in ``cpp/query.cpp``).
         Same arguments and errors as :meth:`check`.
         """
         return self._run(positions, full=False)
@@ -490,7 +501,7 @@ class CollisionChecker:
                                   'changed)')
         statuses = np.zeros((len(Q), len(self.checked_pairs)), dtype=np.uint8)
         codes = np.zeros(len(Q), dtype=np.int64)
-        packed_batch(Q, full, self._F, self._I, statuses, codes)
+        self._engine.batch(Q, full, statuses, codes)
         return statuses.view(bool), codes
 
     def _result_from_status(self, rechecked: int) -> CheckResult:
@@ -513,7 +524,7 @@ class CollisionChecker:
     def _poses(self) -> np.ndarray:
         """(B, 4, 4) world poses of all bodies, brought up to date (``update`` computes a
         link's pose only when a pair it re-checks needs it)."""
-        packed_poses(self._F, self._I)
+        self._engine.poses()
         return self._T_world_body
 
     def collision_boxes(self, names: Iterable[str]) -> List[Tuple[str, np.ndarray, np.ndarray]]:

@@ -12,8 +12,7 @@ import hashlib
 import os
 
 # Every module of this package that defines cached kernels.
-KERNEL_MODULES = ('array_pack', 'bounding_volumes', 'box_test', 'kinematics', 'obb_tree',
-                  'query_kernel', 'tolerances', 'traversal', 'triangle_test')
+KERNEL_MODULES = ('bounding_volumes', 'obb_tree', 'tolerances')
 _MARK = 'collision_sensor-kernels'
 _digest = None
 

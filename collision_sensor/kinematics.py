@@ -1,4 +1,4 @@
-"""Forward kinematics of a robot model over flat arrays, compiled with numba.
+"""Forward kinematics of a robot model over flat arrays (computed in C++).
 
 A :class:`KinematicTree` holds the tree as structure-of-arrays indexed by link (``L`` links,
 root first, every parent before its children), and the configuration ``q`` holds one value per
@@ -14,17 +14,14 @@ reached through the joint above it::
 
 "world" is the root link's frame: ``T_world_link[0]`` is the identity.
 
-:func:`forward_kinematics_kernel` is a plain ``@njit`` function over those arrays so that other
-compiled kernels (the collision engine) call it directly; it allocates nothing. Kernels are
-cached on disk (``cache=True``): the first process compiles them, later ones load them.
+:func:`forward_kinematics_kernel` runs ``cpp/kinematics.hpp``, the code the query engine
+itself runs for each link it needs (lazily, inside a query).
 """
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
-
+from collision_sensor.compiled import engine
 from collision_sensor.errors import JointStateError, RobotDescriptionError
-from collision_sensor.kernel_cache import bind_to_kernel_sources
 from collision_sensor.robot_model import RobotModel, resolve_mimics
 
 JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
@@ -32,74 +29,10 @@ _JOINT_CODES = {'fixed': JOINT_FIXED, 'revolute': JOINT_REVOLUTE,
                 'continuous': JOINT_REVOLUTE, 'prismatic': JOINT_PRISMATIC}
 
 
-@njit(cache=True, nogil=True, fastmath=False, inline='always')
-def set_link_pose(i, q, parent, joint_type, T_parent_joint, axis, q_index, multiplier, offset,
-                  T_world_link):
-    """Write link ``i``'s world pose from its parent's (already current) pose.
-
-    ``T_world_link[i] = T_world_link[parent[i]] @ T_parent_joint[i] @ motion(value)``, with
-    ``value = multiplier[i] * q[q_index[i]] + offset[i]``; the root gets its origin alone.
-    Parameters as for :func:`forward_kinematics_kernel`.
-    """
-    # Plain indexing, no row views: a view costs two atomic reference-count updates, more
-    # than the arithmetic of a link.
-    J = T_parent_joint
-    # M = T_parent_joint @ motion, as 12 scalars (rotation m.., translation t.).
-    m00, m01, m02, t0 = J[i, 0, 0], J[i, 0, 1], J[i, 0, 2], J[i, 0, 3]
-    m10, m11, m12, t1 = J[i, 1, 0], J[i, 1, 1], J[i, 1, 2], J[i, 1, 3]
-    m20, m21, m22, t2 = J[i, 2, 0], J[i, 2, 1], J[i, 2, 2], J[i, 2, 3]
-    kind = joint_type[i]
-    if kind != 0:
-        value = multiplier[i] * q[q_index[i]] + offset[i]
-        x, y, z = axis[i, 0], axis[i, 1], axis[i, 2]
-        if kind == 1:
-            # Rodrigues: R = c I + s [a]x + (1 - c) a a^T; then M.R <- J.R @ R.
-            c = np.cos(value)
-            s = np.sin(value)
-            v = 1.0 - c
-            r00, r01, r02 = c + v * x * x, v * x * y - s * z, v * x * z + s * y
-            r10, r11, r12 = v * x * y + s * z, c + v * y * y, v * y * z - s * x
-            r20, r21, r22 = v * x * z - s * y, v * y * z + s * x, c + v * z * z
-            a00 = m00 * r00 + m01 * r10 + m02 * r20
-            a01 = m00 * r01 + m01 * r11 + m02 * r21
-            a02 = m00 * r02 + m01 * r12 + m02 * r22
-            a10 = m10 * r00 + m11 * r10 + m12 * r20
-            a11 = m10 * r01 + m11 * r11 + m12 * r21
-            a12 = m10 * r02 + m11 * r12 + m12 * r22
-            a20 = m20 * r00 + m21 * r10 + m22 * r20
-            a21 = m20 * r01 + m21 * r11 + m22 * r21
-            a22 = m20 * r02 + m21 * r12 + m22 * r22
-            m00, m01, m02 = a00, a01, a02
-            m10, m11, m12 = a10, a11, a12
-            m20, m21, m22 = a20, a21, a22
-        else:
-            # Prismatic: the child frame slides by value * axis, in the joint frame.
-            t0 += value * (m00 * x + m01 * y + m02 * z)
-            t1 += value * (m10 * x + m11 * y + m12 * z)
-            t2 += value * (m20 * x + m21 * y + m22 * z)
-    T = T_world_link
-    p = parent[i]
-    if p < 0:
-        T[i, 0, 0], T[i, 0, 1], T[i, 0, 2], T[i, 0, 3] = m00, m01, m02, t0
-        T[i, 1, 0], T[i, 1, 1], T[i, 1, 2], T[i, 1, 3] = m10, m11, m12, t1
-        T[i, 2, 0], T[i, 2, 1], T[i, 2, 2], T[i, 2, 3] = m20, m21, m22, t2
-    else:
-        for r in range(3):
-            p0, p1, p2 = T[p, r, 0], T[p, r, 1], T[p, r, 2]
-            T[i, r, 0] = p0 * m00 + p1 * m10 + p2 * m20
-            T[i, r, 1] = p0 * m01 + p1 * m11 + p2 * m21
-            T[i, r, 2] = p0 * m02 + p1 * m12 + p2 * m22
-            T[i, r, 3] = p0 * t0 + p1 * t1 + p2 * t2 + T[p, r, 3]
-    T[i, 3, 0] = 0.0
-    T[i, 3, 1] = 0.0
-    T[i, 3, 2] = 0.0
-    T[i, 3, 3] = 1.0
-
-
-@njit(cache=True, nogil=True, fastmath=False, _nrt=False)
 def forward_kinematics_kernel(q, parent, joint_type, T_parent_joint, axis, q_index, multiplier,
                               offset, T_world_link):
-    """Fill ``T_world_link`` with the pose of every link for configuration ``q``.
+    """Fill ``T_world_link`` with the pose of every link for configuration ``q`` (C++:
+    ``cpp/kinematics.hpp``, the same code the query engine runs).
 
     :param q: ``(J,) float64`` joint values.
     :param parent: ``(L,) int64`` parent link index, -1 for the root (index 0).
@@ -111,24 +44,19 @@ def forward_kinematics_kernel(q, parent, joint_type, T_parent_joint, axis, q_ind
     :param offset: ``(L,) float64``.
     :param T_world_link: ``(L, 4, 4) float64`` output, written in place (rows 3 included).
     """
-    for i in range(parent.shape[0]):
-        set_link_pose(i, q, parent, joint_type, T_parent_joint, axis, q_index, multiplier,
-                      offset, T_world_link)
+    engine.forward_kinematics(q, parent, joint_type, T_parent_joint, axis, q_index, multiplier,
+                              offset, T_world_link)
 
 
-@njit(cache=True, nogil=True, _nrt=False)
 def forward_kinematics_batch_kernel(Q, parent, joint_type, T_parent_joint, axis, q_index,
                                     multiplier, offset, T_out):
     """Fill ``T_out[k]`` with :func:`forward_kinematics_kernel` of ``Q[k]`` for every k.
 
     :param Q: ``(n, J) float64`` configurations.
     :param T_out: ``(n, L, 4, 4) float64`` output, written in place.
-
-    The other parameters are as for :func:`forward_kinematics_kernel`.
     """
-    for k in range(Q.shape[0]):
-        forward_kinematics_kernel(Q[k], parent, joint_type, T_parent_joint, axis, q_index,
-                                  multiplier, offset, T_out[k])
+    engine.forward_kinematics(Q, parent, joint_type, T_parent_joint, axis, q_index, multiplier,
+                              offset, T_out)
 
 
 @dataclass(frozen=True, eq=False)
@@ -251,5 +179,3 @@ def _document_order(model):
     by_name = {joint.name: joint for joint in model.joints}
     return [by_name[name] for name in order]
 
-
-bind_to_kernel_sources(globals())

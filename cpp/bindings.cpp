@@ -13,7 +13,127 @@
 
 #include "query.hpp"
 
+#include <memory>
+#include <string>
+
 namespace py = pybind11;
+namespace cs = collision_sensor;
+
+namespace {
+
+template <class T>
+using Array = py::array_t<T, py::array::c_style>;
+
+// The array's extents, checked against the expected ones (-1: any); ValueError names it.
+template <class T>
+void expect_shape(const char* name, const Array<T>& a, std::initializer_list<py::ssize_t> dims) {
+    bool ok = a.ndim() == py::ssize_t(dims.size());
+    py::ssize_t k = 0;
+    for (py::ssize_t d : dims) {
+        if (ok && d >= 0 && a.shape(k) != d) ok = false;
+        ++k;
+    }
+    if (!ok) {
+        std::string want, got;
+        for (py::ssize_t d : dims) want += (want.empty() ? "" : ", ") + (d < 0 ? std::string("n") : std::to_string(d));
+        for (py::ssize_t i = 0; i < a.ndim(); ++i) got += (i ? ", " : "") + std::to_string(a.shape(i));
+        throw py::value_error(std::string(name) + ": expected shape (" + want + "), got (" + got + ")");
+    }
+}
+
+template <class T>
+T* writable(const char* name, Array<T>& a) {
+    if (!a.writeable()) throw py::value_error(std::string(name) + ": the array is read-only");
+    return a.mutable_data();
+}
+
+// The checker's engine: the C++ Engine over the two packed buffers, which it keeps alive.
+struct PyEngine {
+    Array<double> F;
+    Array<int64_t> I;
+    std::unique_ptr<cs::Engine> engine;
+
+    PyEngine(Array<double> F_, Array<int64_t> I_) : F(std::move(F_)), I(std::move(I_)) {
+        expect_shape("F", F, {-1});
+        expect_shape("I", I, {-1});
+        try {
+            engine = std::make_unique<cs::Engine>(writable("F", F), F.shape(0), writable("I", I),
+                                                  I.shape(0));
+        } catch (const std::invalid_argument& error) {
+            throw py::value_error(error.what());
+        }
+    }
+
+    int64_t query(const Array<double>& q, bool full) {
+        if (q.ndim() != 1 || q.shape(0) != engine->n_joints())
+            throw py::value_error("q: expected " + std::to_string(engine->n_joints()) +
+                                  " joint values");
+        const double* data = q.data();
+        py::gil_scoped_release release;
+        std::lock_guard<std::mutex> hold(engine->lock());
+        return engine->query(data, full);
+    }
+
+    int64_t batch(const Array<double>& Q, bool full, Array<uint8_t> statuses,
+                  Array<int64_t> codes) {
+        expect_shape("Q", Q, {-1, engine->n_joints()});
+        const py::ssize_t n = Q.shape(0);
+        expect_shape("statuses", statuses, {n, engine->n_pairs()});
+        expect_shape("codes", codes, {n});
+        const double* data = Q.data();
+        uint8_t* out = writable("statuses", statuses);
+        int64_t* out_codes = writable("codes", codes);
+        py::gil_scoped_release release;
+        std::lock_guard<std::mutex> hold(engine->lock());
+        return engine->batch(data, n, full, out, out_codes);
+    }
+
+    void poses() {
+        std::lock_guard<std::mutex> hold(engine->lock());
+        engine->refresh_all_poses();
+    }
+};
+
+cs::KinematicTree kinematic_tree(const Array<int64_t>& parent, const Array<int64_t>& joint_type,
+                                 const Array<double>& T_parent_joint, const Array<double>& axis,
+                                 const Array<int64_t>& q_index, const Array<double>& multiplier,
+                                 const Array<double>& offset, py::ssize_t n_joints) {
+    const py::ssize_t L = parent.size();
+    expect_shape("parent", parent, {L});
+    expect_shape("joint_type", joint_type, {L});
+    expect_shape("T_parent_joint", T_parent_joint, {L, 4, 4});
+    expect_shape("axis", axis, {L, 3});
+    expect_shape("q_index", q_index, {L});
+    expect_shape("multiplier", multiplier, {L});
+    expect_shape("offset", offset, {L});
+    for (py::ssize_t i = 0; i < L; ++i) {
+        const int64_t p = parent.data()[i];
+        if ((i == 0) != (p < 0) || p >= i)
+            throw py::value_error("parent: links must come root first, parents before children");
+        if (joint_type.data()[i] != cs::JOINT_FIXED &&
+            (q_index.data()[i] < 0 || q_index.data()[i] >= n_joints))
+            throw py::value_error("q_index: index out of range for " + std::to_string(n_joints) +
+                                  " joint values");
+    }
+    return {int64_t(L), parent.data(), joint_type.data(), T_parent_joint.data(), axis.data(),
+            q_index.data(), multiplier.data(), offset.data()};
+}
+
+// One box pair as the box tests take it: ha, hb (3,), R (3, 3), t (3,).
+struct BoxPair {
+    const double *ha, *hb, *R, *t;
+};
+
+void expect_box_pairs(const Array<double>& ha, const Array<double>& hb, const Array<double>& R,
+                      const Array<double>& t) {
+    const py::ssize_t n = ha.shape(0);
+    expect_shape("ha", ha, {n, 3});
+    expect_shape("hb", hb, {n, 3});
+    expect_shape("R", R, {n, 3, 3});
+    expect_shape("t", t, {n, 3});
+}
+
+}  // namespace
 
 //: Bumped whenever the binding's functions or the packed layouts change; the Python side
 //: refuses an extension built from other sources (collision_sensor/compiled.py).
@@ -29,6 +149,151 @@ PYBIND11_MODULE(_engine, m) {
 #endif
 
     // ---- query engine (query.hpp, box_test.hpp, triangle_test.hpp, kinematics.hpp)
+    py::list float_slots, int_slots;
+    for (const char* name : cs::FLOAT_SLOT_NAMES) float_slots.append(name);
+    for (const char* name : cs::INT_SLOT_NAMES) int_slots.append(name);
+    m.attr("FLOAT_SLOTS") = py::tuple(float_slots);
+    m.attr("INT_SLOTS") = py::tuple(int_slots);
+    m.attr("HEADER_SIZE") = cs::HEADER_SIZE;
+    m.attr("LAYOUT_WIDTH") = cs::LAYOUT_WIDTH;
+    m.attr("N_SCALARS") = cs::N_SCALARS;
+    m.attr("S_TOLERANCE") = cs::S_TOLERANCE;
+    m.attr("H_N_LINKS") = cs::H_N_LINKS;
+    m.attr("H_BOX_METHOD") = cs::H_BOX_METHOD;
+    m.attr("H_EXPANSION") = cs::H_EXPANSION;
+    m.attr("H_CHECKED_ONCE") = cs::H_CHECKED_ONCE;
+    m.attr("H_RESYNC_COUNTDOWN") = cs::H_RESYNC_COUNTDOWN;
+    m.attr("H_LAYOUTS") = cs::H_LAYOUTS;
+    m.attr("H_I_LAYOUT") = cs::H_I_LAYOUT;
+    m.attr("TRAVEL_RESYNC_CALLS") = cs::TRAVEL_RESYNC_CALLS;
+    m.attr("FRONT_POOL_ROWS") = cs::FRONT_POOL_ROWS;
+    m.attr("FRONT_ROWS_MIN") = cs::FRONT_ROWS_MIN;
+    m.attr("FRONT_ROWS_MAX") = cs::FRONT_ROWS_MAX;
+    m.attr("N_COUNTERS") = int(cs::N_COUNTERS);
+    m.attr("POSE_WIDTH") = cs::POSE_WIDTH;
+    m.attr("BOX_EPS_REL") = cs::BOX_EPS_REL;
+    m.attr("BOX_EPS_PARALLEL") = cs::BOX_EPS_PARALLEL;
+    m.attr("TRIANGLE_EPS_REL") = cs::TRIANGLE_EPS_REL;
+    m.attr("SPHERE_EPS_REL") = cs::SPHERE_EPS_REL;
+
+    py::class_<PyEngine>(m, "Engine",
+                         "The query engine over a checker's packed buffers F (float64) and I "
+                         "(int64); see cpp/query.hpp. Not for use outside CollisionChecker.")
+        .def(py::init<Array<double>, Array<int64_t>>(), py::arg("F").noconvert(),
+             py::arg("I").noconvert())
+        .def("query", &PyEngine::query, py::arg("q"), py::arg("full"),
+             "Bring the statuses up to date with q; return 2 * rechecked + changed, or -1 - j "
+             "when q[j] is not finite (nothing changed then).")
+        .def("batch", &PyEngine::batch, py::arg("Q"), py::arg("full"),
+             py::arg("statuses").noconvert(), py::arg("codes").noconvert(),
+             "query() on each row of Q; statuses (n, P) uint8 and codes (n,) written; return "
+             "the rows done.")
+        .def("poses", &PyEngine::poses, "Bring every link pose up to date.");
+
+    m.def("forward_kinematics",
+          [](const Array<double>& q, const Array<int64_t>& parent,
+             const Array<int64_t>& joint_type, const Array<double>& T_parent_joint,
+             const Array<double>& axis, const Array<int64_t>& q_index,
+             const Array<double>& multiplier, const Array<double>& offset,
+             Array<double> T_out) {
+              const py::ssize_t n = q.ndim() == 2 ? q.shape(0) : 1;
+              const py::ssize_t J = q.shape(q.ndim() - 1);
+              const cs::KinematicTree kin = kinematic_tree(
+                  parent, joint_type, T_parent_joint, axis, q_index, multiplier, offset, J);
+              if (q.ndim() == 2)
+                  expect_shape("T_out", T_out, {n, kin.n_links, 4, 4});
+              else
+                  expect_shape("T_out", T_out, {kin.n_links, 4, 4});
+              double* out = writable("T_out", T_out);
+              const double* Q = q.data();
+              py::gil_scoped_release release;
+              for (py::ssize_t k = 0; k < n; ++k)
+                  cs::forward_kinematics(kin, Q + J * k, out + 16 * kin.n_links * k);
+          },
+          py::arg("q"), py::arg("parent"), py::arg("joint_type"), py::arg("T_parent_joint"),
+          py::arg("axis"), py::arg("q_index"), py::arg("multiplier"), py::arg("offset"),
+          py::arg("T_out").noconvert(),
+          "Write every link's pose for q (J,) into T_out (L, 4, 4), or for each row of q "
+          "(n, J) into T_out (n, L, 4, 4).");
+
+    m.def("boxes_disjoint",
+          [](int method, const Array<double>& ha, const Array<double>& hb,
+             const Array<double>& R, const Array<double>& t) {
+              expect_box_pairs(ha, hb, R, t);
+              const py::ssize_t n = ha.shape(0);
+              Array<bool> out(n);
+              bool* o = out.mutable_data();
+              const double *a = ha.data(), *b = hb.data(), *r = R.data(), *c = t.data();
+              py::gil_scoped_release release;
+              if (method == cs::BOX_TEST_PAPER)
+                  for (py::ssize_t i = 0; i < n; ++i)
+                      o[i] = cs::boxes_disjoint_paper(a + 3 * i, b + 3 * i, r + 9 * i, c + 3 * i);
+              else
+                  for (py::ssize_t i = 0; i < n; ++i)
+                      o[i] = cs::boxes_disjoint_sat(a + 3 * i, b + 3 * i, r + 9 * i, c + 3 * i);
+              return out;
+          },
+          py::arg("method"), py::arg("ha"), py::arg("hb"), py::arg("R"), py::arg("t"),
+          "For each of n box pairs (ha, hb (n, 3), R (n, 3, 3), t (n, 3)): True iff the test "
+          "(BOX_TEST_PAPER 0 or BOX_TEST_SAT 1) separates them.");
+
+    m.def("separating_axis",
+          [](const Array<double>& ha, const Array<double>& hb, const Array<double>& R,
+             const Array<double>& t) {
+              expect_box_pairs(ha, hb, R, t);
+              const py::ssize_t n = ha.shape(0);
+              Array<int64_t> out(n);
+              int64_t* o = out.mutable_data();
+              for (py::ssize_t i = 0; i < n; ++i) {
+                  const double *a = ha.data() + 3 * i, *b = hb.data() + 3 * i,
+                               *r = R.data() + 9 * i, *c = t.data() + 3 * i;
+                  o[i] = cs::separating_axis(a[0], a[1], a[2], b[0], b[1], b[2], r[0], r[1],
+                                             r[2], r[3], r[4], r[5], r[6], r[7], r[8], c[0],
+                                             c[1], c[2]);
+              }
+              return out;
+          },
+          py::arg("ha"), py::arg("hb"), py::arg("R"), py::arg("t"),
+          "For each of n box pairs: the first axis of the 15-axis test that separates them "
+          "(0-2 A's faces, 3-5 B's, 6 + 3 i + j edge i of A x edge j of B), or -1.");
+
+    m.def("axis_gap",
+          [](int64_t k, const Array<double>& A, const Array<double>& B, const Array<double>& P) {
+              expect_shape("A", A, {cs::BOX_WIDTH});
+              expect_shape("B", B, {cs::BOX_WIDTH});
+              expect_shape("P", P, {cs::POSE_WIDTH});
+              if (k < 0 || k > 14) throw py::value_error("k: an axis 0 to 14");
+              const cs::AxisGap g = cs::axis_gap(k, A.data(), B.data(), P.data());
+              return py::make_tuple(g.separated, g.gap);
+          },
+          py::arg("k"), py::arg("A"), py::arg("B"), py::arg("P"),
+          "(separated, gap) along axis k of separating_axis alone, for box rows A (body a) and "
+          "B (body b at pose P: R_ab row-major, t_ab).");
+
+    m.def("triangles_intersect",
+          [](const Array<double>& P, const Array<double>& Q) {
+              const py::ssize_t n = P.ndim() == 3 ? P.shape(0) : 1;
+              if (P.ndim() == 3) {
+                  expect_shape("P", P, {n, 3, 3});
+                  expect_shape("Q", Q, {n, 3, 3});
+              } else {
+                  expect_shape("P", P, {3, 3});
+                  expect_shape("Q", Q, {3, 3});
+              }
+              Array<bool> out(n);
+              bool* o = out.mutable_data();
+              const double *p = P.data(), *q = Q.data();
+              {
+                  py::gil_scoped_release release;
+                  for (py::ssize_t i = 0; i < n; ++i)
+                      o[i] = cs::triangles_intersect(cs::triangle_at(p, i), cs::triangle_at(q, i));
+              }
+              if (P.ndim() == 2) return py::object(py::bool_(o[0]));
+              return py::object(out);
+          },
+          py::arg("P"), py::arg("Q"),
+          "True iff the closed triangles P and Q (3, 3: rows the vertices) touch or cross; for "
+          "(n, 3, 3) arrays, one answer per row.");
 
     // ---- end of query engine
 

@@ -1,2 +1,148 @@
-// query: see bindings.cpp. (placeholder until its port lands)
+// One collision query over the whole robot and scene (paper sec. 2, 4.1, 4.2).
+//
+// A query takes joint positions and:
+// 1. decides which joint variables moved (by more than the motion tolerance) since the state
+//    the carried statuses describe, and takes their new values into that state (plan_update;
+//    plan_full takes them all);
+// 2. lists only the pairs whose relative pose can have changed: those with a moved joint on
+//    the tree path between their two bodies (sec. 4.2), minus those whose recorded clearance
+//    the motion cannot have closed; every other pair keeps its status;
+// 3. re-checks the listed pairs (recheck_pairs): (full checks) culling with the volumes
+//    spanning several links (scene pairs), (incremental calls) the pair's last meeting
+//    triangle pair, then the two bodies' boxes, then each sub-group tree against each (sec.
+//    4.1, trees_collide); an incremental call starts a pair in near contact from its front.
+//
+// Poses follow the joints lazily: a moved joint marks the links below it stale, and a link's
+// world pose is recomputed only when a pair being re-checked needs it, or when Python asks
+// for the poses. Full checks rebuild the volumes spanning several links (for each link a
+// world box around its subtree's link boxes, the root's being the robot's root volume, from
+// the link boxes, never from geometry: sec. 2.2) and cull scene pairs with them first.
+//
+// Bodies are the robot's links (FK order, parents first, world == root link frame) followed
+// by the scene objects, whose poses never change.
+//
+// All state, the model's arrays and the carried statuses alike, lives in two flat buffers
+// that the Python checker packs (collision_sensor/array_pack.py): doubles F and int64 I, with
+// a layout table in I's header naming each array's offset and shape. The engine reads them in
+// place, so the Python side can inspect any of them as a numpy view, and a query allocates
+// nothing.
 #pragma once
+
+#include <cstdint>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+
+#include "kinematics.hpp"
+#include "traversal.hpp"
+
+namespace collision_sensor {
+
+// The packed arrays, in the order of their slots in the layout tables (the Python side packs
+// them in this order: it reads these lists from the binding).
+#define CS_FLOAT_SLOTS(X)                                                                     \
+    X(scalars) X(q_last) X(q_ref) X(T_parent_joint) X(axis) X(multiplier) X(offset)           \
+    X(T_world_body) X(body_boxes) X(boxes) X(volume) X(gain) X(tris) X(subtree_boxes)         \
+    X(clearance) X(q_eval) X(reach) X(reach_ext) X(travel) X(front_until) X(front_travel)
+#define CS_INT_SLOTS(X)                                                                       \
+    X(header) X(parent) X(joint_type) X(q_index) X(is_scene) X(body_elem_start)              \
+    X(body_elem_end) X(roots) X(nodes) X(pair_a) X(pair_b) X(joint_pairs_start)              \
+    X(joint_pairs) X(joint_links_start) X(joint_links) X(joint_prismatic) X(status) X(witness) \
+    X(moved) X(stale) X(chain) X(pending) X(todo) X(scene_culled) X(stack) X(counters)        \
+    X(front) X(front_state)
+
+#define CS_SLOT_ENUM(name) name,
+enum FloatSlot : int { CS_FLOAT_SLOTS(CS_SLOT_ENUM) N_FLOAT_SLOTS };
+enum IntSlot : int { CS_INT_SLOTS(CS_SLOT_ENUM) N_INT_SLOTS };
+#undef CS_SLOT_ENUM
+
+// scalars[S_*]; header[H_*], then the float layout (N_FLOAT_SLOTS, LAYOUT_WIDTH), then the
+// int layout. layout[k] = (offset, size, d0, d1, d2).
+constexpr int S_TOLERANCE = 0, S_EXTENSION = 1, N_SCALARS = 2;
+constexpr int H_N_LINKS = 0, H_BOX_METHOD = 1, H_EXPANSION = 2, H_CHECKED_ONCE = 3,
+              H_RESYNC_COUNTDOWN = 4, H_LAYOUTS = 5;
+constexpr int LAYOUT_WIDTH = 5;
+constexpr int H_I_LAYOUT = H_LAYOUTS + N_FLOAT_SLOTS * LAYOUT_WIDTH;
+constexpr int HEADER_SIZE = H_I_LAYOUT + N_INT_SLOTS * LAYOUT_WIDTH;
+
+// A pair's clearance is rounded down by this fraction of the pair's coordinate scale (its
+// body boxes' reach plus their distance): it covers the triangle test's contact tolerance,
+// boxes that hold their triangles only up to rounding, and the rounding of the gaps and FK.
+constexpr double CLEARANCE_EPS_REL = 1e-9;
+// A skipped pair's running travel sum is replaced by the exact sum once it reaches this
+// fraction of the pair's clearance (see plan_update) ...
+constexpr double TRAVEL_GUARD = 1.0 - 1e-6;
+// ... and every tracked pair's, at least once in this many incremental calls.
+constexpr int64_t TRAVEL_RESYNC_CALLS = int64_t(1) << 24;
+// A pair keeps a front only while its clearance is at most this fraction of its size.
+constexpr double FRONT_GAP_REL = 1e-3;
+
+// Number of rows of every front (FRONT_POOL_ROWS over the pairs, clipped) is chosen by the
+// checker; these bounds are the checker's (exported for it).
+constexpr int64_t FRONT_POOL_ROWS = int64_t(1) << 16;
+constexpr int64_t FRONT_ROWS_MIN = 64, FRONT_ROWS_MAX = 1024;
+
+// Slot names, for the binding.
+extern const char* const FLOAT_SLOT_NAMES[N_FLOAT_SLOTS];
+extern const char* const INT_SLOT_NAMES[N_INT_SLOTS];
+
+// The checker's buffers, cut into named arrays once (the layout never changes after packing).
+class Engine {
+   public:
+    // Validate the layout against the buffers' sizes and the shapes the engine reads; throws
+    // std::invalid_argument naming the array at fault.
+    Engine(double* F, int64_t f_size, int64_t* I, int64_t i_size);
+
+    // Validate q (J values), copy it to q_last, bring the statuses up to date with it: a full
+    // check re-checks every pair, an incremental one only what the motion can have changed.
+    // The first call always checks in full. Returns 2 * rechecked + changed, or -1 - j when
+    // q[j] is not finite (nothing changed then).
+    int64_t query(const double* q, bool full);
+    // query() on each row of Q (n, J) in turn; statuses (n, P) uint8 and codes (n,) out.
+    // Returns the number of rows done: n, or the first row with a value that is not finite.
+    int64_t batch(const double* Q, int64_t n, bool full, uint8_t* statuses, int64_t* codes);
+    // Bring every link pose up to date (incremental calls compute them only on demand).
+    void refresh_all_poses();
+
+    int64_t n_joints() const { return n_joints_; }
+    int64_t n_pairs() const { return n_pairs_; }
+    std::mutex& lock() { return lock_; }
+
+   private:
+    struct Shape {
+        int64_t size, d0, d1, d2;
+    };
+    void check_shape(const char* name, const Shape& s, int64_t d0, int64_t d1, int64_t d2) const;
+    int64_t plan_update(const double* q);
+    void plan_full(const double* q);
+    int64_t recheck_pairs(int64_t n, bool full, bool* changed);
+    void refresh_pose(int64_t i);
+    void refresh_culling();
+    void subtree_volumes();
+    bool scene_body_outside(int64_t s, int64_t k);
+    double extension() const;
+    void resync_travel(int64_t p);
+    void add_travel(int64_t p, int64_t j, double old_value, double new_value);
+    bool needs_recheck(int64_t p, double extension);
+    double clearance_margin(int64_t a, int64_t b, const double* pose) const;
+    void write_pair_pose(int64_t a, int64_t b, double* pose) const;
+    bool boxes_apart(const double* A, const double* B, const double* P) const;
+    TreesResult trees_of_pair(int64_t p, bool track, double scale, double travel, double margin,
+                              int64_t a, int64_t b, const double* pose, int64_t wa, int64_t wb);
+
+    std::mutex lock_;
+    int64_t* header_;
+    double* scalars_;
+    int64_t n_links_, n_bodies_, n_joints_, n_pairs_, n_scene_, culled_width_;
+    int64_t stack_rows_, front_capacity_;
+    KinematicTree kin_;
+    Forest forest_;
+    double *q_last_, *q_ref_, *T_world_body_, *body_boxes_, *subtree_boxes_, *clearance_,
+        *q_eval_, *reach_, *reach_ext_, *travel_, *front_until_, *front_travel_;
+    int64_t *is_scene_, *body_elem_start_, *body_elem_end_, *roots_, *pair_a_, *pair_b_,
+        *joint_pairs_start_, *joint_pairs_, *joint_links_start_, *joint_links_,
+        *joint_prismatic_, *status_, *witness_, *moved_, *stale_, *chain_, *pending_, *todo_,
+        *scene_culled_, *stack_, *counters_, *front_, *front_state_;
+};
+
+}  // namespace collision_sensor
