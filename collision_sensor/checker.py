@@ -419,9 +419,7 @@ class CollisionChecker:
     def _answer(self, code: int, positions: np.ndarray) -> CheckResult:
         """Turn the engine's code (``Engine::query``) into the result, or raise."""
         if code < 0:
-            raise JointStateError(f'joint "{self.joint_names[-1 - code]}": position '
-                                  f'{positions[-1 - code]} is not finite; send a finite value '
-                                  '(nothing was changed)')
+            raise JointStateError(self._unusable_message(-1 - code, positions))
         rechecked = code >> 1
         result = self._result
         if code & 1:
@@ -432,6 +430,20 @@ class CollisionChecker:
             result = self._result = CheckResult(result.in_collision, result.colliding_pairs,
                                                 rechecked)
         return result
+
+    def _unusable_message(self, j: int, q: np.ndarray, row: Optional[int] = None) -> str:
+        """The message for variable j of ``q``, which the engine refused (not finite, or
+        moving a prismatic joint beyond the engine's range)."""
+        where = f'configuration {row}, ' if row is not None else ''
+        value = q[j]
+        if math.isfinite(value):
+            why = (f'moves a joint out of the engine\'s range (a prismatic joint by more than '
+                   f'{engine.PRISMATIC_VALUE_MAX:g} m, or a value that overflows); send a '
+                   'value within the joint\'s limits')
+        else:
+            why = 'is not finite; send a finite value'
+        return (f'{where}joint "{self.joint_names[j]}": position {value} {why} '
+                '(nothing was changed)')
 
     def check(self, positions: Positions) -> CheckResult:
         """Check every pair from scratch at ``positions``; trust nothing carried over.
@@ -494,14 +506,12 @@ class CollisionChecker:
         if Q.ndim != 2 or Q.shape[1] != len(self.joint_names):
             raise JointStateError(f'expected configurations of shape (n, {len(self.joint_names)})'
                                   f' in the order of joint_names, got {Q.shape}')
-        if not np.isfinite(Q).all():
-            row, j = np.argwhere(~np.isfinite(Q))[0]
-            raise JointStateError(f'configuration {row}, joint "{self.joint_names[j]}": value '
-                                  f'{Q[row, j]} is not finite; send finite values (nothing was '
-                                  'changed)')
         statuses = np.zeros((len(Q), len(self.checked_pairs)), dtype=np.uint8)
         codes = np.zeros(len(Q), dtype=np.int64)
-        self._engine.batch(Q, full, statuses, codes)
+        done = self._engine.batch(Q, full, statuses, codes)
+        if done < 0:  # the engine validates every row before it runs any
+            row, j = divmod(-1 - done, len(self.joint_names))
+            raise JointStateError(self._unusable_message(j, Q[row], row))
         return statuses.view(bool), codes
 
     def _result_from_status(self, rechecked: int) -> CheckResult:

@@ -171,6 +171,7 @@ PYBIND11_MODULE(_engine, m) {
     m.attr("FRONT_ROWS_MAX") = cs::FRONT_ROWS_MAX;
     m.attr("N_COUNTERS") = int(cs::N_COUNTERS);
     m.attr("POSE_WIDTH") = cs::POSE_WIDTH;
+    m.attr("PRISMATIC_VALUE_MAX") = cs::PRISMATIC_VALUE_MAX;
     m.attr("BOX_EPS_REL") = cs::BOX_EPS_REL;
     m.attr("BOX_EPS_PARALLEL") = cs::BOX_EPS_PARALLEL;
     m.attr("TRIANGLE_EPS_REL") = cs::TRIANGLE_EPS_REL;
@@ -183,11 +184,12 @@ PYBIND11_MODULE(_engine, m) {
              py::arg("I").noconvert())
         .def("query", &PyEngine::query, py::arg("q"), py::arg("full"),
              "Bring the statuses up to date with q; return 2 * rechecked + changed, or -1 - j "
-             "when q[j] is not finite (nothing changed then).")
+             "when q[j] is not usable: not finite, or beyond the engine's range (nothing "
+             "changed then).")
         .def("batch", &PyEngine::batch, py::arg("Q"), py::arg("full"),
              py::arg("statuses").noconvert(), py::arg("codes").noconvert(),
-             "query() on each row of Q; statuses (n, P) uint8 and codes (n,) written; return "
-             "the rows done.")
+             "query() on each row of Q; statuses (n, P) uint8 and codes (n,) written; return n, "
+             "or -1 - (J i + j) when row i's value j is not usable (nothing changed then).")
         .def("poses", &PyEngine::poses, "Bring every link pose up to date.");
 
     m.def("forward_kinematics",

@@ -16,6 +16,12 @@ namespace collision_sensor {
 
 constexpr int64_t JOINT_FIXED = 0, JOINT_REVOLUTE = 1, JOINT_PRISMATIC = 2;
 
+// The largest |value| of a prismatic joint (m) the engine takes. Every coordinate, box and
+// gap it computes then stays far from overflow (their squares included), so its answers keep
+// their meaning; beyond it a link would sit 1000 km away. A revolute joint takes any finite
+// value (it enters through cos and sin only).
+constexpr double PRISMATIC_VALUE_MAX = 1e6;
+
 struct KinematicTree {
     int64_t n_links;
     const int64_t* parent;          // (L,) parent link, -1 for the root
@@ -26,6 +32,22 @@ struct KinematicTree {
     const double* multiplier;       // (L,)
     const double* offset;           // (L,)
 };
+
+// -1 if every joint value that q gives is usable (finite; prismatic ones within
+// PRISMATIC_VALUE_MAX), else the index into q of the first variable that gives one that is not.
+inline int64_t unusable_variable(const KinematicTree& kin, const double* q, int64_t n_joints) {
+    for (int64_t j = 0; j < n_joints; ++j)
+        if (!std::isfinite(q[j])) return j;
+    for (int64_t i = 0; i < kin.n_links; ++i) {
+        const int64_t kind = kin.joint_type[i];
+        if (kind == JOINT_FIXED) continue;
+        const double value = kin.multiplier[i] * q[kin.q_index[i]] + kin.offset[i];
+        if (!std::isfinite(value) ||
+            (kind == JOINT_PRISMATIC && !(std::fabs(value) <= PRISMATIC_VALUE_MAX)))
+            return kin.q_index[i];
+    }
+    return -1;
+}
 
 // Write link i's world pose into T_world_link from its parent's (already current) pose.
 inline void set_link_pose(const KinematicTree& kin, int64_t i, const double* q,

@@ -616,8 +616,12 @@ int64_t Engine::recheck_pairs(int64_t n, bool full, bool* changed) {
 // ----------------------------------------------------------------------------- entry points
 
 int64_t Engine::query(const double* q, bool full) {
-    for (int64_t j = 0; j < n_joints_; ++j)
-        if (!std::isfinite(q[j])) return -1 - j;
+    const int64_t bad = unusable_variable(kin_, q, n_joints_);
+    if (bad >= 0) return -1 - bad;
+    return run(q, full);
+}
+
+int64_t Engine::run(const double* q, bool full) {
     full = full || header_[H_CHECKED_ONCE] == 0;
     bool any_moved = full;
     const double tolerance = scalars_[S_TOLERANCE];
@@ -641,9 +645,12 @@ int64_t Engine::query(const double* q, bool full) {
 }
 
 int64_t Engine::batch(const double* Q, int64_t n, bool full, uint8_t* statuses, int64_t* codes) {
+    for (int64_t i = 0; i < n; ++i) {  // all rows first: a bad row changes nothing at all
+        const int64_t bad = unusable_variable(kin_, Q + n_joints_ * i, n_joints_);
+        if (bad >= 0) return -1 - (n_joints_ * i + bad);
+    }
     for (int64_t i = 0; i < n; ++i) {
-        codes[i] = query(Q + n_joints_ * i, full);
-        if (codes[i] < 0) return i;
+        codes[i] = run(Q + n_joints_ * i, full);
         for (int64_t p = 0; p < n_pairs_; ++p) statuses[n_pairs_ * i + p] = uint8_t(status_[p]);
     }
     return n;

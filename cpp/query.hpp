@@ -96,10 +96,11 @@ class Engine {
     // Validate q (J values), copy it to q_last, bring the statuses up to date with it: a full
     // check re-checks every pair, an incremental one only what the motion can have changed.
     // The first call always checks in full. Returns 2 * rechecked + changed, or -1 - j when
-    // q[j] is not finite (nothing changed then).
+    // q[j] is not usable (kinematics.hpp: unusable_variable; nothing changed then).
     int64_t query(const double* q, bool full);
     // query() on each row of Q (n, J) in turn; statuses (n, P) uint8 and codes (n,) out.
-    // Returns the number of rows done: n, or the first row with a value that is not finite.
+    // Returns n, or -1 - (J i + j) when row i's value j is not usable: every row is validated
+    // before any is run, so nothing changed then.
     int64_t batch(const double* Q, int64_t n, bool full, uint8_t* statuses, int64_t* codes);
     // Bring every link pose up to date (incremental calls compute them only on demand).
     void refresh_all_poses();
@@ -109,6 +110,7 @@ class Engine {
     std::mutex& lock() { return lock_; }
 
    private:
+    int64_t run(const double* q, bool full);
     struct Shape {
         int64_t size, d0, d1, d2;
     };

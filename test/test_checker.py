@@ -7,7 +7,6 @@
 """
 import textwrap
 
-import numba
 import numpy as np
 import pytest
 
@@ -119,12 +118,19 @@ SMALL_SCENE = {'objects': [
 ]}
 
 
-@numba.njit(cache=True)
-def _any_triangle_pair_meets(A, B):
-    for i in range(A.shape[0]):
-        for j in range(B.shape[0]):
-            if triangles_intersect(A[i], B[j]):
-                return True
+def _any_triangle_pair_meets(A, B, chunk=200_000):
+    """Return True iff some triangle of A (n, 3, 3) meets some triangle of B (m, 3, 3): all
+    n * m pairs through the batch test, at most about ``chunk`` pairs at a time."""
+    n, m = A.shape[0], B.shape[0]
+    if n == 0 or m == 0:
+        return False
+    rows = max(1, chunk // m)
+    for i in range(0, n, rows):
+        a = A[i:i + rows]
+        P = np.repeat(a, m, axis=0)                   # pairs (i, j), j fastest
+        Q = np.tile(B, (a.shape[0], 1, 1))
+        if triangles_intersect(P, Q).any():
+            return True
     return False
 
 
@@ -300,12 +306,9 @@ def test_running_travel_sums_equal_the_sums_recomputed_from_scratch(panda):
     terms; after a long walk it must equal the sum computed afresh from q_eval (and the
     prismatic finger joint moving in between changes every coefficient)."""
     from collision_sensor.kinematics import JOINT_PRISMATIC
-    from collision_sensor.query_kernel import (
-        F_CLEARANCE, F_Q_EVAL, F_Q_REF, F_REACH, F_REACH_EXT, F_TRAVEL, S_EXTENSION)
 
-    def slot(k, shape=None):
-        start, size = panda._F_layout[k, 0], panda._F_layout[k, 1]
-        view = panda._F[start:start + size]
+    def slot(name, shape=None):
+        view = panda.packed_array(name)
         return view if shape is None else view.reshape(shape)
 
     n_pairs, n_joints = len(panda.checked_pairs), len(panda.joint_names)
@@ -316,11 +319,11 @@ def test_running_travel_sums_equal_the_sums_recomputed_from_scratch(panda):
     for k, q in enumerate(walk):
         panda.update(q)
         if k % 500 == 499:
-            clearance, travel = slot(F_CLEARANCE), slot(F_TRAVEL, (n_pairs, 2))
-            q_ref, q_eval = slot(F_Q_REF), slot(F_Q_EVAL, (n_pairs, n_joints))
+            clearance, travel = slot('clearance'), slot('travel', (n_pairs, 2))
+            q_ref, q_eval = slot('q_ref'), slot('q_eval', (n_pairs, n_joints))
             moved = np.abs(q_ref - q_eval)
-            fixed = (moved * slot(F_REACH, (n_pairs, n_joints))).sum(axis=1)
-            ext = (moved * slot(F_REACH_EXT, (n_pairs, n_joints))).sum(axis=1)
+            fixed = (moved * slot('reach', (n_pairs, n_joints))).sum(axis=1)
+            ext = (moved * slot('reach_ext', (n_pairs, n_joints))).sum(axis=1)
             on = clearance > 0
             assert np.allclose(travel[on, 0], fixed[on], rtol=1e-9, atol=1e-12)
             assert np.allclose(travel[on, 1], ext[on], rtol=1e-9, atol=1e-12)
@@ -329,7 +332,7 @@ def test_running_travel_sums_equal_the_sums_recomputed_from_scratch(panda):
             extension = np.abs(kin.multiplier[sliders] * q_ref[kin.q_index[sliders]]
                                + kin.offset[sliders]).sum()
             assert len(sliders) == 2
-            assert panda._F[S_EXTENSION] == pytest.approx(extension, abs=1e-12)
+            assert panda.packed_array('scalars')[1] == pytest.approx(extension, abs=1e-12)
             exact = fixed + extension * ext
             assert np.all(exact[on] < clearance[on])  # skipped pairs are still apart
             tracked += int(on.sum())
@@ -386,6 +389,85 @@ def test_unknown_joint_and_nan_raise_and_change_nothing(panda):
         panda.update(np.full(len(panda.joint_names), np.inf))
     assert panda.positions == positions
     assert panda.update(positions).colliding_pairs == before.colliding_pairs
+
+
+# The states of the report that found update() wrong after absurd values (Panda, joint_names
+# order): the third moved a finger by 1.7e308 m and, before the fix, the fourth was reported
+# clear by update() while colliding.
+ABSURD_SEQUENCE = [
+    [2.8489, 0.3706, -2.1638, -1.8272, 1.2051, 0.0048, -0.3367, -5.0],
+    [0.2178, 0.7639, -1.8830, -1.9483, -2.6116, 0.0535, -1.1751, 0.0294],
+    [1.3175, 1.6472, -0.1179, -2.2271, -9.223372036854776e18, 1e9, 0.9292,
+     1.7976931348623157e308],
+    [-0.6752, 1.7359, -0.7879, -2.9622, -0.8937, 0.9992, -1.0743, 0.0113],
+]
+
+
+def test_absurd_values_are_refused_and_leave_update_equal_to_check(panda_urdf, panda_srdf,
+                                                                   erd_package_paths):
+    incremental = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                             package_paths=erd_package_paths)
+    scratch = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                         package_paths=erd_package_paths)
+    for k, q in enumerate(ABSURD_SEQUENCE):
+        if k == 2:
+            before = incremental.positions
+            with pytest.raises(JointStateError, match='panda_finger_joint1.*range'):
+                incremental.update(q)
+            assert incremental.positions == before
+            continue
+        assert incremental.update(q).colliding_pairs == scratch.check(q).colliding_pairs
+    assert scratch.check(ABSURD_SEQUENCE[3]).colliding_pairs == (('panda_link1', 'panda_link5'),)
+
+
+def _hostile_walk(checker, n, rng):
+    """Random configurations and small steps, with huge, tiny and non-finite values mixed in:
+    revolute joints get values up to +-1.8e308 (their cos and sin stay exact), and sliders
+    values beyond any range the engine takes."""
+    values = [1e9, -1e9, 9.2e18, -9.2e18, 1.7976931348623157e308, -1.7976931348623157e308,
+              1e300, 1e-300, 5e-324, -0.0, 1e15, np.nan, np.inf, -np.inf]
+    start = random_configurations(checker, 200, seed=int(rng.integers(1 << 30)))
+    q = start[0]
+    for _ in range(n):
+        u = rng.random()
+        if u < 0.25:
+            q = start[rng.integers(len(start))].copy()
+        else:
+            q = q + rng.normal(0.0, 0.03, len(q))
+        if rng.random() < 0.2:
+            q = q.copy()
+            for j in rng.choice(len(q), int(rng.integers(1, 4)), replace=False):
+                q[j] = values[rng.integers(len(values))]
+        yield q
+
+
+@pytest.mark.parametrize('seed', [1, 2])
+def test_update_equals_check_after_any_hostile_sequence(panda_urdf, panda_srdf,
+                                                        erd_package_paths, seed):
+    """Whatever values arrive, update() after them equals a fresh check(): both refuse the
+    same states (nothing changes then), and both give the same pairs for every other state,
+    absurd ones included. Before the fix, a NaN in a pair's travel bound (an infinite motion
+    times a zero reach) let the pair through unchecked, and a huge motion added to a running
+    sum and taken away again cancelled the small terms beside it."""
+    incremental = _panda_with_scene(panda_urdf, panda_srdf, erd_package_paths)
+    scratch = _panda_with_scene(panda_urdf, panda_srdf, erd_package_paths)
+    rng = np.random.default_rng(seed)
+    refused = accepted_absurd = 0
+    for q in _hostile_walk(incremental, 3000, rng):
+        before = incremental.positions
+        try:
+            got = incremental.update(q).colliding_pairs
+        except JointStateError:
+            got = None
+            assert incremental.positions == before
+        try:
+            expected = scratch.check(q).colliding_pairs
+        except JointStateError:
+            expected = None
+        assert got == expected, list(q)
+        refused += got is None
+        accepted_absurd += got is not None and not np.all(np.abs(q) < 1e3)
+    assert refused > 100 and accepted_absurd > 100
 
 
 def test_joints_not_given_keep_their_last_value(panda):
@@ -453,10 +535,7 @@ def test_collision_boxes_contain_their_geometry(panda):
 # ---------------------------------------------------------------- clearance skip (update)
 
 def _clearances(checker):
-    from collision_sensor.query_kernel import F_CLEARANCE
-    layout = checker._F_layout
-    start, size = layout[F_CLEARANCE, 0], layout[F_CLEARANCE, 1]
-    return checker._F[start:start + size]
+    return checker.packed_array('clearance')
 
 
 def test_clearance_bounds_never_exceed_the_true_distance(panda, panda_urdf):
@@ -505,7 +584,6 @@ def test_subtree_volumes_cull_scene_objects_without_changing_answers(
         panda_urdf, panda_srdf, erd_package_paths):
     """Volumes spanning several links (each link's subtree) cull scene objects before any pair
     is looked at; the answers must stay python-fcl's."""
-    from collision_sensor.query_kernel import I_SCENE_CULLED
     scene = {'objects': [
         {'name': 'pedestal', 'box': {'size': [0.3, 0.3, 0.3]}, 'pose': {'xyz': [0.25, 0.0, 0.1]}},
         {'name': 'shelf', 'box': {'size': [0.4, 0.8, 0.03]}, 'pose': {'xyz': [0.55, 0.0, 0.5]}},
@@ -513,9 +591,7 @@ def test_subtree_volumes_cull_scene_objects_without_changing_answers(
     checker = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
                                          package_paths=erd_package_paths, scene=scene)
     oracle = FclOracle(checker, panda_urdf)
-    layout = checker._I_layout
-    start, size = layout[I_SCENE_CULLED, 0], layout[I_SCENE_CULLED, 1]
-    culled = checker._I[start:start + size].reshape(len(scene['objects']), -1)
+    culled = checker.packed_array('scene_culled')
     below_root_only = 0
     for q in random_configurations(checker, 1500, seed=16):
         assert checker.check(q).colliding_pairs == oracle.colliding_pairs(q), list(q)
