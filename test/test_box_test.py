@@ -1,18 +1,16 @@
 """Box tests: Table 1, paper test == SAT on 10^7 seeded pairs, both == an LP oracle, by hand."""
 import math
 
-import numba
 import numpy as np
 import pytest
 from scipy.optimize import linprog
 from scipy.spatial import ConvexHull
 
 from collision_sensor.bench.box_tests import (
-    contact_distance, place, random_extents, random_rotation, random_signed_permutation,
-    random_unit)
+    CAT_NEAR, CAT_RANDOM, CAT_TOUCHING, contact_distance, mixed_pairs)
 from collision_sensor.box_test import (
     BOX_TEST_PAPER, BOX_TEST_SAT, HEXAGON, box_tolerance, boxes_disjoint, boxes_disjoint_paper,
-    boxes_disjoint_sat, separating_axis)
+    boxes_disjoint_sat, separating_axis, separating_axes)
 from collision_sensor.obb_tree import BOX_AXES, BOX_CENTER, BOX_HALF, BOX_RADIUS, BOX_WIDTH
 from collision_sensor.traversal import axis_gap
 
@@ -92,122 +90,38 @@ def test_table1_is_the_ccw_silhouette_for_random_rotations():
 
 # --- paper test == SAT on 10^7 seeded pairs -----------------------------------------------
 
-CAT_RANDOM, CAT_TOUCHING, CAT_NEAR = 0, 1, 2
+def _count_disagreements(n, seed, n_cases=20, chunk=1_000_000):
+    """Test n mixed pairs (:func:`mixed_pairs`, generated ``chunk`` at a time) with both tests.
 
-
-@numba.njit(cache=True)
-def _mixed_pair(ha, hb, R, t, w, S, M):
-    """Fill one random pair of the property test; return its placement category."""
-    u = np.random.random()
-    if u < 0.8:
-        random_rotation(R)
-    else:
-        random_signed_permutation(R)           # parallel / identical axes, exact 0 and +-1
-        if u >= 0.9:                           # ... tilted by 1e-12 to 1e-3 rad
-            random_unit(w)
-            a = 10.0 ** np.random.uniform(-12.0, -3.0)
-            c, s = math.cos(a), math.sin(a)
-            K = M
-            K[0, 0], K[0, 1], K[0, 2] = 0.0, -w[2], w[1]
-            K[1, 0], K[1, 1], K[1, 2] = w[2], 0.0, -w[0]
-            K[2, 0], K[2, 1], K[2, 2] = -w[1], w[0], 0.0
-            for r in range(3):
-                for q in range(3):
-                    kk = K[r, 0] * K[0, q] + K[r, 1] * K[1, q] + K[r, 2] * K[2, q]
-                    S[r, q] = (1.0 if r == q else 0.0) + s * K[r, q] + (1.0 - c) * kk
-            for r in range(3):
-                for q in range(3):
-                    M[r, q] = R[r, 0] * S[0, q] + R[r, 1] * S[1, q] + R[r, 2] * S[2, q]
-            R[:, :] = M
-    sa = 10.0 ** np.random.uniform(-4.0, 4.0)
-    if np.random.random() < 0.5:
-        sb = 10.0 ** np.random.uniform(-4.0, 4.0)
-    else:
-        sb = sa * 10.0 ** np.random.uniform(-1.0, 1.0)
-    za = np.random.randint(1, 8) if np.random.random() < 0.15 else 0   # flat, segment, point
-    zb = np.random.randint(1, 8) if np.random.random() < 0.15 else 0
-    random_extents(ha, sa, za)
-    random_extents(hb, sb, zb)
-    # Direction of approach: random, along an edge-edge axis (edge-edge contacts), or a face.
-    u = np.random.random()
-    if u < 0.5:
-        random_unit(w)
-    elif u < 0.75:
-        i = np.random.randint(0, 3)
-        j = np.random.randint(0, 3)
-        b0, b1, b2 = R[0, j], R[1, j], R[2, j]
-        if i == 0:
-            w[0], w[1], w[2] = 0.0, -b2, b1
-        elif i == 1:
-            w[0], w[1], w[2] = b2, 0.0, -b0
-        else:
-            w[0], w[1], w[2] = -b1, b0, 0.0
-        n = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
-        if n < 1e-6:
-            random_unit(w)
-        else:
-            sgn = 1.0 if np.random.random() < 0.5 else -1.0
-            w[0], w[1], w[2] = sgn * w[0] / n, sgn * w[1] / n, sgn * w[2] / n
-    else:
-        j = np.random.randint(0, 3)
-        sgn = 1.0 if np.random.random() < 0.5 else -1.0
-        w[0], w[1], w[2] = sgn * R[0, j], sgn * R[1, j], sgn * R[2, j]
-    u = np.random.random()
-    if u < 0.2:
-        lam = contact_distance(ha, hb, R, w) * 2.0 * np.random.random()
-        t[0], t[1], t[2] = lam * w[0], lam * w[1], lam * w[2]
-        return CAT_RANDOM
-    sgn = 1.0 if np.random.random() < 0.5 else -1.0
-    if u < 0.6:
-        # Touching, to within far less than the tolerance (gap 0 +- 1e-16 .. 1e-11 of the size).
-        gap = 0.0 if np.random.random() < 0.1 else sgn * 10.0 ** np.random.uniform(-16.0, -11.0)
-        place(ha, hb, R, w, gap, t)
-        return CAT_TOUCHING
-    place(ha, hb, R, w, sgn * 10.0 ** np.random.uniform(-7.5, -2.0), t)
-    return CAT_NEAR
-
-
-@numba.njit(cache=True)
-def _count_disagreements(n, seed, cases, stats):
-    """Test n mixed pairs with both tests; keep the first disagreements in ``cases``.
-
-    stats[0] = disagreements, stats[1] = separated (paper), stats[2 + c] = pairs of category c,
-    stats[5] = touching pairs reported separated by either test.
+    Return (stats, cases): stats[0] = disagreements, stats[1] = separated (paper),
+    stats[2 + c] = pairs of category c, stats[5] = touching pairs reported separated by either
+    test; cases the first ``n_cases`` disagreeing pairs as (ha, hb, R, t).
     """
-    np.random.seed(seed)
-    ha, hb, t, w = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
-    R, S, M = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
-    scratch = np.zeros(64)
-    for p in range(n):
-        cat = _mixed_pair(ha, hb, R, t, w, S, M)
-        stats[2 + cat] += 1
-        a = boxes_disjoint_paper(ha, hb, R, t, scratch)
-        b = boxes_disjoint_sat(ha, hb, R, t, scratch)
-        stats[1] += a
-        if cat == CAT_TOUCHING and (a or b):
-            stats[5] += 1
-        if a != b:
-            k = stats[0]
-            if k < cases.shape[0]:
-                cases[k, 0:3] = ha
-                cases[k, 3:6] = hb
-                cases[k, 6:15] = R.ravel()
-                cases[k, 15:18] = t
-            stats[0] += 1
-    return stats
+    rng = np.random.default_rng(seed)
+    stats = np.zeros(6, dtype=np.int64)
+    cases = []
+    for start in range(0, n, chunk):
+        ha, hb, R, t, category = mixed_pairs(min(chunk, n - start), rng)
+        a = boxes_disjoint(BOX_TEST_PAPER, ha, hb, R, t)
+        b = boxes_disjoint(BOX_TEST_SAT, ha, hb, R, t)
+        differ = np.flatnonzero(a != b)
+        stats[0] += differ.size
+        stats[1] += np.count_nonzero(a)
+        stats[2:5] += np.bincount(category, minlength=3)[:3]
+        stats[5] += np.count_nonzero((category == CAT_TOUCHING) & (a | b))
+        cases += [(ha[p], hb[p], R[p], t[p]) for p in differ[:n_cases - len(cases)]]
+    return stats, cases
 
 
 def test_paper_test_agrees_with_sat_on_ten_million_seeded_pairs():
     n = 10_000_000
-    cases = np.zeros((20, 18))
-    stats = np.zeros(6, dtype=np.int64)
-    _count_disagreements(n, 20240601, cases, stats)
-    bad = [literal(c[0:3], c[3:6], c[6:15].reshape(3, 3), c[15:18])
-           for c in cases[:min(stats[0], len(cases))]]
+    stats, cases = _count_disagreements(n, 20240601)
+    bad = [literal(*case) for case in cases]
     assert stats[0] == 0, f'{stats[0]} disagreements; first ones:\n' + '\n'.join(bad)
     # The mix is meaningful: plenty of both answers, and every touching pair overlaps.
     assert 0.2 * n < stats[1] < 0.6 * n
-    assert stats[2] > 0.15 * n and stats[3] > 0.35 * n and stats[4] > 0.35 * n
+    assert (stats[2 + CAT_RANDOM] > 0.15 * n and stats[2 + CAT_TOUCHING] > 0.35 * n
+            and stats[2 + CAT_NEAR] > 0.35 * n)
     assert stats[5] == 0
 
 
@@ -238,19 +152,15 @@ def lp_inflation(ha, hb, R, t):
     return res.fun
 
 
-@numba.njit(cache=True)
-def _lp_pairs(n, seed, H, RR, TT):
-    np.random.seed(seed)
-    w = np.empty(3)
-    S, M = np.empty((3, 3)), np.empty((3, 3))
-    for p in range(n):
-        _mixed_pair(H[p, 0], H[p, 1], RR[p], TT[p], w, S, M)
+def _lp_pairs(n, seed):
+    """Return n mixed pairs as H (n, 2, 3) (ha, hb), RR (n, 3, 3), TT (n, 3)."""
+    ha, hb, RR, TT, _ = mixed_pairs(n, np.random.default_rng(seed))
+    return np.stack([ha, hb], axis=1), RR, TT
 
 
 def test_both_tests_agree_with_lp_oracle_when_the_gap_is_clear():
     n = 4000
-    H, RR, TT = np.empty((n, 2, 3)), np.empty((n, 3, 3)), np.empty((n, 3))
-    _lp_pairs(n, 7, H, RR, TT)
+    H, RR, TT = _lp_pairs(n, 7)
     checked = {True: 0, False: 0}
     bad = []
     for p in range(n):
@@ -398,8 +308,8 @@ def test_one_axis_alone_agrees_with_the_whole_test_and_its_gap_is_a_lower_bound(
     is at most the boxes' distance (python-fcl). The boxes sit in their own frames inside two
     bodies, so the entries of R and t it computes on its own are exercised."""
     n = 3000
-    H, RR, TT = np.empty((n, 2, 3)), np.empty((n, 3, 3)), np.empty((n, 3))
-    _lp_pairs(n, 11, H, RR, TT)
+    H, RR, TT = _lp_pairs(n, 11)
+    first_axis = separating_axes(H[:, 0], H[:, 1], RR, TT)
     rng = np.random.default_rng(12)
     named = claimed = measured = 0
     for p in range(n):
@@ -415,7 +325,8 @@ def test_one_axis_alone_agrees_with_the_whole_test_and_its_gap_is_a_lower_bound(
         t_ab = Ea @ t + ca - R_ab @ cb
         A, B = _box_row(ca, Ea, ha), _box_row(cb, Eb, hb)
         P = tuple(R_ab.ravel()) + tuple(t_ab)
-        k = separating_axis(*ha, *hb, *R.ravel(), *t)
+        k = int(first_axis[p])
+        assert separating_axis(*ha, *hb, *R.ravel(), *t) == k      # one pair == the batch
         if k >= 0:
             named += 1
             assert axis_gap(k, A, B, P)[0], (k, literal(ha, hb, R, t))

@@ -146,6 +146,24 @@ def test_hand_built_pair_in_every_vertex_order(name, P, Q, expected):
         assert triangles_intersect(A, B) == expected, f'{name}: {literal(A, B)}'
 
 
+def test_batch_answers_are_the_one_pair_answers():
+    # triangles_intersect on (n, 3, 3) arrays (the brute-force oracle of test_checker.py uses
+    # it) answers row by row exactly as the one-pair call does.
+    pairs = [order for _, P, Q, _ in HAND_BUILT for order in all_orders(P, Q)]
+    rng = np.random.default_rng(3)
+    P = rng.uniform(-1, 1, size=(2000, 3, 3))
+    Q = P.mean(axis=1, keepdims=True) + rng.uniform(-0.8, 0.8, size=(2000, 3, 3))
+    pairs += list(zip(P, Q))
+    P, Q = (np.array(x, dtype=np.float64) for x in zip(*pairs))
+    got = triangles_intersect(P, Q)
+    assert got.shape == (len(pairs),) and got.dtype == bool
+    assert got.tolist() == [bool(triangles_intersect(a, b)) for a, b in pairs]
+    assert 0 < got.sum() < len(pairs)
+    expected = [e for _, P, Q, e in HAND_BUILT for _ in all_orders(P, Q)]
+    assert got[:len(expected)].tolist() == expected
+    assert triangles_intersect(np.empty((0, 3, 3)), np.empty((0, 3, 3))).shape == (0,)
+
+
 def test_tolerance_is_relative_to_the_coordinates():
     for scale in (1e-4, 1.0, 1e4):
         P = P0 * scale
