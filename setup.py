@@ -68,7 +68,7 @@ ENGINE = Pybind11Extension(
     depends=ENGINE_HEADERS,
     define_macros=[('COLLISION_SENSOR_SOURCE_DIGEST',
                     '"%s"' % source_digest(sorted(ENGINE_SOURCES + ENGINE_HEADERS)))],
-    extra_compile_args=['-O2', '-Wall', '-Wextra', '-fno-math-errno'])
+    extra_compile_args=['-O3', '-Wall', '-Wextra', '-fno-math-errno'])
 
 setup(
     name=PACKAGE,

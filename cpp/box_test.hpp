@@ -48,7 +48,7 @@ constexpr int AXIS_OF_BIT[8] = {0, 0, 1, 1, 2, 2, 2, 2};
 
 // True iff none of the inputs is NaN or infinite: x * 0 is NaN exactly for those. Called
 // only on the way to answering "separated", so the overlapping path pays nothing for it.
-inline bool finite(const double* ha, const double* hb, const double* R, const double* t) {
+CS_ALWAYS_INLINE bool finite(const double* ha, const double* hb, const double* R, const double* t) {
     double acc = 0.0;
     for (int k = 0; k < 3; ++k) {
         acc += ha[k] * 0.0 + hb[k] * 0.0 + t[k] * 0.0;
@@ -61,7 +61,7 @@ inline bool finite(const double* ha, const double* hb, const double* R, const do
 // w_k chosen by bit k of the vertex index. The association is fixed on purpose: the extreme
 // vertex then equals c -+ ((|w0| + |w1|) + |w2|) to the last bit, which is exactly the radius
 // the SAT computes, so type 1 / type 2 decide exactly as the SAT's face axes.
-inline void vertex_coordinates(double c, double w0, double w1, double w2, double* out) {
+CS_ALWAYS_INLINE void vertex_coordinates(double c, double w0, double w1, double w2, double* out) {
     for (int i = 0; i < 8; ++i) {
         const double s0 = (i & 1) ? w0 : -w0;
         const double s1 = (i & 2) ? w1 : -w1;
@@ -72,7 +72,7 @@ inline void vertex_coordinates(double c, double w0, double w1, double w2, double
 
 // True iff all 8 coordinates lie beyond the face plane +h (x - h > thr) or all beyond -h
 // (-h - x > thr): sec. 5.1.1, at least 8 and at most 16 inequalities per axis.
-inline bool beyond_face_planes(const double* x, double h, double thr) {
+CS_ALWAYS_INLINE bool beyond_face_planes(const double* x, double h, double thr) {
     bool inside = false;
     for (int i = 0; i < 8; ++i) {
         if (!(x[i] - h > thr)) {
@@ -92,7 +92,7 @@ inline bool beyond_face_planes(const double* x, double h, double thr) {
 //   r_A   = ha[i1] |R[i2, j]| + ha[i2] |R[i1, j]|
 //   r_B   = hb[j1] |R[i, j2]| + hb[j2] |R[i, j1]|
 //   |L|   = sqrt(R[i, j1]^2 + R[i, j2]^2)   (a_i in F_B minus its b_j component)
-inline bool edge_axis_separates(double ti1, double ti2, double r_i1j, double r_i2j, double ha_i1,
+CS_ALWAYS_INLINE bool edge_axis_separates(double ti1, double ti2, double r_i1j, double r_i2j, double ha_i1,
                                 double ha_i2, double hb_j1, double hb_j2, double r_ij1,
                                 double r_ij2, double tol) {
     const double d = (std::fabs(ti2 * r_i1j - ti1 * r_i2j) -
@@ -103,7 +103,7 @@ inline bool edge_axis_separates(double ti1, double ti2, double r_i1j, double r_i
     return false;
 }
 
-inline bool finite_scalars(double a0, double a1, double a2, double b0, double b1, double b2,
+CS_ALWAYS_INLINE bool finite_scalars(double a0, double a1, double a2, double b0, double b1, double b2,
                            double r00, double r01, double r02, double r10, double r11,
                            double r12, double r20, double r21, double r22, double t0, double t1,
                            double t2) {
@@ -120,7 +120,7 @@ inline bool finite_scalars(double a0, double a1, double a2, double b0, double b1
 // the edge-edge axis e_i x b_j. Takes the 18 numbers themselves (registers, in the traversal's
 // inner loop). The traversal keeps the axis of a node pair it pruned, and an incremental
 // re-check tries that axis alone first (traversal.hpp: axis_gap, the same arithmetic).
-inline int separating_axis(double a0, double a1, double a2, double b0, double b1, double b2,
+CS_ALWAYS_INLINE int separating_axis(double a0, double a1, double a2, double b0, double b1, double b2,
                            double r00, double r01, double r02, double r10, double r11,
                            double r12, double r20, double r21, double r22, double t0, double t1,
                            double t2) {
@@ -174,7 +174,7 @@ inline int separating_axis(double a0, double a1, double a2, double b0, double b1
 }
 
 // True iff boxes A and B are separated: the classical 15-axis test.
-inline bool boxes_disjoint_sat(const double* ha, const double* hb, const double* R,
+CS_ALWAYS_INLINE bool boxes_disjoint_sat(const double* ha, const double* hb, const double* R,
                                const double* t) {
     return separating_axis(ha[0], ha[1], ha[2], hb[0], hb[1], hb[2], R[0], R[1], R[2], R[3],
                            R[4], R[5], R[6], R[7], R[8], t[0], t[1], t[2]) >= 0;

@@ -12,6 +12,8 @@
 #include <cmath>
 #include <cstdint>
 
+#include "tolerances.hpp"
+
 namespace collision_sensor {
 
 constexpr int64_t JOINT_FIXED = 0, JOINT_REVOLUTE = 1, JOINT_PRISMATIC = 2;
@@ -50,7 +52,7 @@ inline int64_t unusable_variable(const KinematicTree& kin, const double* q, int6
 }
 
 // Write link i's world pose into T_world_link from its parent's (already current) pose.
-inline void set_link_pose(const KinematicTree& kin, int64_t i, const double* q,
+CS_ALWAYS_INLINE void set_link_pose(const KinematicTree& kin, int64_t i, const double* q,
                           double* T_world_link) {
     const double* J = kin.T_parent_joint + 16 * i;
     // M = T_parent_joint motion, as 12 scalars (rotation m.., translation t.).

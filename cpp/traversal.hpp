@@ -69,7 +69,7 @@ struct FrontRows {
 };
 
 // d = R_ab cb + t_ab - ca: B's centre relative to A's, in body a's frame.
-inline void centre_offset(const double* A, const double* B, const double* P, double* d) {
+CS_ALWAYS_INLINE void centre_offset(const double* A, const double* B, const double* P, double* d) {
     const int c = BOX_CENTER;
     d[0] = P[0] * B[c] + P[1] * B[c + 1] + P[2] * B[c + 2] + P[9] - A[c];
     d[1] = P[3] * B[c] + P[4] * B[c + 1] + P[5] * B[c + 2] + P[10] - A[c + 1];
@@ -84,7 +84,7 @@ struct Spheres {
     double d[3];
 };
 
-inline Spheres spheres(const double* A, const double* B, const double* P) {
+CS_ALWAYS_INLINE Spheres spheres(const double* A, const double* B, const double* P) {
     Spheres s;
     centre_offset(A, B, P, s.d);
     s.dd = s.d[0] * s.d[0] + s.d[1] * s.d[1] + s.d[2] * s.d[2];
@@ -96,7 +96,7 @@ inline Spheres spheres(const double* A, const double* B, const double* P) {
 
 // Box B (body b, at pose P in body a) in box A's frame, T: R row-major then t. With box
 // frames [Ea, ca], [Eb, cb]:   [R, t] = [Ea' R_ab Eb, Ea' (R_ab cb + t_ab - ca)]
-inline void box_in_frame(const double* A, const double* B, const double* P, double* T) {
+CS_ALWAYS_INLINE void box_in_frame(const double* A, const double* B, const double* P, double* T) {
     double d[3];
     centre_offset(A, B, P, d);
     const int e = BOX_AXES;
@@ -117,7 +117,7 @@ inline void box_in_frame(const double* A, const double* B, const double* P, doub
 // A lower bound of the distance between boxes A and B (B in A's frame: T): the largest gap
 // of the two boxes' projections on the six face normals (unit axes, so each gap is at most
 // the Euclidean distance; <= 0 if no face axis separates them). Rounding is the caller's.
-inline double face_gap(const double* A, const double* B, const double* T) {
+CS_ALWAYS_INLINE double face_gap(const double* A, const double* B, const double* T) {
     using std::fabs;
     const int h = BOX_HALF;
     const double a0 = A[h], a1 = A[h + 1], a2 = A[h + 2], b0 = B[h], b1 = B[h + 1], b2 = B[h + 2];
@@ -137,7 +137,7 @@ inline double face_gap(const double* A, const double* B, const double* T) {
 
 // A lower bound of the distance between boxes A and B (body b at pose P): the larger of the
 // spheres' gap and face_gap; <= 0 when neither separates.
-inline double box_pair_gap(const double* A, const double* B, const double* P) {
+CS_ALWAYS_INLINE double box_pair_gap(const double* A, const double* B, const double* P) {
     double d[3];
     centre_offset(A, B, P, d);
     const double g = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) -
@@ -148,14 +148,14 @@ inline double box_pair_gap(const double* A, const double* B, const double* P) {
 }
 
 // The axis that separates boxes A and B (separating_axis), or -1; B in A's frame: T.
-inline int sat_axis(const double* A, const double* B, const double* T) {
+CS_ALWAYS_INLINE int sat_axis(const double* A, const double* B, const double* T) {
     const int h = BOX_HALF;
     return separating_axis(A[h], A[h + 1], A[h + 2], B[h], B[h + 1], B[h + 2], T[0], T[1], T[2],
                            T[3], T[4], T[5], T[6], T[7], T[8], T[9], T[10], T[11]);
 }
 
 // True iff the paper's test separates boxes A and B (B in A's frame: T).
-inline bool paper_separates(const double* A, const double* B, const double* T) {
+CS_ALWAYS_INLINE bool paper_separates(const double* A, const double* B, const double* T) {
     return boxes_disjoint_paper(A + BOX_HALF, B + BOX_HALF, T, T + 9);
 }
 
@@ -228,7 +228,7 @@ inline AxisGap axis_gap(int64_t k, const double* A, const double* B, const doubl
 }
 
 // Triangle row ib (body b), taken to body a's frame by the pose.
-inline void triangle_in_a(const double* tris, int64_t ib, const double* pose, Triangle& Q) {
+CS_ALWAYS_INLINE void triangle_in_a(const double* tris, int64_t ib, const double* pose, Triangle& Q) {
     const double* t = tris + 9 * ib;
     for (int k = 0; k < 3; ++k)
         for (int i = 0; i < 3; ++i)
@@ -236,7 +236,7 @@ inline void triangle_in_a(const double* tris, int64_t ib, const double* pose, Tr
                       pose[3 * i + 2] * t[3 * k + 2] + pose[9 + i];
 }
 
-inline const Triangle& triangle_at(const double* tris, int64_t i) {
+CS_ALWAYS_INLINE const Triangle&  triangle_at(const double* tris, int64_t i) {
     return *reinterpret_cast<const Triangle*>(tris + 9 * i);
 }
 
@@ -270,7 +270,7 @@ inline LeafResult leaves_collide(const double* tris, int64_t first_a, int64_t co
 }
 
 // True iff box m's centre is nearer the point x than box n's (same body frame).
-inline bool closer(const Forest& f, int64_t m, int64_t n, double x0, double x1, double x2) {
+CS_ALWAYS_INLINE bool closer(const Forest& f, int64_t m, int64_t n, double x0, double x1, double x2) {
     const double* bm = f.box(m);
     const double* bn = f.box(n);
     const double a0 = bm[0] - x0, a1 = bm[1] - x1, a2 = bm[2] - x2;
@@ -280,7 +280,7 @@ inline bool closer(const Forest& f, int64_t m, int64_t n, double x0, double x1, 
 
 // Append (na, nb, how) and until to the front; return its new length, -1 once it overflows
 // (or was not being recorded: n_front -1).
-inline int64_t record(const FrontRows& front, int64_t n_front, int64_t na, int64_t nb,
+CS_ALWAYS_INLINE int64_t record(const FrontRows& front, int64_t n_front, int64_t na, int64_t nb,
                       int64_t how, double until) {
     if (n_front < 0 || n_front >= front.rows) return -1;
     int64_t* row = front.pairs + 3 * n_front;
