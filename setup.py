@@ -64,7 +64,7 @@ ENGINE = Pybind11Extension(
     'collision_sensor._engine', ENGINE_SOURCES, include_dirs=['cpp'], cxx_std=17,
     depends=ENGINE_HEADERS,
     define_macros=[('COLLISION_SENSOR_SOURCE_DIGEST',
-                    '"%s"' % source_digest(ENGINE_SOURCES + ENGINE_HEADERS))],
+                    '"%s"' % source_digest(sorted(ENGINE_SOURCES + ENGINE_HEADERS)))],
     extra_compile_args=['-O2', '-Wall', '-Wextra', '-fno-math-errno'])
 
 setup(
