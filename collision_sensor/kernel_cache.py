@@ -12,8 +12,8 @@ import hashlib
 import os
 
 # Every module of this package that defines cached kernels.
-KERNEL_MODULES = ('array_pack', 'bounding_volumes', 'box_test', 'kinematics', 'obb_tree',
-                  'query_kernel', 'tolerances', 'traversal', 'triangle_test')
+KERNEL_MODULES = ('array_pack', 'box_test', 'kinematics', 'query_kernel', 'tolerances',
+                  'traversal', 'triangle_test')
 _MARK = 'collision_sensor-kernels'
 _digest = None
 
