@@ -20,157 +20,88 @@ Degenerate input is handled on purpose: one point gives a point box (half = 0, a
 identity), two points or collinear points a segment box, coplanar points a flat box; repeated
 points are harmless; NaN, infinity or no points raise ValueError.
 """
-import math
-
-import numba
 import numpy as np
 
-from collision_sensor.kernel_cache import bind_to_kernel_sources
+from collision_sensor.compiled import engine
 from collision_sensor.tolerances import RANK_EPS_REL
 
 OBB_PCA, OBB_HULL_PCA, OBB_MIN_VOLUME = 0, 1, 2
 
 
-@numba.njit(cache=True)
-def obb_volume(half):
+# The kernels below are C++ (cpp/bounding_volumes.cpp, bound as collision_sensor._engine);
+# these wrappers keep their Python names and state each contract.
+
+
+def obb_volume(half) -> float:
     """Return the volume 8 hx hy hz of a box with half extents ``half`` (3,)."""
-    return 8.0 * half[0] * half[1] * half[2]
+    return engine.obb_volume(half)
 
 
-@numba.njit(cache=True)
-def sphere_volume(r):
+def sphere_volume(r: float) -> float:
     """Return the volume 4/3 pi r^3 of a sphere of radius ``r``."""
-    return 4.0 / 3.0 * math.pi * r * r * r
+    return engine.sphere_volume(r)
 
 
-@numba.njit(cache=True)
 def _check_points(points):
-    if points.shape[0] == 0:
-        raise ValueError('bounding volume: no points; a bounding volume needs at least one point')
-    for i in range(points.shape[0]):
-        for k in range(3):
-            x = points[i, k]
-            if not (abs(x) < math.inf):
-                raise ValueError('bounding volume: points contain NaN or infinity; '
-                                 'check the mesh or the transform that produced them')
+    """Raise ValueError if ``points`` (n, 3) is empty or holds NaN or infinity."""
+    engine.check_points(points)
 
 
-@numba.njit(cache=True)
 def _frame_from_eigenvectors(V, order):
-    # Columns V[:, order[0]], V[:, order[1]] re-orthonormalised (Gram-Schmidt), signs fixed,
-    # third axis the cross product: right-handed by construction, whatever LAPACK returned.
-    axes = np.empty((3, 3))
-    a0 = V[:, order[0]].copy()
-    a0 /= math.sqrt(a0[0] * a0[0] + a0[1] * a0[1] + a0[2] * a0[2])
-    a1 = V[:, order[1]].copy()
-    d = a1[0] * a0[0] + a1[1] * a0[1] + a1[2] * a0[2]
-    a1 -= d * a0
-    a1 /= math.sqrt(a1[0] * a1[0] + a1[1] * a1[1] + a1[2] * a1[2])
-    for a in (a0, a1):
-        k = 0
-        for m in range(1, 3):
-            if abs(a[m]) > abs(a[k]):
-                k = m
-        if a[k] < 0.0:
-            a *= -1.0
-    axes[:, 0] = a0
-    axes[:, 1] = a1
-    axes[0, 2] = a0[1] * a1[2] - a0[2] * a1[1]
-    axes[1, 2] = a0[2] * a1[0] - a0[0] * a1[2]
-    axes[2, 2] = a0[0] * a1[1] - a0[1] * a1[0]
-    return axes
+    """Return the box frame (3, 3) built from columns ``order[0]``, ``order[1]`` of ``V``.
+
+    Contract in plain Python::
+
+        a0 = V[:, order[0]] / |V[:, order[0]]|
+        a1 = V[:, order[1]] - (V[:, order[1]] . a0) a0;  a1 /= |a1|      # Gram-Schmidt
+        a0, a1 each negated if its largest-magnitude component is negative
+        axes = [a0, a1, a0 x a1] as columns: right-handed, whatever the eigen solver returned
+
+    :param V: (3, 3) float64, candidate axes as columns.
+    :param order: (3,) int64, column indices; only the first two are used.
+    """
+    return engine.frame_from_eigenvectors(V, order)
 
 
-@numba.njit(cache=True)
 def principal_frame(C):
     """Return the box frame (3, 3) of a symmetric covariance C: eigenvectors, largest first.
 
-    The eigenvectors of C (LAPACK, ascending eigenvalues) are sorted by decreasing eigenvalue;
-    for repeated eigenvalues any orthonormal basis of the eigenspace is correct. A zero C (one
-    point, or all points equal) gives the identity.
+    The eigenvectors of C (cyclic Jacobi, cpp/bounding_volumes.cpp) are sorted by decreasing
+    eigenvalue and passed through :func:`_frame_from_eigenvectors`; for repeated eigenvalues
+    any orthonormal basis of the eigenspace is correct. A zero C (one point, or all points
+    equal) gives the identity.
     """
-    if C[0, 0] == 0.0 and C[1, 1] == 0.0 and C[2, 2] == 0.0:
-        return np.eye(3)
-    w, V = np.linalg.eigh(C)
-    order = np.argsort(-w)
-    return _frame_from_eigenvectors(V, order)
+    return engine.principal_frame(C)
 
 
-@numba.njit(cache=True)
 def box_on_axes(points, axes):
     """Return (center, half) of the smallest box with the given axes containing ``points``.
 
-    :param points: (n, 3) float64.
+    :param points: (n, 3) float64, n >= 1.
     :param axes: (3, 3) float64, axes[:, k] the box axes.
     :return: center (3,) the box's mid point, half (3,) its half extents.
     """
-    n = points.shape[0]
-    # Project about the first point so that far-from-origin clouds keep their precision.
-    o0, o1, o2 = points[0, 0], points[0, 1], points[0, 2]
-    lo = np.full(3, np.inf)
-    hi = np.full(3, -np.inf)
-    for i in range(n):
-        x0, x1, x2 = points[i, 0] - o0, points[i, 1] - o1, points[i, 2] - o2
-        for k in range(3):
-            s = x0 * axes[0, k] + x1 * axes[1, k] + x2 * axes[2, k]
-            if s < lo[k]:
-                lo[k] = s
-            if s > hi[k]:
-                hi[k] = s
-    center = np.empty(3)
-    half = np.empty(3)
-    mid = np.empty(3)
-    for k in range(3):
-        half[k] = 0.5 * (hi[k] - lo[k])
-        mid[k] = 0.5 * (hi[k] + lo[k])
-    center[0] = o0 + axes[0, 0] * mid[0] + axes[0, 1] * mid[1] + axes[0, 2] * mid[2]
-    center[1] = o1 + axes[1, 0] * mid[0] + axes[1, 1] * mid[1] + axes[1, 2] * mid[2]
-    center[2] = o2 + axes[2, 0] * mid[0] + axes[2, 1] * mid[1] + axes[2, 2] * mid[2]
-    return center, half
+    return engine.box_on_axes(points, axes)
 
 
-@numba.njit(cache=True)
 def covariance(points):
-    """Return the (3, 3) covariance of ``points`` (n, 3) (two-pass: mean first)."""
-    n = points.shape[0]
-    m0 = m1 = m2 = 0.0
-    for i in range(n):
-        m0 += points[i, 0]
-        m1 += points[i, 1]
-        m2 += points[i, 2]
-    m0 /= n
-    m1 /= n
-    m2 /= n
-    C = np.zeros((3, 3))
-    for i in range(n):
-        x0, x1, x2 = points[i, 0] - m0, points[i, 1] - m1, points[i, 2] - m2
-        C[0, 0] += x0 * x0
-        C[0, 1] += x0 * x1
-        C[0, 2] += x0 * x2
-        C[1, 1] += x1 * x1
-        C[1, 2] += x1 * x2
-        C[2, 2] += x2 * x2
-    C[1, 0] = C[0, 1]
-    C[2, 0] = C[0, 2]
-    C[2, 1] = C[1, 2]
-    return C / n
+    """Return the (3, 3) covariance of ``points`` (n, 3) (two-pass: mean first, 1/n)."""
+    return engine.covariance(points)
 
 
-@numba.njit(cache=True)
 def fit_obb_pca(points):
     """Fit an oriented box by principal axes (Wu 1992, paper sec. 3): the default, O(n).
 
     The covariance of the points gives the axes (its eigenvectors, largest variance first);
-    the extents are the min/max of the points projected on them. Callable from compiled code.
+    the extents are the min/max of the points projected on them. Contract in plain Python::
+
+        axes = principal_frame(covariance(points)); center, half = box_on_axes(points, axes)
 
     :param points: (n, 3) float64, n >= 1, finite.
     :return: (center (3,), axes (3, 3), half (3,)) in the module's convention.
-    :raises ValueError: no points, or NaN / infinity in them.
+    :raises ValueError: no points, NaN / infinity in them, or not of shape (n, 3).
     """
-    _check_points(points)
-    axes = principal_frame(covariance(points))
-    center, half = box_on_axes(points, axes)
-    return center, axes, half
+    return engine.fit_obb_pca(points)
 
 
 def _as_points(points, faces=None):
@@ -318,7 +249,6 @@ def fit_obb(points, method=OBB_PCA, faces=None):
                      'or OBB_MIN_VOLUME (2)')
 
 
-@numba.njit(cache=True)
 def ritter_sphere(points):
     """Return (center (3,), radius) of a near-minimal bounding sphere (Ritter 1990), O(n).
 
@@ -333,56 +263,4 @@ def ritter_sphere(points):
     :return: (center (3,), radius float).
     :raises ValueError: no points, or NaN / infinity in them.
     """
-    _check_points(points)
-    n = points.shape[0]
-    y = 0
-    best = -1.0
-    for i in range(n):
-        d = ((points[i, 0] - points[0, 0]) ** 2 + (points[i, 1] - points[0, 1]) ** 2
-             + (points[i, 2] - points[0, 2]) ** 2)
-        if d > best:
-            best, y = d, i
-    z = y
-    best = -1.0
-    for i in range(n):
-        d = ((points[i, 0] - points[y, 0]) ** 2 + (points[i, 1] - points[y, 1]) ** 2
-             + (points[i, 2] - points[y, 2]) ** 2)
-        if d > best:
-            best, z = d, i
-    c = np.empty(3)
-    for k in range(3):
-        c[k] = 0.5 * (points[y, k] + points[z, k])
-    r = 0.5 * math.sqrt(best)
-    for i in range(n):
-        d0, d1, d2 = points[i, 0] - c[0], points[i, 1] - c[1], points[i, 2] - c[2]
-        d = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        if d > r:
-            # New sphere: the old one and the point on its far side as a diameter.
-            r_new = 0.5 * (r + d)
-            s = (r_new - r) / d
-            c[0] += s * d0
-            c[1] += s * d1
-            c[2] += s * d2
-            r = r_new
-    r = 0.0
-    for i in range(n):
-        d0, d1, d2 = points[i, 0] - c[0], points[i, 1] - c[1], points[i, 2] - c[2]
-        r = max(r, math.sqrt(d0 * d0 + d1 * d1 + d2 * d2))
-    # The axis-aligned box's circumscribed sphere, when it is smaller.
-    lo = np.full(3, np.inf)
-    hi = np.full(3, -np.inf)
-    for i in range(n):
-        for k in range(3):
-            lo[k] = min(lo[k], points[i, k])
-            hi[k] = max(hi[k], points[i, k])
-    cb = 0.5 * (lo + hi)
-    rb = 0.0
-    for i in range(n):
-        d0, d1, d2 = points[i, 0] - cb[0], points[i, 1] - cb[1], points[i, 2] - cb[2]
-        rb = max(rb, math.sqrt(d0 * d0 + d1 * d1 + d2 * d2))
-    if rb < r:
-        return cb, rb
-    return c, r
-
-
-bind_to_kernel_sources(globals())
+    return engine.ritter_sphere(points)

@@ -20,12 +20,10 @@ Conventions, shared with :mod:`collision_sensor.bounding_volumes`:
 """
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
-from collision_sensor.bounding_volumes import (
-    OBB_HULL_PCA, OBB_MIN_VOLUME, OBB_PCA, fit_obb, fit_obb_pca)
-from collision_sensor.kernel_cache import bind_to_kernel_sources
+from collision_sensor.bounding_volumes import OBB_HULL_PCA, OBB_MIN_VOLUME, OBB_PCA, fit_obb
+from collision_sensor.compiled import engine
 
 
 # Columns of a box table (:func:`box_table`), one row per box, what the compiled traversal
@@ -83,96 +81,28 @@ class ObbForest:
         return sum(getattr(self, name).nbytes for name in self.__dataclass_fields__)
 
 
-@numba.njit(cache=True)
-def _gather_points(tris, order, start, end):
-    points = np.empty(((end - start) * 3, 3))
-    for i in range(start, end):
-        tri = tris[order[i]]
-        for k in range(3):
-            points[(i - start) * 3 + k] = tri[k]
-    return points
-
-
-@numba.njit(cache=True)
-def _partition(keys, order, start, end, split):
-    """Reorder ``order[start:end]`` so that keys below ``split`` come first; return the cut."""
-    cut = start
-    for i in range(start, end):
-        if keys[order[i]] < split:
-            order[i], order[cut] = order[cut], order[i]
-            cut += 1
-    return cut
-
-
-@numba.njit(cache=True)
 def build_tree_kernel(tris, leaf_size, center, axes, half, left, right, first, count, order):
     """Build one OBB tree over ``tris`` into preallocated node arrays; return (nodes, depth).
 
-    Contract in plain Python::
+    C++ (cpp/obb_tree.cpp, ``engine.build_obb_tree``; runs without the GIL). Contract in plain
+    Python::
 
         root covers all triangles; a node with more than leaf_size triangles is split in two
         along its box's first axis at the mean centroid projection (other axes, then the
-        median, if a side would be empty); each node's box is fit_obb_pca of its vertices.
+        halves of the list, if a side would be empty); each node's box is fit_obb_pca of its
+        vertices; nodes are numbered in creation order, children after their parent.
 
-    :param tris: (m, 3, 3) float64 triangles.
+    :param tris: (m, 3, 3) float64 triangles, m >= 1.
     :param leaf_size: most triangles in a leaf (>= 1).
+    :param center, axes, half: (cap, 3), (cap, 3, 3), (cap, 3) float64, written in place.
+    :param left, right, first, count: (cap,) int64, written in place.
     :param order: (m,) int64 work array; on return, leaf ``n`` holds
         ``tris[order[first[n]:first[n] + count[n]]]``.
-    Node arrays must hold ``2 * m - 1`` nodes.
+    Node arrays must hold ``cap >= 2 * m - 1`` nodes and be C-contiguous of exactly these
+    dtypes (they are written in place, never copied).
     """
-    m = tris.shape[0]
-    centroids = np.empty((m, 3))
-    for i in range(m):
-        order[i] = i
-        for d in range(3):
-            centroids[i, d] = (tris[i, 0, d] + tris[i, 1, d] + tris[i, 2, d]) / 3.0
-    keys = np.empty(m)
-    # Explicit stack of (node, start, end, depth): trees can be deep, recursion is not needed.
-    stack = np.empty((2 * m + 2, 4), dtype=np.int64)
-    stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3] = 0, 0, m, 1
-    top = 1
-    n_nodes = 1
-    max_depth = 1
-    while top > 0:
-        top -= 1
-        node, start, end, depth = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
-        if depth > max_depth:
-            max_depth = depth
-        c, a, h = fit_obb_pca(_gather_points(tris, order, start, end))
-        center[node] = c
-        axes[node] = a
-        half[node] = h
-        n = end - start
-        if n <= leaf_size:
-            left[node] = -1
-            right[node] = -1
-            first[node] = start
-            count[node] = n
-            continue
-        cut = start
-        for k in range(3):
-            total = 0.0
-            for i in range(start, end):
-                t = order[i]
-                keys[t] = (centroids[t, 0] * a[0, k] + centroids[t, 1] * a[1, k]
-                           + centroids[t, 2] * a[2, k])
-                total += keys[t]
-            cut = _partition(keys, order, start, end, total / n)
-            if start < cut < end:
-                break
-        if not start < cut < end:
-            # All centroids coincide along every axis: split the list in halves.
-            cut = start + n // 2
-        left[node] = n_nodes
-        right[node] = n_nodes + 1
-        first[node] = start
-        count[node] = 0
-        stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = n_nodes, start, cut, depth + 1
-        stack[top + 1, 0], stack[top + 1, 1] = n_nodes + 1, cut
-        stack[top + 1, 2], stack[top + 1, 3] = end, depth + 1
-        top += 2
-        n_nodes += 2
-    return n_nodes, max_depth
+    return engine.build_obb_tree(tris, leaf_size, center, axes, half, left, right, first, count,
+                                 order)
 
 
 def triangles_of(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -305,5 +235,3 @@ def node_table(forest: ObbForest) -> np.ndarray:
         np.stack([forest.left, forest.right, forest.first, forest.count], axis=1),
         dtype=np.int64).reshape(-1, NODE_WIDTH)
 
-
-bind_to_kernel_sources(globals())

@@ -4,7 +4,7 @@ import pytest
 import trimesh
 
 from collision_sensor.bounding_volumes import OBB_HULL_PCA, OBB_MIN_VOLUME, OBB_PCA
-from collision_sensor.obb_tree import build_forest
+from collision_sensor.obb_tree import build_forest, build_tree_kernel
 
 
 def _leaves_below(forest, node):
@@ -85,3 +85,32 @@ def test_slower_fits_keep_containment(fit):
     pca = build_forest(meshes, leaf_size=4, fit=OBB_PCA)
     if fit == OBB_MIN_VOLUME:
         assert build_forest(meshes, 4, fit).volume[0] <= pca.volume[0] * (1 + 1e-9)
+
+
+def test_tree_kernel_refuses_bad_buffers():
+    # The node arrays are written in place: a wrong dtype or layout is refused (never copied,
+    # which would lose the writes), a wrong shape names the argument.
+    tris = np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]] * 2)
+    cap = 3
+
+    def buffers(**changes):
+        arrays = dict(center=np.empty((cap, 3)), axes=np.empty((cap, 3, 3)),
+                      half=np.empty((cap, 3)), left=np.empty(cap, dtype=np.int64),
+                      right=np.empty(cap, dtype=np.int64), first=np.empty(cap, dtype=np.int64),
+                      count=np.empty(cap, dtype=np.int64), order=np.empty(2, dtype=np.int64))
+        arrays.update(changes)
+        return arrays
+
+    assert build_tree_kernel(tris, 1, **buffers()) == (3, 2)
+    with pytest.raises(TypeError):
+        build_tree_kernel(tris, 1, **buffers(left=np.empty(cap, dtype=np.int32)))
+    with pytest.raises(TypeError):
+        build_tree_kernel(tris, 1, **buffers(half=np.empty((3, cap)).T))
+    with pytest.raises(ValueError, match='center'):
+        build_tree_kernel(tris, 1, **buffers(center=np.empty((2, 3))))
+    with pytest.raises(ValueError, match='order'):
+        build_tree_kernel(tris, 1, **buffers(order=np.empty(3, dtype=np.int64)))
+    with pytest.raises(ValueError, match='leaf_size'):
+        build_tree_kernel(tris, 0, **buffers())
+    with pytest.raises(ValueError, match='NaN'):
+        build_tree_kernel(np.full((2, 3, 3), np.nan), 1, **buffers())
