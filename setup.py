@@ -96,7 +96,6 @@ setup(
             'ros-jazzy-common-interfaces',
         ],
         'test': [
-            'numba>=0.59',  # the reference kernels the C++ port is checked against (until removed)
             'pytest>=7',
             'python-fcl>=0.7',
             'pin>=3.0',

@@ -13,7 +13,8 @@ __all__ = [
 
 
 def __getattr__(name):
-    # The checker pulls in numba; import it on first use so that light tools stay light.
+    # The checker loads meshes and the compiled engine; import it on first use, so that light
+    # tools stay light.
     if name in ('CollisionChecker', 'CheckResult'):
         from collision_sensor import checker
         return getattr(checker, name)

@@ -16,7 +16,7 @@ LAYOUT_WIDTH = 5
 
 #: Every packed array starts on a cache line of its own: the traversal reads table rows
 #: (16 floats a box, 4 ints a node) that must not straddle two lines. Without it, adding one
-#: small array before the node table once made every UR5 check 1.5 times slower (numba engine).
+#: small array before the node table once made every UR5 check 1.5 times slower.
 CACHE_LINE_BYTES = 64
 
 

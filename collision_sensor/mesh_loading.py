@@ -44,6 +44,8 @@ from typing import Dict, Sequence
 
 import numpy as np
 
+from collision_sensor.stl import read_stl
+
 from collision_sensor.errors import ConfigError, MeshError
 
 #: File types read by :func:`load_mesh_file` (through trimesh; DAE through pycollada).
@@ -194,15 +196,24 @@ def load_mesh_file(path: str, scale=(1.0, 1.0, 1.0), *, owner: str = 'mesh', uri
 def _read_mesh(path, mtime_ns, size):
     # Keyed on mtime and size so that an edited file is read again; the arrays are read-only
     # so that a cached copy cannot be changed by a caller.
-    import trimesh
+    if path.lower().endswith('.stl'):
+        vertices, faces = read_stl(path)
+        return _frozen(vertices, faces, path)
+    import trimesh  # only for the other formats: see collision_sensor.stl
     mesh = trimesh.load(path, force='mesh')
     vertices = np.asarray(mesh.vertices, dtype=np.float64).reshape(-1, 3)
     if path.lower().endswith('.dae'):
         # COLLADA <unit meter="0.001"/>: ROS tools (assimp) scale by it; trimesh only records
         # it, as units "0.001 * meters".
         vertices = vertices * _collada_meters_per_unit(mesh, path)
-    vertices = np.ascontiguousarray(vertices)
-    faces = np.ascontiguousarray(np.asarray(mesh.faces, dtype=np.int64).reshape(-1, 3))
+    faces = np.asarray(mesh.faces, dtype=np.int64).reshape(-1, 3)
+    return _frozen(vertices, faces, path)
+
+
+def _frozen(vertices, faces, path):
+    """Check and freeze a file's arrays (the cache hands the same ones to every caller)."""
+    vertices = np.ascontiguousarray(vertices, dtype=np.float64)
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
     if not np.all(np.isfinite(vertices)):
         raise MeshError(f'mesh "{path}" has non-finite vertex coordinates; repair the file')
     vertices.setflags(write=False)

@@ -142,6 +142,13 @@ constexpr int ENGINE_API = 1;
 PYBIND11_MODULE(_engine, m) {
     m.doc() = "collision_sensor's compiled engine (C++17); see collision_sensor.compiled";
     m.attr("ENGINE_API") = ENGINE_API;
+#if defined(__clang__)
+    m.attr("COMPILER") = "clang " __clang_version__;
+#elif defined(__GNUC__)
+    m.attr("COMPILER") = "g++ " __VERSION__;
+#else
+    m.attr("COMPILER") = "unknown compiler";
+#endif
 #ifdef COLLISION_SENSOR_SOURCE_DIGEST
     m.attr("SOURCE_DIGEST") = COLLISION_SENSOR_SOURCE_DIGEST;
 #else

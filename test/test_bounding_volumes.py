@@ -184,7 +184,7 @@ def test_volumes():
 
 def _volume_from_fit(points):
     # The box volume recomputed in plain numpy from the fit's half extents (formerly a
-    # numba-compiled caller; the fit is C++ now, cpp/bounding_volumes.cpp).
+    # compiled caller; the fit is C++, cpp/bounding_volumes.cpp).
     c, a, h = fit_obb_pca(points)
     return 8.0 * np.prod(h)
 

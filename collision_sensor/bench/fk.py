@@ -5,7 +5,7 @@ computes the pose of every link of the same seeded random configurations within 
 run, so the ratios compare like with like:
 
 - ours, single: :meth:`KinematicTree.forward_kinematics` called from Python per configuration
-  (the wrapper's overhead included: array checks, output allocation, numba dispatch);
+  (the wrapper's overhead included: array checks, output allocation, the call into the C++ engine);
 - ours, batch: :meth:`KinematicTree.forward_kinematics_batch` over all, per configuration;
 - yourdfpy: ``update_cfg`` then ``get_transform(link, root)`` for every link;
 - pinocchio: ``forwardKinematics`` + ``updateFramePlacements`` (all frames, from Python).

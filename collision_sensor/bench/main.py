@@ -83,7 +83,7 @@ def _cpu() -> str:
 
 def header(settings: Settings, numbers: Sequence[int]) -> List[str]:
     """Return the report's opening lines: machine, versions, run settings."""
-    import numba
+    from collision_sensor.compiled import engine
     import numpy
     try:
         cores = len(os.sched_getaffinity(0))
@@ -94,7 +94,8 @@ def header(settings: Settings, numbers: Sequence[int]) -> List[str]:
     return [
         '## Performance (collision_sensor_bench)', '',
         f'Run {when} on {_cpu()} ({cores} cores available, shared); Python '
-        f'{platform.python_version()}, numpy {numpy.__version__}, numba {numba.__version__}; '
+        f'{platform.python_version()}, numpy {numpy.__version__}, engine C++ '
+        f'{engine.COMPILER}; '
         f'peers: {peers}. Settings: {"--quick, " if settings.quick else ""}seed '
         f'{settings.seed}, scenarios {", ".join(map(str, numbers))}. Every figure is measured '
         'in this run; ratios are ours / peer (below 1: we are faster).',
