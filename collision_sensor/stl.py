@@ -32,6 +32,8 @@ def read_stl(path: str):
         numbers or not a multiple of three.
     """
     size = os.path.getsize(path)
+    if size < 84 and not _starts_ascii(path):
+        return merge_vertices(np.zeros((0, 3)))  # too short for a single triangle
     with open(path, 'rb') as stream:
         head = stream.read(84)
         count = int.from_bytes(head[80:84], 'little') if len(head) == 84 else -1
@@ -51,6 +53,11 @@ def read_stl(path: str):
     if len(corners) % 3:
         raise StlError(f'ASCII STL with {len(corners)} vertices, not three per facet')
     return merge_vertices(corners)
+
+
+def _starts_ascii(path: str) -> bool:
+    with open(path, 'rb') as stream:
+        return stream.read(84).lstrip().startswith(b'solid')
 
 
 def merge_vertices(corners: np.ndarray):
