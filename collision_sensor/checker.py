@@ -30,7 +30,10 @@ from collision_sensor.scene import SceneObject, load_scene
 from collision_sensor.srdf import Srdf, load_srdf
 
 Pair = Tuple[str, str]
-_FLOAT64 = np.dtype(np.float64)
+_NOT_AN_ARRAY = engine.NOT_AN_ARRAY
+#: Distinct colliding-pair sets whose answer tuples are kept for reuse (a robot in use meets
+#: few of them; the bound keeps a random stream from growing the cache without end).
+RESULT_CACHE_SIZE = 4096
 Positions = Union[Mapping[str, float], Sequence[float], np.ndarray]
 
 
@@ -235,8 +238,9 @@ class CollisionChecker:
         self.counters = int_views['counters']  # work done, see traversal.COUNT_* (benchmarks)
         # The joint vector of the last call; the kernel writes it (read-only for Python).
         self._q = float_views['q_last']
-        self._q_shape = self._q.shape
         self._result = CheckResult(False, (), 0)
+        self._results: Dict[bytes, Tuple[Pair, ...]] = {}
+        self._query = self._engine.query
 
     @classmethod
     def from_urdf(cls, urdf, srdf=None, package_paths: Optional[Mapping[str, str]] = None,
@@ -406,30 +410,33 @@ class CollisionChecker:
         return np.ascontiguousarray(values)
 
     def _run(self, positions: Positions, full: bool) -> CheckResult:
-        # A float64 C-contiguous array of the right length goes to the kernel as it is (the
-        # kernel copies it before keeping it); each test here is a cheap attribute test.
-        if not (type(positions) is np.ndarray and positions.dtype is _FLOAT64
-                and positions.shape == self._q_shape and positions.flags.c_contiguous):
-            positions = self._merged(positions)
-        code = self._engine.query(positions, full)
-        if code == 0 and self._result.rechecked_pairs == 0:
-            return self._result  # nothing moved, as in the last call: the same answer
-        return self._answer(code, positions)
-
-    def _answer(self, code: int, positions: np.ndarray) -> CheckResult:
-        """Turn the engine's code (``Engine::query``) into the result, or raise."""
-        if code < 0:
-            raise JointStateError(self._unusable_message(-1 - code, positions))
-        rechecked = code >> 1
-        result = self._result
-        if code & 1:
-            # The kernel reports whether any status changed, full check or not, so the names
-            # are gathered again only then (a few microseconds, as much as a Panda query).
-            result = self._result = self._result_from_status(rechecked)
-        elif rechecked != result.rechecked_pairs:
-            result = self._result = CheckResult(result.in_collision, result.colliding_pairs,
-                                                rechecked)
-        return result
+        # A float64 C-contiguous array of the right length goes to the engine as it is (it
+        # copies the values before keeping them); the engine tells anything else apart. This
+        # is every joint-state message's path: a Python call costs here about what the
+        # engine's own check of a Panda costs, so it stays flat.
+        code = self._query(positions, full)
+        if code > 0:
+            if code & 1:
+                # The engine reports whether any status changed, so the pair names are
+                # gathered only then (and found again by the statuses' bytes).
+                hits = self._results.get(self._status.tobytes())
+                if hits is None:
+                    hits = self._pair_names_now()
+                result = self._result = CheckResult(bool(hits), hits, code >> 1)
+                return result
+            if code >> 1 != self._result.rechecked_pairs:
+                result = self._result
+                self._result = CheckResult(result.in_collision, result.colliding_pairs,
+                                           code >> 1)
+            return self._result
+        if code == 0:
+            if self._result.rechecked_pairs:
+                result = self._result
+                self._result = CheckResult(result.in_collision, result.colliding_pairs, 0)
+            return self._result  # nothing moved: the same answer
+        if code == _NOT_AN_ARRAY:
+            return self._run(self._merged(positions), full)
+        raise JointStateError(self._unusable_message(-1 - code, positions))
 
     def _unusable_message(self, j: int, q: np.ndarray, row: Optional[int] = None) -> str:
         """The message for variable j of ``q``, which the engine refused (not finite, or
@@ -514,9 +521,19 @@ class CollisionChecker:
             raise JointStateError(self._unusable_message(j, Q[row], row))
         return statuses.view(bool), codes
 
-    def _result_from_status(self, rechecked: int) -> CheckResult:
+    def _pair_names_now(self) -> Tuple[Pair, ...]:
+        """The colliding pairs' names for the current statuses (kept for reuse: the same pair
+        set comes back again and again, mostly none or one or two pairs)."""
         names = self.checked_pairs
         hits = tuple([names[p] for p in np.flatnonzero(self._status)])
+        if len(self._results) < RESULT_CACHE_SIZE:
+            self._results[self._status.tobytes()] = hits
+        return hits
+
+    def _result_from_status(self, rechecked: int) -> CheckResult:
+        hits = self._results.get(self._status.tobytes())
+        if hits is None:
+            hits = self._pair_names_now()
         return CheckResult(bool(hits), hits, rechecked)
 
     # ------------------------------------------------------------------ inspection

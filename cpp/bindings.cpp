@@ -13,6 +13,7 @@
 
 #include "query.hpp"
 
+#include <climits>
 #include <memory>
 #include <string>
 
@@ -47,6 +48,9 @@ T* writable(const char* name, Array<T>& a) {
     return a.mutable_data();
 }
 
+//: Engine.query's answer for an argument that is not a C-contiguous float64 array of J values.
+constexpr int64_t NOT_AN_ARRAY = INT64_MIN;
+
 // The checker's engine: the C++ Engine over the two packed buffers, which it keeps alive.
 struct PyEngine {
     Array<double> F;
@@ -64,11 +68,19 @@ struct PyEngine {
         }
     }
 
-    int64_t query(const Array<double>& q, bool full) {
-        if (q.ndim() != 1 || q.shape(0) != engine->n_joints())
-            throw py::value_error("q: expected " + std::to_string(engine->n_joints()) +
-                                  " joint values");
-        const double* data = q.data();
+    // q: any object. The checker passes what its caller gave; only a C-contiguous float64
+    // array of J values is taken as it is (checked here on numpy's own struct, cheaper than a
+    // caster), anything else answers NOT_AN_ARRAY and the checker converts it first.
+    int64_t query(py::handle q, bool full) {
+        if (!py::isinstance<py::array>(q)) return NOT_AN_ARRAY;
+        const auto* array = py::detail::array_proxy(q.ptr());
+        const auto* descr = py::detail::array_descriptor_proxy(array->descr);
+        constexpr int required = py::detail::npy_api::NPY_ARRAY_C_CONTIGUOUS_ |
+                                 py::detail::npy_api::NPY_ARRAY_ALIGNED_;
+        if (descr->type_num != py::detail::npy_api::NPY_DOUBLE_ || array->nd != 1 ||
+            array->dimensions[0] != engine->n_joints() || (array->flags & required) != required)
+            return NOT_AN_ARRAY;
+        const double* data = reinterpret_cast<const double*>(array->data);
         py::gil_scoped_release release;
         std::lock_guard<std::mutex> hold(engine->lock());
         return engine->query(data, full);
@@ -162,6 +174,7 @@ PYBIND11_MODULE(_engine, m) {
     m.attr("FLOAT_SLOTS") = py::tuple(float_slots);
     m.attr("INT_SLOTS") = py::tuple(int_slots);
     m.attr("HEADER_SIZE") = cs::HEADER_SIZE;
+    m.attr("NOT_AN_ARRAY") = NOT_AN_ARRAY;
     m.attr("LAYOUT_WIDTH") = cs::LAYOUT_WIDTH;
     m.attr("N_SCALARS") = cs::N_SCALARS;
     m.attr("S_TOLERANCE") = cs::S_TOLERANCE;
@@ -190,7 +203,9 @@ PYBIND11_MODULE(_engine, m) {
         .def(py::init<Array<double>, Array<int64_t>>(), py::arg("F").noconvert(),
              py::arg("I").noconvert())
         .def("query", &PyEngine::query, py::arg("q"), py::arg("full"),
-             "Bring the statuses up to date with q; return 2 * rechecked + changed, or -1 - j "
+             "Bring the statuses up to date with q (a C-contiguous float64 array of J values; "
+             "anything else answers NOT_AN_ARRAY and changes nothing); return 2 * rechecked + "
+             "changed, or -1 - j "
              "when q[j] is not usable: not finite, or beyond the engine's range (nothing "
              "changed then).")
         .def("batch", &PyEngine::batch, py::arg("Q"), py::arg("full"),

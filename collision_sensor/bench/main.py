@@ -12,7 +12,9 @@ times of scenario 1. Peers are optional: a missing one is reported as missing.
 1. random configurations (Panda, UR5, demo arm in its scene) against pinocchio+coal and
    python-fcl; 2. coherent streams, ``update`` against ``check``; 3. the paper's experiment
    (demo arm into the washer); 4. scale (Panda against 10k, 100k and 1M-triangle meshes);
-   5. the parts (box tests, expansion rules, bounding-volume fits).
+   5. the parts (box tests, expansion rules, bounding-volume fits, the cost of a call);
+   6. heavy contact (a tool mesh among clutter, against python-fcl); 7. large meshes and
+   many pairs (example-robot-data robots of 50k triangles and more, against pinocchio+coal).
 """
 import argparse
 import datetime
@@ -27,15 +29,15 @@ from typing import List, Optional, Sequence
 from collision_sensor.bench.scenario_report import Section
 from collision_sensor.bench.scenario_settings import Settings
 
-SCENARIOS = (1, 2, 3, 4, 5)
+SCENARIOS = (1, 2, 3, 4, 5, 6, 7)
 PEERS = (('pinocchio', 'pin'), ('coal', 'coal'), ('python-fcl', 'python-fcl'))
 
 
 def run_scenarios(numbers: Sequence[int], settings: Settings, log=None) -> List[Section]:
     """Run the scenarios ``numbers`` in order; return their sections."""
     from collision_sensor.bench import (
-        scenario_cells, scenario_paper, scenario_parts, scenario_random, scenario_scale,
-        scenario_streams)
+        scenario_cells, scenario_contact, scenario_large, scenario_paper, scenario_parts,
+        scenario_random, scenario_scale, scenario_streams)
     log = log or (lambda message: None)
     sections = []
     with tempfile.TemporaryDirectory(prefix='collision_sensor_bench_') as workdir:
@@ -55,8 +57,12 @@ def run_scenarios(numbers: Sequence[int], settings: Settings, log=None) -> List[
                     settings, scenario_cells.demo_arm_cell(workdir, washer_only=True))
             elif number == 4:
                 section = scenario_scale.run(settings)
-            else:
+            elif number == 5:
                 section = scenario_parts.run(settings)
+            elif number == 6:
+                section = scenario_contact.run(settings, workdir)
+            else:
+                section = scenario_large.run(settings)
             section.plot['seconds'] = time.perf_counter() - start
             log(f'scenario {number} done in {section.plot["seconds"]:.0f} s')
             sections.append(section)

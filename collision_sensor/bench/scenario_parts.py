@@ -4,9 +4,11 @@
   near-touching pairs (:mod:`collision_sensor.bench.box_tests`, compiled loops);
 - expansion rules (sec. 4.1) with each box test: time and work per query on the Panda;
 - bounding-volume fits (vertex PCA, hull PCA, minimum volume): total volume of all the trees'
-  boxes, of the root boxes, build time and query time on the Panda.
+  boxes, of the root boxes, build time and query time on the Panda;
+- the cost of a call: one Python ``check(q)`` against the engine's own time for the same
+  check (``check_batch``, one call for all configurations), on the Panda.
 
-No targets: these tables choose the checker's defaults.
+These tables choose the checker's defaults; the one target is the binding's overhead.
 """
 from collision_sensor.bench import box_tests
 from collision_sensor.bench.scenario_cells import robot_cell
@@ -29,7 +31,38 @@ def run(settings) -> Section:
     configurations = list(random_configurations(base, settings.configurations, settings.seed))
     _rules(section, cell, configurations, settings)
     _fits(section, cell, configurations, settings)
+    _call_cost(section, base, configurations, settings)
     return section
+
+
+def _call_cost(section, checker, configurations, settings):
+    """One Python call per check against the engine's own time per check (a batch)."""
+    import numpy as np
+    Q = np.asarray(configurations)
+    same = Q[0].copy()
+    checker.check(same)
+    times = interleaved_us([
+        Candidate('check', checker.check, configurations),
+        Candidate('batch', lambda _: checker.check_batch(Q), [None]),
+        Candidate('update_same', checker.update, [same] * len(configurations)),
+    ], settings.rounds)
+    engine_us = times['batch'] / len(Q)
+    overhead = times['check'] - engine_us
+    section.text('', '#### The cost of a call (Panda)', '',
+                 f'{len(Q)} random configurations. The engine\'s own time per check is '
+                 '`check_batch` over all of them in one call, divided by their number; a Python '
+                 '`check(q)` adds the binding (argument checks, the GIL released and taken '
+                 'back) and the result tuple. `update` with nothing moved is a call that does '
+                 'no work at all.')
+    section.table(['call', 'us'], [
+        ['`check(q)`, one Python call per configuration', us(times['check'])],
+        ['`check_batch(Q)`, per configuration (the engine alone)', us(engine_us)],
+        ['overhead of a call: the difference', us(overhead)],
+        ['`update(q)` with q unchanged (a call that does nothing)', us(times['update_same'])],
+    ])
+    section.judge('S5 binding overhead of `check(array)` over the engine\'s own time <= 1 us',
+                  f'{us(overhead)} us ({us(times["check"])} vs {us(engine_us)} us)',
+                  overhead <= 1.0)
 
 
 def _box_tests(section, settings):
