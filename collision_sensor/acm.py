@@ -522,7 +522,7 @@ def _write(path: str, data: bytes) -> None:
 
 def _run(args, argv: Sequence[str], start: float) -> int:
     from collision_sensor.checker import CollisionChecker
-    from collision_sensor.srdf import load_srdf
+    from collision_sensor.srdf import load_srdf_for_model
     from collision_sensor.srdf_merge import merge_disable_collisions, new_srdf
 
     if args.in_place and not args.srdf:
@@ -537,8 +537,7 @@ def _run(args, argv: Sequence[str], start: float) -> int:
                                       or None, config={'ignore_adjacent': False})
     srdf = original = None
     if args.srdf:
-        srdf = load_srdf(args.srdf, link_names=base.model.links,
-                         joint_names=[joint.name for joint in base.model.joints])
+        srdf = load_srdf_for_model(args.srdf, base.model)
         with open(args.srdf, 'rb') as stream:
             original = stream.read()
     elif args.default_state:

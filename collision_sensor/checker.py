@@ -30,7 +30,7 @@ from collision_sensor.query_kernel import (
 from collision_sensor.robot_model import RobotModel, load_urdf
 from collision_sensor.traversal import N_COUNTERS, POSE_WIDTH
 from collision_sensor.scene import SceneObject, load_scene
-from collision_sensor.srdf import Srdf, load_srdf
+from collision_sensor.srdf import Srdf, load_srdf_for_model
 
 Pair = Tuple[str, str]
 _FLOAT64 = np.dtype(np.float64)
@@ -258,8 +258,7 @@ class CollisionChecker:
         model = load_urdf(urdf, package_paths, primitive_sections=settings.primitive_sections)
         srdf_model = None
         if srdf is not None:
-            srdf_model = load_srdf(srdf, link_names=model.links,
-                                   joint_names=[joint.name for joint in model.joints])
+            srdf_model = load_srdf_for_model(srdf, model)
         objects = ()
         if scene is not None:
             objects = load_scene(scene, package_paths,

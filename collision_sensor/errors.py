@@ -17,6 +17,13 @@ class MeshError(RobotDescriptionError):
     """A mesh that cannot be found or read, or has no usable triangles."""
 
 
+class LoadWarning(UserWarning):
+    """Something in a URDF or SRDF that is skipped or tolerated, as ROS tools tolerate it.
+
+    The message names the file, the line or element, and the fix.
+    """
+
+
 class SrdfError(CollisionSensorError):
     """An SRDF that cannot be read or names links the robot does not have."""
 
