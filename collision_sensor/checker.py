@@ -244,7 +244,7 @@ class CollisionChecker:
 
     @classmethod
     def from_urdf(cls, urdf, srdf=None, package_paths: Optional[Mapping[str, str]] = None,
-                  scene=None, config=None) -> 'CollisionChecker':
+                  scene=None, config=None, xacro_args=None) -> 'CollisionChecker':
         """Load a robot, optionally its SRDF and a static scene, and build the checker.
 
         :param urdf: path to a URDF file, or the URDF's XML text.
@@ -252,10 +252,12 @@ class CollisionChecker:
         :param package_paths: ``{package_name: directory}`` for ``package://`` mesh URIs.
         :param scene: path to a scene YAML file (or its parsed mapping), or None.
         :param config: mapping of settings (see :mod:`collision_sensor.checker_config`).
+        :param xacro_args: ``{name: value}`` for a ``.xacro`` ``urdf``'s ``$(arg name)``.
         :raises CollisionSensorError: naming the file, link or setting at fault.
         """
         settings = CheckerConfig.from_mapping(config)
-        model = load_urdf(urdf, package_paths, primitive_sections=settings.primitive_sections)
+        model = load_urdf(urdf, package_paths, primitive_sections=settings.primitive_sections,
+                          xacro_args=xacro_args)
         srdf_model = None
         if srdf is not None:
             srdf_model = load_srdf_for_model(srdf, model)

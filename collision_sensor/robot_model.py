@@ -46,6 +46,7 @@ import numpy as np
 
 from collision_sensor import mesh_loading
 from collision_sensor.errors import LoadWarning, RobotDescriptionError
+from collision_sensor.xacro_expansion import expand_xacro, is_xacro_path
 from collision_sensor.xml_safety import describe_source, is_xml_text, parse_xml
 
 JOINT_TYPES = ('revolute', 'continuous', 'prismatic', 'fixed', 'planar', 'floating')
@@ -138,11 +139,15 @@ class RobotModel:
     warnings: tuple[str, ...] = ()
 
 
-def load_urdf(urdf, package_paths=None, *, primitive_sections: int = 32) -> RobotModel:
+def load_urdf(urdf, package_paths=None, *, primitive_sections: int = 32,
+              xacro_args=None) -> RobotModel:
     """Read a URDF, validate its tree and load its collision geometry.
 
     :param urdf: a path (``str`` or ``os.PathLike``) or the XML text (a ``str`` whose first
-        non-blank character is ``<``, or ``bytes``).
+        non-blank character is ``<``, or ``bytes``). A path ending in ``.xacro`` is expanded
+        first (:mod:`collision_sensor.xacro_expansion`); relative mesh paths then resolve
+        against the xacro file's directory.
+    :param xacro_args: ``{name: value}`` for the xacro file's ``$(arg name)``.
     :param package_paths: mapping ``{package_name: directory}`` used first to resolve
         ``package://`` mesh URIs (see :mod:`collision_sensor.mesh_loading` for the full order).
     :param primitive_sections: sections around cylinders and spheres when tessellating them.
@@ -151,8 +156,15 @@ def load_urdf(urdf, package_paths=None, *, primitive_sections: int = 32) -> Robo
     :raises MeshError: a collision mesh that cannot be found or read.
     """
     source = describe_source(urdf, 'URDF')
-    root = parse_xml(urdf, 'URDF')
     base_dir = None if is_xml_text(urdf) else os.path.dirname(os.path.abspath(source))
+    if is_xacro_path(urdf):
+        root = parse_xml(expand_xacro(urdf, xacro_args, package_paths).encode('utf-8'),
+                         'URDF')
+    elif xacro_args:
+        raise RobotDescriptionError(f'URDF "{source}": xacro_args given, but the description '
+                                    'is not a .xacro file; leave xacro_args out')
+    else:
+        root = parse_xml(urdf, 'URDF')
     context = _Context(source)
     if root.tag != 'robot':
         raise context.error(f'the root element is <{root.tag}>, not <robot>; give a URDF')
