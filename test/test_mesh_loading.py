@@ -122,6 +122,29 @@ def test_collada_units_are_applied(tetra_files, tmp_path):
     np.testing.assert_allclose(vertices.max(axis=0), [0.002, 0.001, 0.001])
 
 
+@pytest.mark.parametrize('axis', ['X_UP', 'Y_UP', 'Z_UP'])
+def test_collada_up_axis_is_not_applied_as_in_ros_tools(tetra_files, tmp_path, axis):
+    # assimp puts the up-axis rotation in the root node transform, which MoveIt
+    # (geometric_shapes) and RViz reset: vertices are used in the file's own axes.
+    with open(tetra_files['dae']) as stream:
+        text = re.sub(r'<up_axis>[^<]*</up_axis>', '', stream.read())
+    path = tmp_path / f'tetra_{axis}.dae'
+    path.write_text(text.replace('</asset>', f'<up_axis>{axis}</up_axis></asset>', 1))
+    vertices, _ = load_mesh_file(str(path), [2.0, 3.0, 4.0])
+    np.testing.assert_allclose(vertices.max(axis=0), [2.0, 3.0, 4.0])
+
+
+def test_real_y_up_collada_stays_in_the_link_frame(erd_share):
+    # go1's trunk.dae declares Y_UP but is authored in the link frame (x forward, z up), like
+    # 87 of the example-robot-data DAE files: turning it to Z-up would stand the trunk on end.
+    path = os.path.join(erd_share, 'robots', 'go1_description', 'meshes', 'trunk.dae')
+    with open(path) as stream:
+        assert '<up_axis>Y_UP</up_axis>' in stream.read()
+    vertices, _ = load_mesh_file(path)
+    extent = vertices.max(axis=0) - vertices.min(axis=0)
+    assert extent[0] > 0.4 and extent[2] < 0.15   # long along x, flat along z
+
+
 def test_degenerate_triangles_are_kept(tmp_path):
     mesh = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0]],
                            [[0, 1, 2], [0, 1, 3]], process=False)   # the second has zero area
