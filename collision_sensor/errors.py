@@ -42,3 +42,15 @@ class JointStateError(CollisionSensorError, ValueError):
 
 class SequenceError(CollisionSensorError):
     """A recorded joint-state sequence that cannot be read or written."""
+
+
+#: Lines of one warning printed at most; the rest are counted (all kept in ``.warnings``).
+MAX_WARNING_LINES = 20
+
+
+def listed_lines(lines) -> str:
+    """Return ``lines`` indented one per line, at most :data:`MAX_WARNING_LINES` of them."""
+    shown = ['  ' + line for line in lines[:MAX_WARNING_LINES]]
+    if len(lines) > MAX_WARNING_LINES:
+        shown.append(f'  ... and {len(lines) - MAX_WARNING_LINES} more (all in .warnings)')
+    return '\n'.join(shown)

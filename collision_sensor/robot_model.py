@@ -28,7 +28,10 @@ joint's origin. Any other planar or floating joint makes
 
 Tolerated with a :class:`LoadWarning` naming the file, the joint and the fix (as urdfdom and
 MoveIt tolerate them): a ``<mimic>`` naming a joint that does not exist, or a joint with
-another number of variables (fixed, planar, floating); the joint is then independent.
+another number of variables (fixed, planar, floating); the joint is then independent. Also
+tolerated, as pinocchio does though ROS's resource_retriever does not: a mesh URI
+``package:///NAME/...`` (empty package name) is read as ``package://NAME/...`` (one warning
+per URDF; talos_full_v2 of example-robot-data is written so).
 
 Rejected with :class:`RobotDescriptionError` naming the culprit and the fix: a link with two
 parents, a cycle, several roots, a joint naming an unknown link, a mimic cycle, non-finite
@@ -45,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from collision_sensor import mesh_loading
-from collision_sensor.errors import LoadWarning, RobotDescriptionError
+from collision_sensor.errors import LoadWarning, RobotDescriptionError, listed_lines
 from collision_sensor.xacro_expansion import expand_xacro, is_xacro_path
 from collision_sensor.xml_safety import describe_source, is_xml_text, parse_xml
 
@@ -195,7 +198,7 @@ def load_urdf(urdf, package_paths=None, *, primitive_sections: int = 32,
         warnings.warn(LoadWarning(
             f'URDF "{source}": {len(context.warnings)} oddit'
             f'{"y" if len(context.warnings) == 1 else "ies"} tolerated:\n'
-            + '\n'.join('  ' + w for w in context.warnings)), stacklevel=2)
+            + listed_lines(context.warnings)), stacklevel=2)
     return RobotModel(name=root.get('name', ''), root_link=links[0], links=tuple(links),
                       joints=tuple(joints), elements=tuple(elements), source=source,
                       joint_document_order=document_order, held_joints=held,
@@ -315,6 +318,12 @@ class _Context:
     def __init__(self, source):
         self.source = source
         self.warnings = []
+        self._warned = set()
+
+    def warn_once(self, key, message):
+        if key not in self._warned:
+            self._warned.add(key)
+            self.warnings.append(message)
 
     def error(self, message):
         return RobotDescriptionError(f'URDF "{self.source}": {message}')
@@ -471,6 +480,13 @@ def _load_collision(collision, link, index, context, package_paths, base_dir, se
         if not uri:
             raise context.error(f'{where}: <mesh> lacks filename="..."; add it')
         scale = context.floats(shape, 'scale', 3, where, default=(1.0, 1.0, 1.0))
+        if uri.startswith('package:///') and uri[len('package:///'):].lstrip('/'):
+            fixed = 'package://' + uri[len('package:///'):].lstrip('/')
+            context.warn_once('package:///', f'mesh "{uri}" ({owner}, and every other '
+                              '"package:///" URI) has an empty package name; read as '
+                              f'"{fixed}" (as pinocchio does; ROS resource_retriever refuses '
+                              'it); write package://PACKAGE/...')
+            uri = fixed
         path = mesh_loading.resolve_mesh_uri(uri, package_paths, base_dir, owner=owner)
         vertices, faces = mesh_loading.load_mesh_file(path, scale, owner=owner, uri=uri)
         source = f'mesh {uri}'

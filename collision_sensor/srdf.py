@@ -27,7 +27,7 @@ its first reason.
 import warnings
 from dataclasses import dataclass, field
 
-from collision_sensor.errors import LoadWarning, SrdfError
+from collision_sensor.errors import LoadWarning, SrdfError, listed_lines
 from collision_sensor.xml_safety import describe_source, parse_xml
 
 #: MoveIt's variable names of a multi-DOF joint, by joint type (``<joint>/<suffix>``).
@@ -126,10 +126,10 @@ def load_srdf(srdf, link_names=None, joint_names=None, *, robot_name=None,
     pairs = reader.disabled_pairs(root)
     group_states = reader.group_states(root, {joint.name: joint for joint in virtual_joints})
     if reader.warnings:
+        count = len(reader.warnings)
         warnings.warn(LoadWarning(
-            f'SRDF "{source}": {len(reader.warnings)} entr{"y" if len(reader.warnings) == 1 else "ies"} '
-            'skipped (as MoveIt skips them):\n' + '\n'.join('  ' + w for w in reader.warnings)),
-            stacklevel=2)
+            f'SRDF "{source}": {count} entr{"y" if count == 1 else "ies"} skipped (as MoveIt '
+            'skips them):\n' + listed_lines(reader.warnings)), stacklevel=2)
     return Srdf(robot_name=document_name, disabled_pairs=pairs, group_states=group_states,
                 source=source, virtual_joints=virtual_joints, warnings=tuple(reader.warnings))
 
@@ -162,16 +162,17 @@ class _Reader:
     def check_robot(self, root, document_name, robot_name):
         if robot_name is None or not document_name or document_name == robot_name:
             return
-        named = [element.get(attribute) for path, attribute in _LINK_REFERENCES + (
+        links = {element.get(attribute) for path, attribute in _LINK_REFERENCES + (
             ('disable_collisions', 'link1'), ('disable_collisions', 'link2'),
-            ('virtual_joint', 'child_link')) for element in root.findall(path)]
-        named = [name for name in named if name]
-        if named and not self.links.intersection(named):
+            ('virtual_joint', 'child_link')) for element in root.findall(path)} - {None, ''}
+        joints = {element.get(attribute) for path, attribute in _JOINT_REFERENCES + (
+            ('group_state/joint', 'name'),) for element in root.findall(path)} - {None, ''}
+        if (links or joints) and not (links & self.links or joints & (self.joints or set())):
+            named = sorted(links) + sorted(joints)
             raise SrdfError(
                 f'SRDF "{self.source}" is for robot "{document_name}", not "{robot_name}", and '
-                f'none of the {len(set(named))} link names it uses is a link of this robot '
-                f'(e.g. {_listed(sorted(set(named))[:5])}); load the SRDF that belongs to '
-                f'"{robot_name}"')
+                f'none of the {len(named)} link and joint names it uses is in this robot '
+                f'(e.g. {_listed(named[:5])}); load the SRDF that belongs to "{robot_name}"')
         self.warnings.append(f'line {root.sourceline}: <robot name="{document_name}">: the '
                              f'URDF robot is "{robot_name}"; the entries that match are used; '
                              'fix the name if this is the right SRDF')

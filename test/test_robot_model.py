@@ -256,6 +256,18 @@ def test_unknown_joint_type_is_refused():
         load_urdf(two_links('ball'))
 
 
+def test_package_uri_with_an_empty_package_name_is_read_with_a_warning(erd_package_paths):
+    mesh = ('<link name="{0}"><collision><geometry><mesh filename="package:///example-robot-data/'
+            'robots/panda_description/meshes/collision/link0.stl"/></geometry></collision></link>')
+    text = robot(mesh.format('a') + mesh.format('b') + '<joint name="j" type="fixed">'
+                 '<parent link="a"/><child link="b"/></joint>')
+    with pytest.warns(LoadWarning, match='1 oddity tolerated') as caught:
+        model = load_urdf(text, erd_package_paths)
+    assert 'empty package name; read as "package://example-robot-data/robots/' in str(
+        caught[0].message)
+    assert len(model.elements) == 2 and len(model.elements[0].faces) > 0
+
+
 def test_mimic_of_unknown_joint_is_tolerated_as_independent():
     # As urdfdom and MoveIt read alex_psyonic_hands.urdf: the joint moves on its own.
     text = two_links().replace('<axis', '<mimic joint="ghost" multiplier="2"/><axis')

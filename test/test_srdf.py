@@ -117,9 +117,21 @@ def test_srdf_of_another_robot(panda):
                           'link2="panda_link3"/></robot>', panda)
     assert 'the URDF robot is "panda"' in message and len(srdf.disabled_pairs) == 1
     # Another name and nothing in common: it cannot describe this robot.
-    with pytest.raises(SrdfError, match='is for robot "ur5", not "panda", and none of the 2 link'):
+    with pytest.raises(SrdfError, match='is for robot "ur5", not "panda", and none of the 2 link and joint names'):
         load_srdf_for_model('<robot name="ur5"><disable_collisions link1="shoulder_link" '
                             'link2="base_link"/></robot>', panda)
+    # Joints count as well as links (alex_psyonic_hands.srdf names only joints).
+    srdf, message = _read('<robot name="franka"><group name="arm"><joint name="panda_joint1"/>'
+                          '<joint name="elbow"/></group></robot>', panda)
+    assert 'line 1: <joint name="elbow"> skipped: name="elbow" is not a joint' in message
+
+
+def test_a_long_list_of_skipped_entries_is_cut_when_printed(panda):
+    text = '<robot name="panda">' + ''.join(
+        f'<disable_collisions link1="a{i}" link2="panda_link1"/>' for i in range(30)) + '</robot>'
+    srdf, message = _read(text, panda)
+    assert len(srdf.warnings) == 30 and message.count('skipped:') == 20
+    assert '... and 10 more (all in .warnings)' in message
 
 
 @pytest.mark.parametrize('text, culprit', [
