@@ -17,7 +17,8 @@ class FclOracle:
         self.checker = checker
         self.pin_model = pin.buildModelFromUrdf(urdf_path)
         self.pin_data = self.pin_model.createData()
-        self.frame_ids = {name: self.pin_model.getFrameId(name)
+        # BODY: a joint may share its link's name (anymal's LF_HAA).
+        self.frame_ids = {name: self.pin_model.getFrameId(name, pin.FrameType.BODY)
                           for name in checker.kinematics.link_names}
         self.models = {}
         for element in checker.model.elements:

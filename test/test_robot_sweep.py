@@ -22,10 +22,20 @@ REJECTED = {
 }
 
 #: Robots whose answers differ from fcl's for a known reason outside the loader.
-XFAIL = {}
+_COINCIDENT = ('at q = 0 the hand_index, hand_mrl and hand_thumb links carry identical 1 mm '
+               'collision spheres at the same pose: identical surfaces touch everywhere, which '
+               'the contact rule counts (README, "Contact rule") and fcl\'s triangle test, '
+               'blind to coplanar triangles, does not')
+XFAIL = {
+    'tiago_description/tiago': _COINCIDENT,
+    'tiago_description/tiago_dual': _COINCIDENT,
+}
 
-#: Robots that take long to load or check (big meshes); name -> why.
-SLOW = {}
+#: Robots that take long to load or check (over 10 s here: 300k+ triangles); name -> why.
+SLOW = {
+    'g1_description/g1_29dof_with_hand_rev_1_0': '368,200 triangles',
+    'so_arm_description/so101': '398,884 triangles',
+}
 
 try:
     ROBOTS = example_robot_files()
