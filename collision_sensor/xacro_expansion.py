@@ -17,6 +17,24 @@ from collision_sensor.package_lookup import find_package
 _LOCK = threading.Lock()
 
 
+def parse_xacro_args(entries, what: str = '--xacro-arg') -> dict:
+    """Turn ``"name:=value"`` strings (the xacro command line's form) into ``{name: value}``.
+
+    :raises ConfigError: an entry without ``:=`` or without a name, or a name given twice.
+    """
+    from collision_sensor.errors import ConfigError
+    arguments = {}
+    for entry in entries:
+        name, separator, value = entry.partition(':=')
+        name = name.strip()
+        if not separator or not name:
+            raise ConfigError(f'{what} "{entry}": expected NAME:=VALUE, e.g. "prefix:=left_"')
+        if name in arguments:
+            raise ConfigError(f'{what}: argument "{name}" is given twice; keep one')
+        arguments[name] = value
+    return arguments
+
+
 def is_xacro_path(description) -> bool:
     """Return True iff ``description`` is a path (not XML text) ending in ``.xacro``."""
     if isinstance(description, (str, os.PathLike)) and not isinstance(description, bytes):

@@ -105,3 +105,23 @@ def test_bad_xacro_names_the_file(tmp_path):
         load_urdf(str(path), xacro_args={'x': 1})
     with pytest.raises(RobotDescriptionError, match='not a .xacro file'):
         load_urdf('<robot name="r"><link name="a"/></robot>', xacro_args={'x': 1})
+
+
+def test_xacro_arguments_from_the_command_line(xacro_robot, tmp_path, capsys):
+    from collision_sensor.errors import ConfigError
+    from collision_sensor.offline_check import main
+    from collision_sensor.xacro_expansion import parse_xacro_args
+    assert parse_xacro_args(['prefix:=left_', 'length:=2', 'empty:=']) == {
+        'prefix': 'left_', 'length': '2', 'empty': ''}
+    for bad in (['prefix=left_'], [':=1'], ['a:=1', 'a:=2']):
+        with pytest.raises(ConfigError, match='--xacro-arg'):
+            parse_xacro_args(bad)
+    path, packages = xacro_robot
+    sequence = tmp_path / 'path.csv'
+    sequence.write_text('time,left_shoulder\n0.0,0.0\n0.1,0.5\n')
+    status = main([str(sequence), '--urdf', path, '--no-scene', '--progress', 'never',
+                   '--package-path', f'my_macros={packages["my_macros"]}',
+                   '--xacro-arg', 'prefix:=left_', '--xacro-arg', 'length:=2'])
+    out = capsys.readouterr().out
+    # The tool box sits inside the base's box: the expanded robot was loaded and checked.
+    assert status == 1 and 'left_base -- left_tool' in out, out
