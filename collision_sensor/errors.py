@@ -3,6 +3,9 @@
 Every message names the file, link, joint or object at fault and says how to fix it, e.g.
 ``link "forearm": mesh "package://arm/forearm.stl" not found; add --package-path arm=DIR``.
 """
+import os
+import sys
+import warnings
 
 
 class CollisionSensorError(Exception):
@@ -54,3 +57,14 @@ def listed_lines(lines) -> str:
     if len(lines) > MAX_WARNING_LINES:
         shown.append(f'  ... and {len(lines) - MAX_WARNING_LINES} more (all in .warnings)')
     return '\n'.join(shown)
+
+
+def warn_load(message: str) -> None:
+    """Issue ``message`` as a :class:`LoadWarning` attributed to the first caller outside this
+    package, so that the printed location is the user's ``load_urdf``/``from_urdf`` line."""
+    package = os.path.dirname(os.path.abspath(__file__))
+    level, frame = 2, sys._getframe(1)   # stacklevel 2 is the caller of warn_load
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(
+            package + os.sep):
+        level, frame = level + 1, frame.f_back
+    warnings.warn(LoadWarning(message), stacklevel=level)

@@ -42,13 +42,12 @@ ever silently loses its geometry.
 import dataclasses
 import math
 import os
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from collision_sensor import mesh_loading
-from collision_sensor.errors import LoadWarning, RobotDescriptionError, listed_lines
+from collision_sensor.errors import RobotDescriptionError, listed_lines, warn_load
 from collision_sensor.xacro_expansion import expand_xacro, is_xacro_path
 from collision_sensor.xml_safety import describe_source, is_xml_text, parse_xml
 
@@ -195,10 +194,9 @@ def load_urdf(urdf, package_paths=None, *, primitive_sections: int = 32,
                                             base_dir, primitive_sections))
     held = _held_joints(links[0], joints, elements, context)
     if context.warnings:
-        warnings.warn(LoadWarning(
-            f'URDF "{source}": {len(context.warnings)} oddit'
-            f'{"y" if len(context.warnings) == 1 else "ies"} tolerated:\n'
-            + listed_lines(context.warnings)), stacklevel=2)
+        warn_load(f'URDF "{source}": {len(context.warnings)} oddit'
+                  f'{"y" if len(context.warnings) == 1 else "ies"} tolerated:\n'
+                  + listed_lines(context.warnings))
     return RobotModel(name=root.get('name', ''), root_link=links[0], links=tuple(links),
                       joints=tuple(joints), elements=tuple(elements), source=source,
                       joint_document_order=document_order, held_joints=held,

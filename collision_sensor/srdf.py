@@ -24,10 +24,9 @@ MoveIt's variable names: planar ``<joint>/x``, ``/y``, ``/theta`` (3 numbers), f
 Pairs are stored once, as two names in sorted order (``link1 <= link2``); a repeated pair keeps
 its first reason.
 """
-import warnings
 from dataclasses import dataclass, field
 
-from collision_sensor.errors import LoadWarning, SrdfError, listed_lines
+from collision_sensor.errors import SrdfError, listed_lines, warn_load
 from collision_sensor.xml_safety import describe_source, parse_xml
 
 #: MoveIt's variable names of a multi-DOF joint, by joint type (``<joint>/<suffix>``).
@@ -90,7 +89,7 @@ class Srdf:
 
 
 def load_srdf(srdf, link_names=None, joint_names=None, *, robot_name=None,
-              joint_types=None) -> Srdf:
+              joint_types=None, root_link=None) -> Srdf:
     """Read an SRDF and check the names it uses against the robot.
 
     :param srdf: a path (``str`` or ``os.PathLike``) or the XML text.
@@ -102,6 +101,8 @@ def load_srdf(srdf, link_names=None, joint_names=None, *, robot_name=None,
         used if it names some link of the robot (with a warning), else it is an error.
     :param joint_types: ``{joint: URDF type}``; when given, the number of values of a
         group-state joint is checked against its type (1, planar 3, floating 7).
+    :param root_link: the URDF's root link; when given, a virtual joint to another link is
+        skipped with a warning (MoveIt places the robot only through the root link).
     :return: the disabled pairs, virtual joints, group states and the warnings issued.
     :raises SrdfError: unsafe or broken XML, a root other than ``<robot>``, or a document for
         another robot (other name, no link in common).
@@ -111,25 +112,25 @@ def load_srdf(srdf, link_names=None, joint_names=None, *, robot_name=None,
     if root.tag != 'robot':
         raise SrdfError(f'SRDF "{source}": the root element is <{root.tag}>, not <robot>; '
                         'give an SRDF')
-    reader = _Reader(source, link_names, joint_names, joint_types)
+    reader = _Reader(source, link_names, joint_names, joint_types, root_link)
     document_name = root.get('name', '')
     if link_names is not None:
         reader.check_robot(root, document_name, robot_name)
         for path, attribute in _LINK_REFERENCES:
             for element in root.findall(path):
                 reader.known_link(element, attribute)
+    virtual_joints = reader.virtual_joints(root)
     if joint_names is not None:
+        reader.joints |= {joint.name for joint in virtual_joints}   # groups may name them
         for path, attribute in _JOINT_REFERENCES:
             for element in root.findall(path):
                 reader.known_joint(element, attribute)
-    virtual_joints = reader.virtual_joints(root)
     pairs = reader.disabled_pairs(root)
     group_states = reader.group_states(root, {joint.name: joint for joint in virtual_joints})
     if reader.warnings:
         count = len(reader.warnings)
-        warnings.warn(LoadWarning(
-            f'SRDF "{source}": {count} entr{"y" if count == 1 else "ies"} skipped (as MoveIt '
-            'skips them):\n' + listed_lines(reader.warnings)), stacklevel=2)
+        warn_load(f'SRDF "{source}": {count} entr{"y" if count == 1 else "ies"} skipped (as '
+                  'MoveIt skips them):\n' + listed_lines(reader.warnings))
     return Srdf(robot_name=document_name, disabled_pairs=pairs, group_states=group_states,
                 source=source, virtual_joints=virtual_joints, warnings=tuple(reader.warnings))
 
@@ -142,14 +143,16 @@ def load_srdf_for_model(srdf, model) -> Srdf:
     return load_srdf(srdf, link_names=model.links,
                      joint_names=[joint.name for joint in model.joints],
                      robot_name=model.name,
-                     joint_types={joint.name: joint.type for joint in model.joints})
+                     joint_types={joint.name: joint.type for joint in model.joints},
+                     root_link=model.root_link)
 
 
 class _Reader:
     """The checks of one document; every skipped entry becomes one line in ``warnings``."""
 
-    def __init__(self, source, link_names, joint_names, joint_types):
+    def __init__(self, source, link_names, joint_names, joint_types, root_link):
         self.source = source
+        self.root_link = root_link
         self.links = None if link_names is None else set(link_names)
         self.joints = None if joint_names is None else set(joint_names)
         self.joint_types = joint_types or {}
@@ -207,6 +210,10 @@ class _Reader:
                           f'{", ".join(VIRTUAL_JOINT_TYPES)}', 'fix the type')
                 continue
             if not self.known_link(element, 'child_link'):
+                continue
+            if self.root_link is not None and child != self.root_link:
+                self.skip(element, f'child_link="{child}" is not the URDF\'s root link '
+                          f'"{self.root_link}"', f'attach it to "{self.root_link}"')
                 continue
             variables = tuple(f'{name}/{suffix}' for suffix in VARIABLE_SUFFIXES.get(kind, ()))
             found.append(VirtualJoint(name, kind, parent, child, variables))

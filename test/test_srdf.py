@@ -44,6 +44,7 @@ def _read(text, model, **names):
         srdf = load_srdf_for_model(text, model, **names) if names else load_srdf_for_model(
             text, model)
     assert len(caught) == 1   # one warning per document, listing every skipped entry
+    assert caught[0].filename == __file__   # printed at the caller's line, not inside the package
     return srdf, str(caught[0].message)
 
 
@@ -95,8 +96,9 @@ def test_multi_dof_group_state_values_get_moveit_variable_names(panda):
             '<joint name="root_joint" value="0. 0. 0.26 0. 0. 0. 1."/>'
             '<joint name="base" value="1 2 0.5"/><joint name="panda_joint1" value="0.1"/>'
             '</group_state></robot>')
-    srdf = load_srdf_for_model(text, panda)
-    assert srdf.warnings == ()
+    srdf = load_srdf_for_model(text.replace('<group_state', '<group name="all"><joint '
+                                            'name="root_joint"/></group><group_state'), panda)
+    assert srdf.warnings == ()   # a group may name a virtual joint
     joints = srdf.group_states['standing']['joints']
     assert joints == {'root_joint/trans_x': 0.0, 'root_joint/trans_y': 0.0,
                       'root_joint/trans_z': 0.26, 'root_joint/rot_x': 0.0,
@@ -109,6 +111,13 @@ def test_multi_dof_group_state_values_get_moveit_variable_names(panda):
     # A floating joint given 3 numbers is skipped, naming the count it needs.
     _, message = _read(text.replace('0. 0. 0.26 0. 0. 0. 1.', '0 0 1'), panda)
     assert 'joint "root_joint" (floating) has 7 variable(s); give 7' in message
+
+
+def test_virtual_joint_must_reach_the_root_link(panda):
+    srdf, message = _read('<robot name="panda"><virtual_joint name="v" type="floating" '
+                          'parent_frame="world" child_link="panda_link3"/></robot>', panda)
+    assert 'child_link="panda_link3" is not the URDF\'s root link "panda_link0"' in message
+    assert srdf.virtual_joints == ()
 
 
 def test_srdf_of_another_robot(panda):
