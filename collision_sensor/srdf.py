@@ -13,7 +13,9 @@ the rest of the document is used. The warnings of one document are issued togeth
 in :attr:`Srdf.warnings` for callers that log them their own way. Fatal
 (:class:`~collision_sensor.errors.SrdfError`) only: a file that is not (safe) XML, a root other
 than ``<robot>``, and a document that cannot describe this robot at all, i.e. whose robot name
-differs from the URDF's and none of whose link names the robot has.
+differs from the URDF's and none of whose link or joint names the robot has. A virtual joint
+must reach the URDF's root link (else it is skipped, as MoveIt only places the robot through
+its root); groups and passive joints may name virtual joints.
 
 Group-state values: one number for a revolute, continuous or prismatic joint; for a
 multi-DOF joint (a virtual joint, or a URDF planar/floating joint) the values are expanded into
