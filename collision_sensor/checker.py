@@ -253,6 +253,8 @@ class CollisionChecker:
         :param scene: path to a scene YAML file (or its parsed mapping), or None.
         :param config: mapping of settings (see :mod:`collision_sensor.checker_config`).
         :param xacro_args: ``{name: value}`` for a ``.xacro`` ``urdf``'s ``$(arg name)``.
+        :return: the checker; its ``load_warnings`` (tuple of str) are the oddities loading
+            tolerated, one line each (each document's also issued as a ``LoadWarning``).
         :raises CollisionSensorError: naming the file, link or setting at fault.
         """
         settings = CheckerConfig.from_mapping(config)
@@ -265,7 +267,11 @@ class CollisionChecker:
         if scene is not None:
             objects = load_scene(scene, package_paths,
                                  primitive_sections=settings.primitive_sections)
-        return cls(model, srdf_model, objects, settings)
+        checker = cls(model, srdf_model, objects, settings)
+        # What loading tolerated (also issued as LoadWarning), for a caller's own logger.
+        checker.load_warnings = tuple(f'URDF: {line}' for line in model.warnings) + tuple(
+            f'SRDF: {line}' for line in (srdf_model.warnings if srdf_model else ()))
+        return checker
 
     # ------------------------------------------------------------------ set-up helpers
     @staticmethod
