@@ -8,7 +8,8 @@ from collision_sensor.errors import (
 
 __all__ = [
     'CollisionChecker', 'CheckResult', 'CollisionSensorError', 'ConfigError', 'JointStateError',
-    'LoadWarning', 'MeshError', 'RobotDescriptionError', 'SceneError', 'SequenceError', 'SrdfError',
+    'LoadWarning', 'MeshError', 'RobotDescriptionError', 'SceneError', 'SequenceError',
+    'SrdfError',
 ]
 
 

@@ -536,8 +536,9 @@ def _run(args, argv: Sequence[str], start: float) -> int:
     if not os.path.isfile(args.urdf):
         raise ConfigError(f'URDF "{args.urdf}" not found; give the path of the robot\'s URDF '
                           '(or .xacro) file')
-    base = CollisionChecker.from_urdf(args.urdf, package_paths=parse_package_paths(args.package_path)
-                                      or None, config={'ignore_adjacent': False},
+    base = CollisionChecker.from_urdf(args.urdf,
+                                      package_paths=parse_package_paths(args.package_path) or None,
+                                      config={'ignore_adjacent': False},
                                       xacro_args=parse_xacro_args(args.xacro_arg) or None)
     srdf = original = None
     if args.srdf:

@@ -1,13 +1,13 @@
 """Turn mesh URIs and geometric primitives into plain triangle arrays.
 
 Everything leaves this module as ``vertices : (n, 3) float64`` and ``faces : (m, 3) int64``, both
-C-contiguous, in metres; the engine never sees a trimesh object. A COLLADA file's
-``<unit meter="s"/>`` scales its vertices by ``s``, as ROS tools (assimp, RViz) do; its scene
-graph's node transforms are applied. Its ``<up_axis>`` is *not* applied, as in MoveIt and RViz:
-assimp puts the up-axis rotation into the root node's transform, which geometric_shapes and
-RViz reset, so the vertices are used in the file's own axes (87 DAE files of
-example-robot-data declare ``Y_UP`` yet are authored in their link's frame). Every triangle of a mesh file is kept as
-it is, zero-area ones included (the engine handles them); a mesh without any triangle is an error.
+C-contiguous, in metres; the engine never sees a trimesh object. A COLLADA file's ``<unit
+meter="s"/>`` scales its vertices by ``s``, as ROS tools (assimp, RViz) do; its scene graph's node
+transforms are applied. Its ``<up_axis>`` is *not* applied, as in MoveIt and RViz: assimp puts the
+up-axis rotation into the root node's transform, which geometric_shapes and RViz reset, so the
+vertices are used in the file's own axes (87 DAE files of example-robot-data declare ``Y_UP`` yet
+are authored in their link's frame). Every triangle of a mesh file is kept as it is, zero-area ones
+included (the engine handles them); a mesh without any triangle is an error.
 
 Mesh URIs (:func:`resolve_mesh_uri`) are tried in this order:
 

@@ -126,7 +126,8 @@ def test_srdf_of_another_robot(panda):
                           'link2="panda_link3"/></robot>', panda)
     assert 'the URDF robot is "panda"' in message and len(srdf.disabled_pairs) == 1
     # Another name and nothing in common: it cannot describe this robot.
-    with pytest.raises(SrdfError, match='is for robot "ur5", not "panda", and none of the 2 link and joint names'):
+    with pytest.raises(SrdfError, match='is for robot "ur5", not "panda", and none of the 2 link '
+                                        'and joint names'):
         load_srdf_for_model('<robot name="ur5"><disable_collisions link1="shoulder_link" '
                             'link2="base_link"/></robot>', panda)
     # Joints count as well as links (alex_psyonic_hands.srdf names only joints).
