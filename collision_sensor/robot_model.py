@@ -381,7 +381,7 @@ def _parse_joint(element, context) -> Joint:
     axis = context.floats(axis_tag, 'xyz', 3, owner, default=(1.0, 0.0, 0.0))
     norm = float(np.linalg.norm(axis))
     if norm < 1e-12:
-        if kind != 'fixed':
+        if kind not in ('fixed', 'floating'):   # neither uses its axis
             raise context.error(f'{owner} has a zero axis; give <axis xyz="..."/> a direction')
         axis = np.array([1.0, 0.0, 0.0])
     else:
