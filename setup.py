@@ -84,6 +84,7 @@ setup(
         'trimesh>=4.0',
         'yourdfpy>=0.0.56',
         'pycollada>=0.8',
+        'xacro>=2.0',
         'PyYAML>=6.0',
         'lxml>=4.9',
         'scipy>=1.10',

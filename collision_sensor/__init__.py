@@ -3,12 +3,13 @@
 Importing this package never imports rclpy; the ROS node lives in ``collision_sensor.node``.
 """
 from collision_sensor.errors import (
-    CollisionSensorError, ConfigError, JointStateError, MeshError, RobotDescriptionError,
-    SceneError, SequenceError, SrdfError)
+    CollisionSensorError, ConfigError, JointStateError, LoadWarning, MeshError,
+    RobotDescriptionError, SceneError, SequenceError, SrdfError)
 
 __all__ = [
     'CollisionChecker', 'CheckResult', 'CollisionSensorError', 'ConfigError', 'JointStateError',
-    'MeshError', 'RobotDescriptionError', 'SceneError', 'SequenceError', 'SrdfError',
+    'LoadWarning', 'MeshError', 'RobotDescriptionError', 'SceneError', 'SequenceError',
+    'SrdfError',
 ]
 
 

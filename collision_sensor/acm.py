@@ -50,6 +50,7 @@ from collision_sensor.command_line import run_command
 from collision_sensor.errors import CollisionSensorError, ConfigError
 from collision_sensor.exception_list import adjacent_pairs, sorted_pair
 from collision_sensor.mesh_loading import parse_package_paths
+from collision_sensor.xacro_expansion import parse_xacro_args
 from collision_sensor.progress import MODES, ProgressBar
 from collision_sensor.sampling import sampling_bounds, uniform_configurations
 
@@ -466,6 +467,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('urdf', metavar='URDF', help='robot description file')
     parser.add_argument('--package-path', metavar='NAME=DIR', action='append', default=[],
                         help='directory of a package named in package:// URIs (repeatable)')
+    parser.add_argument('--xacro-arg', metavar='NAME:=VALUE', action='append', default=[],
+                        help='argument of a .xacro robot description (repeatable)')
     parser.add_argument('--srdf', metavar='EXISTING',
                         help='existing SRDF: its group_states for --default-state, and the '
                              'document --in-place merges into (or --output copies merged); its '
@@ -522,7 +525,7 @@ def _write(path: str, data: bytes) -> None:
 
 def _run(args, argv: Sequence[str], start: float) -> int:
     from collision_sensor.checker import CollisionChecker
-    from collision_sensor.srdf import load_srdf
+    from collision_sensor.srdf import load_srdf_for_model
     from collision_sensor.srdf_merge import merge_disable_collisions, new_srdf
 
     if args.in_place and not args.srdf:
@@ -532,13 +535,14 @@ def _run(args, argv: Sequence[str], start: float) -> int:
         raise ConfigError('--clearance measures Never pairs; add --never')
     if not os.path.isfile(args.urdf):
         raise ConfigError(f'URDF "{args.urdf}" not found; give the path of the robot\'s URDF '
-                          'file (xacro expanded)')
-    base = CollisionChecker.from_urdf(args.urdf, package_paths=parse_package_paths(args.package_path)
-                                      or None, config={'ignore_adjacent': False})
+                          '(or .xacro) file')
+    base = CollisionChecker.from_urdf(args.urdf,
+                                      package_paths=parse_package_paths(args.package_path) or None,
+                                      config={'ignore_adjacent': False},
+                                      xacro_args=parse_xacro_args(args.xacro_arg) or None)
     srdf = original = None
     if args.srdf:
-        srdf = load_srdf(args.srdf, link_names=base.model.links,
-                         joint_names=[joint.name for joint in base.model.joints])
+        srdf = load_srdf_for_model(args.srdf, base.model)
         with open(args.srdf, 'rb') as stream:
             original = stream.read()
     elif args.default_state:

@@ -27,7 +27,7 @@ from collision_sensor.array_pack import ArrayPack
 from collision_sensor.compiled import engine
 from collision_sensor.robot_model import RobotModel, load_urdf
 from collision_sensor.scene import SceneObject, load_scene
-from collision_sensor.srdf import Srdf, load_srdf
+from collision_sensor.srdf import Srdf, load_srdf_for_model
 
 Pair = Tuple[str, str]
 _NOT_AN_ARRAY = engine.NOT_AN_ARRAY
@@ -244,7 +244,7 @@ class CollisionChecker:
 
     @classmethod
     def from_urdf(cls, urdf, srdf=None, package_paths: Optional[Mapping[str, str]] = None,
-                  scene=None, config=None) -> 'CollisionChecker':
+                  scene=None, config=None, xacro_args=None) -> 'CollisionChecker':
         """Load a robot, optionally its SRDF and a static scene, and build the checker.
 
         :param urdf: path to a URDF file, or the URDF's XML text.
@@ -252,19 +252,26 @@ class CollisionChecker:
         :param package_paths: ``{package_name: directory}`` for ``package://`` mesh URIs.
         :param scene: path to a scene YAML file (or its parsed mapping), or None.
         :param config: mapping of settings (see :mod:`collision_sensor.checker_config`).
+        :param xacro_args: ``{name: value}`` for a ``.xacro`` ``urdf``'s ``$(arg name)``.
+        :return: the checker; its ``load_warnings`` (tuple of str) are the oddities loading
+            tolerated, one line each (each document's also issued as a ``LoadWarning``).
         :raises CollisionSensorError: naming the file, link or setting at fault.
         """
         settings = CheckerConfig.from_mapping(config)
-        model = load_urdf(urdf, package_paths, primitive_sections=settings.primitive_sections)
+        model = load_urdf(urdf, package_paths, primitive_sections=settings.primitive_sections,
+                          xacro_args=xacro_args)
         srdf_model = None
         if srdf is not None:
-            srdf_model = load_srdf(srdf, link_names=model.links,
-                                   joint_names=[joint.name for joint in model.joints])
+            srdf_model = load_srdf_for_model(srdf, model)
         objects = ()
         if scene is not None:
             objects = load_scene(scene, package_paths,
                                  primitive_sections=settings.primitive_sections)
-        return cls(model, srdf_model, objects, settings)
+        checker = cls(model, srdf_model, objects, settings)
+        # What loading tolerated (also issued as LoadWarning), for a caller's own logger.
+        checker.load_warnings = tuple(f'URDF: {line}' for line in model.warnings) + tuple(
+            f'SRDF: {line}' for line in (srdf_model.warnings if srdf_model else ()))
+        return checker
 
     # ------------------------------------------------------------------ set-up helpers
     @staticmethod

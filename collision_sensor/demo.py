@@ -468,7 +468,7 @@ def describe_panda() -> int:
     from collision_sensor.example_robots import example_robot
     from collision_sensor.kinematics import build_kinematic_tree
     from collision_sensor.robot_model import load_urdf
-    from collision_sensor.srdf import load_srdf
+    from collision_sensor.srdf import load_srdf_for_model
 
     try:
         panda = example_robot('panda')
@@ -478,7 +478,7 @@ def describe_panda() -> int:
     try:
         model = load_urdf(panda.urdf, panda.package_paths)
         tree = build_kinematic_tree(model)
-        srdf = load_srdf(panda.srdf, model.links, [joint.name for joint in model.joints])
+        srdf = load_srdf_for_model(panda.srdf, model)
     except CollisionSensorError as exc:
         print(f'{PROG}: {exc}', file=sys.stderr)
         return 1

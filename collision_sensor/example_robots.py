@@ -50,3 +50,36 @@ def example_robot(name: str) -> ExampleRobot:
     return ExampleRobot(name, os.path.join(share, 'robots', urdf),
                         os.path.join(share, 'robots', srdf),
                         {'example-robot-data': share})
+
+
+def example_robot_files() -> list:
+    """Return every URDF of example-robot-data with the SRDF that belongs to it, name-sorted.
+
+    A URDF ``<pkg>/{urdf,robots}/<stem>.urdf`` takes ``<pkg>/srdf/<stem>.srdf`` if it exists,
+    else the package SRDF whose stem is the longest prefix of ``<stem>`` (``solo12`` takes
+    ``solo``, ``talos_reduced`` takes ``talos``, ``ur5_robot`` takes ``ur5``), else none. The
+    name is ``<pkg>/<stem>``.
+
+    :return: a list of :class:`ExampleRobot`.
+    """
+    share = example_robot_data_dir()
+    robots_dir = os.path.join(share, 'robots')
+    found = []
+    for package in sorted(os.listdir(robots_dir)):
+        srdf_dir = os.path.join(robots_dir, package, 'srdf')
+        srdfs = sorted(name[:-5] for name in os.listdir(srdf_dir)
+                       if name.endswith('.srdf')) if os.path.isdir(srdf_dir) else []
+        for folder in ('urdf', 'robots'):
+            directory = os.path.join(robots_dir, package, folder)
+            if not os.path.isdir(directory):
+                continue
+            for name in sorted(os.listdir(directory)):
+                if not name.endswith('.urdf'):
+                    continue
+                stem = name[:-5]
+                prefixes = [s for s in srdfs if stem == s or stem.startswith(s)]
+                srdf = (os.path.join(srdf_dir, max(prefixes, key=len) + '.srdf')
+                        if prefixes else None)
+                found.append(ExampleRobot(f'{package}/{stem}', os.path.join(directory, name),
+                                          srdf, {'example-robot-data': share}))
+    return found

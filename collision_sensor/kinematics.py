@@ -17,6 +17,7 @@ reached through the joint above it::
 :func:`forward_kinematics_kernel` runs ``cpp/kinematics.hpp``, the code the query engine
 itself runs for each link it needs (lazily, inside a query).
 """
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -127,9 +128,22 @@ def build_kinematic_tree(model: RobotModel) -> KinematicTree:
         topological order, root first).
     :return: the tree; its ``q`` order is the URDF document order of the movable, non-mimic
         joints.
-    :raises RobotDescriptionError: a mimic of an unknown or fixed joint, a mimic cycle, or links
-        not in topological order.
+    :raises RobotDescriptionError: a mimic of an unknown or fixed joint, a mimic cycle, links
+        not in topological order, or a planar or floating joint other than a held floating
+        base (``model.held_joints``, built as fixed at identity).
     """
+    held = set(model.held_joints)
+    for joint in model.joints:
+        if joint.type in ('planar', 'floating') and joint.name not in held:
+            raise RobotDescriptionError(
+                f'URDF "{model.source}": joint "{joint.name}" is {joint.type} (variables '
+                f'{", ".join(joint.variables)}) between links "{joint.parent}" and '
+                f'"{joint.child}"; the kinematics cannot drive planar or floating joints yet '
+                '(only a floating base out of a root link without geometry is held at '
+                'identity); make the joint fixed, or split the robot at it')
+    model_joints = [dataclasses.replace(joint, type='fixed') if joint.name in held else joint
+                    for joint in model.joints]
+    model = dataclasses.replace(model, joints=tuple(model_joints))
     mimics = resolve_mimics(model.joints, model.source)
     link_index = {name: i for i, name in enumerate(model.links)}
     # model.joints follow their child link; the q vector follows the URDF document instead, which

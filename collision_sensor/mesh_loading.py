@@ -1,23 +1,22 @@
 """Turn mesh URIs and geometric primitives into plain triangle arrays.
 
 Everything leaves this module as ``vertices : (n, 3) float64`` and ``faces : (m, 3) int64``, both
-C-contiguous, in metres; the engine never sees a trimesh object. A COLLADA file's
-``<unit meter="s"/>`` scales its vertices by ``s``, as ROS tools (assimp) do. Every triangle of a mesh file is kept as
-it is, zero-area ones included (the engine handles them); a mesh without any triangle is an error.
+C-contiguous, in metres; the engine never sees a trimesh object. A COLLADA file's ``<unit
+meter="s"/>`` scales its vertices by ``s``, as ROS tools (assimp, RViz) do; its scene graph's node
+transforms are applied. Its ``<up_axis>`` is *not* applied, as in MoveIt and RViz: assimp puts the
+up-axis rotation into the root node's transform, which geometric_shapes and RViz reset, so the
+vertices are used in the file's own axes (87 DAE files of example-robot-data declare ``Y_UP`` yet
+are authored in their link's frame). Every triangle of a mesh file is kept as it is, zero-area ones
+included (the engine handles them); a mesh without any triangle is an error.
 
 Mesh URIs (:func:`resolve_mesh_uri`) are tried in this order:
 
-1. ``package://NAME/rest``:
-
-   a. the explicit mapping ``package_paths[NAME]/rest``;
-   b. for ``NAME == 'collision_sensor'``, this package's share directory
-      (:func:`collision_sensor.share.share_directory`);
-   c. the ament index (``get_package_share_directory(NAME)``), when ``ament_index_python`` is
-      importable and knows the package;
-   d. next to the robot description: ``<base_dir>/rest``, then ``<ancestor>/rest`` for every
-      ancestor directory of ``base_dir`` (finds the meshes of example-robot-data, whose URIs
-      start with the package directory itself).
-
+1. ``package://NAME/rest``: ``<package directory>/rest``, the package found as
+   :func:`collision_sensor.package_lookup.find_package` finds it (explicit ``package_paths``,
+   then the ament index, then ``ROS_PACKAGE_PATH``); failing that, next to the robot
+   description: ``<base_dir>/rest``, then ``<ancestor>/rest`` for every ancestor directory of
+   ``base_dir`` (finds the meshes of example-robot-data, whose URIs start with the package
+   directory itself).
 2. ``file:///abs/path``: that path (percent-escapes decoded).
 3. a plain path: absolute as it is; relative against ``base_dir``.
 
@@ -47,6 +46,7 @@ import numpy as np
 from collision_sensor.stl import read_stl
 
 from collision_sensor.errors import ConfigError, MeshError
+from collision_sensor.package_lookup import find_package
 
 #: File types read by :func:`load_mesh_file` (through trimesh; DAE through pycollada).
 MESH_EXTENSIONS = ('.stl', '.obj', '.ply', '.dae')
@@ -95,17 +95,24 @@ def resolve_mesh_uri(uri: str, package_paths=None, base_dir=None, *, owner: str 
         if not package or not rest:
             raise error(f'{owner}: mesh "{uri}" is not a valid package URI; '
                         'write package://PACKAGE/path/to/mesh')
-        for candidate in _package_candidates(package, rest, package_paths, base_dir):
-            tried.append(candidate)
+        directory, places = find_package(package, package_paths)
+        if directory is not None:
+            candidate = os.path.join(directory, rest)
             if os.path.isfile(candidate):
                 return candidate
+            tried.append(f'{candidate} (package "{package}" found at {directory})')
+        else:
+            tried.extend(places)
+        for candidate in _beside_description(rest, base_dir):
+            if os.path.isfile(candidate):
+                return candidate
+            tried.append(candidate)
         where = '' if base_dir is not None else (
-            ' (robot given as XML text: only package_paths, this package and the ament index '
-            'are searched)')
+            ' (robot given as XML text: nothing next to a file is searched)')
         raise error(
-            f'{owner}: mesh "{uri}" not found{where}; tried: {", ".join(tried) or "nothing"}; '
-            f'add package_paths={{"{package}": DIR}} (--package-path {package}=DIR) with the '
-            f'directory of package "{package}"')
+            f'{owner}: mesh "{uri}" of package "{package}" not found{where}; searched: '
+            f'{"; ".join(tried)}; add package_paths={{"{package}": DIR}} '
+            f'(--package-path {package}=DIR) with the directory of package "{package}"')
     if uri.startswith('file://'):
         path = urllib.parse.unquote(uri[len('file://'):])
     else:
@@ -123,37 +130,16 @@ def resolve_mesh_uri(uri: str, package_paths=None, base_dir=None, *, owner: str 
     raise error(f'{owner}: mesh "{uri}" not found; tried: {path}; {hint}')
 
 
-def _package_candidates(package, rest, package_paths, base_dir):
-    if package_paths and package in package_paths:
-        yield os.path.join(os.fspath(package_paths[package]), rest)
-    if package == 'collision_sensor':
-        from collision_sensor.share import share_directory
-        try:
-            yield os.path.join(share_directory(), rest)
-        except FileNotFoundError:
-            pass
-    share = _ament_share_directory(package)
-    if share is not None:
-        yield os.path.join(share, rest)
-    if base_dir is not None:
-        directory = os.path.abspath(base_dir)
-        while True:
-            yield os.path.join(directory, rest)
-            parent = os.path.dirname(directory)
-            if parent == directory:
-                break
-            directory = parent
-
-
-def _ament_share_directory(package):
-    try:
-        from ament_index_python.packages import get_package_share_directory
-    except ImportError:
-        return None
-    try:
-        return get_package_share_directory(package)
-    except Exception:  # PackageNotFoundError, or no AMENT_PREFIX_PATH at all: not indexed
-        return None
+def _beside_description(rest, base_dir):
+    if base_dir is None:
+        return
+    directory = os.path.abspath(base_dir)
+    while True:
+        yield os.path.join(directory, rest)
+        parent = os.path.dirname(directory)
+        if parent == directory:
+            break
+        directory = parent
 
 
 def load_mesh_file(path: str, scale=(1.0, 1.0, 1.0), *, owner: str = 'mesh', uri: str = None,

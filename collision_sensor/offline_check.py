@@ -23,6 +23,7 @@ import numpy as np
 from collision_sensor.command_line import run_command
 from collision_sensor.errors import ConfigError
 from collision_sensor.mesh_loading import parse_package_paths
+from collision_sensor.xacro_expansion import parse_xacro_args
 from collision_sensor.progress import MODES, ProgressBar
 from collision_sensor.sequences import DEFAULT_TOPIC, JointSequence, read_sequence
 
@@ -241,6 +242,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--srdf', help='SRDF with disable_collisions pairs')
     parser.add_argument('--package-path', metavar='NAME=DIR', action='append', default=[],
                         help='directory of a package named in package:// URIs (repeatable)')
+    parser.add_argument('--xacro-arg', metavar='NAME:=VALUE', action='append', default=[],
+                        help='argument of a .xacro robot description (repeatable)')
     parser.add_argument('--scene', help='scene YAML file (default with the demo arm: the '
                                         'demo washer)')
     parser.add_argument('--no-scene', action='store_true', help='check the robot alone')
@@ -272,7 +275,8 @@ def _run(args) -> int:
     if args.no_scene:
         scene = None
     checker = CollisionChecker.from_urdf(urdf, srdf=srdf, package_paths=package_paths or None,
-                                         scene=scene, config=_load_config(args.config))
+                                         scene=scene, config=_load_config(args.config),
+                                         xacro_args=parse_xacro_args(args.xacro_arg) or None)
     seq = read_sequence(bundled_sequence_path(args.sequence), topic=args.topic,
                         joint_names=checker.joint_names)
 

@@ -15,12 +15,31 @@ Conventions:
 - ``links`` lists the root first, then a depth-first walk where the children of a link follow
   the document order of their joints; ``joints`` follow their child link in that order.
 
-Rejected with :class:`RobotDescriptionError` naming the culprit and the fix: ``floating`` and
-``planar`` joints, a link with two parents, a cycle, several roots, a joint naming an unknown
-link, a mimic of an unknown or fixed joint, a mimic cycle, non-finite numbers, a zero axis, a
-revolute or prismatic joint without ``<limit>``. A mesh that cannot be found or read raises
-:class:`MeshError`; no link ever silently loses its geometry.
+Multi-DOF joints: ``planar`` (``<axis>`` is the plane's normal) and ``floating`` joints are
+read into the model with MoveIt's variable names (:attr:`Joint.variables`: ``<joint>/x``,
+``/y``, ``/theta``; ``<joint>/trans_x``, ``/trans_y``, ``/trans_z``, ``/rot_x``, ``/rot_y``,
+``/rot_z``, ``/rot_w``). The kinematics cannot drive them yet: a multi-DOF joint out of the
+root link whose root link has no collision geometry and no other joint (a "world" link, the
+URDF form of a floating base) is *held* at its zero value, i.e. identity (listed in
+:attr:`RobotModel.held_joints`, with a :class:`LoadWarning`): the collision bodies then do not
+depend on it, and the robot's frame for scenes is that joint's child link placed at the
+joint's origin. Any other planar or floating joint makes
+:func:`collision_sensor.kinematics.build_kinematic_tree` fail naming it.
+
+Tolerated with a :class:`LoadWarning` naming the file, the joint and the fix (as urdfdom and
+MoveIt tolerate them): a ``<mimic>`` naming a joint that does not exist, or a joint with
+another number of variables (fixed, planar, floating); the joint is then independent. Also
+tolerated, as pinocchio does though ROS's resource_retriever does not: a mesh URI
+``package:///NAME/...`` (empty package name) is read as ``package://NAME/...`` (one warning
+per URDF; talos_full_v2 of example-robot-data is written so).
+
+Rejected with :class:`RobotDescriptionError` naming the culprit and the fix: a link with two
+parents, a cycle, several roots, a joint naming an unknown link, a mimic cycle, non-finite
+numbers, a zero axis, a revolute or prismatic joint without ``<limit>``, an unknown joint type,
+no ``<link>`` at all. A mesh that cannot be found or read raises :class:`MeshError`; no link
+ever silently loses its geometry.
 """
+import dataclasses
 import math
 import os
 from dataclasses import dataclass
@@ -28,11 +47,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from collision_sensor import mesh_loading
-from collision_sensor.errors import RobotDescriptionError
+from collision_sensor.errors import RobotDescriptionError, listed_lines, warn_load
+from collision_sensor.xacro_expansion import expand_xacro, is_xacro_path
 from collision_sensor.xml_safety import describe_source, is_xml_text, parse_xml
 
-JOINT_TYPES = ('revolute', 'continuous', 'prismatic', 'fixed')
-_UNSUPPORTED_JOINT_TYPES = ('floating', 'planar')
+JOINT_TYPES = ('revolute', 'continuous', 'prismatic', 'fixed', 'planar', 'floating')
+#: MoveIt's variable names of a multi-DOF joint, by joint type (``<joint>/<suffix>``).
+MULTI_DOF_SUFFIXES = {
+    'planar': ('x', 'y', 'theta'),
+    'floating': ('trans_x', 'trans_y', 'trans_z', 'rot_x', 'rot_y', 'rot_z', 'rot_w'),
+}
 
 
 @dataclass(frozen=True)
@@ -66,6 +90,14 @@ class Joint:
     effort: float
     mimic: Mimic | None
 
+    @property
+    def variables(self) -> tuple[str, ...]:
+        """MoveIt's variable names: ``()`` fixed, ``(name,)`` 1-DOF, ``name/x`` ... multi-DOF."""
+        if self.type == 'fixed':
+            return ()
+        suffixes = MULTI_DOF_SUFFIXES.get(self.type)
+        return (self.name,) if suffixes is None else tuple(f'{self.name}/{s}' for s in suffixes)
+
 
 @dataclass(frozen=True, eq=False)
 class CollisionElement:
@@ -94,6 +126,8 @@ class RobotModel:
     order of their child link; ``elements`` is grouped by link in ``links`` order, then by index.
     ``joint_document_order`` names the joints in the order the URDF lists them (the order of the
     configuration vector, see :mod:`collision_sensor.kinematics`); empty means ``joints`` order.
+    ``held_joints`` are the multi-DOF root joints held at identity (see the module docstring);
+    ``warnings`` what was tolerated, one readable line each.
     """
 
     name: str
@@ -103,13 +137,19 @@ class RobotModel:
     elements: tuple[CollisionElement, ...]
     source: str
     joint_document_order: tuple[str, ...] = ()
+    held_joints: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()
 
 
-def load_urdf(urdf, package_paths=None, *, primitive_sections: int = 32) -> RobotModel:
+def load_urdf(urdf, package_paths=None, *, primitive_sections: int = 32,
+              xacro_args=None) -> RobotModel:
     """Read a URDF, validate its tree and load its collision geometry.
 
     :param urdf: a path (``str`` or ``os.PathLike``) or the XML text (a ``str`` whose first
-        non-blank character is ``<``, or ``bytes``).
+        non-blank character is ``<``, or ``bytes``). A path ending in ``.xacro`` is expanded
+        first (:mod:`collision_sensor.xacro_expansion`); relative mesh paths then resolve
+        against the xacro file's directory.
+    :param xacro_args: ``{name: value}`` for the xacro file's ``$(arg name)``.
     :param package_paths: mapping ``{package_name: directory}`` used first to resolve
         ``package://`` mesh URIs (see :mod:`collision_sensor.mesh_loading` for the full order).
     :param primitive_sections: sections around cylinders and spheres when tessellating them.
@@ -118,8 +158,15 @@ def load_urdf(urdf, package_paths=None, *, primitive_sections: int = 32) -> Robo
     :raises MeshError: a collision mesh that cannot be found or read.
     """
     source = describe_source(urdf, 'URDF')
-    root = parse_xml(urdf, 'URDF')
     base_dir = None if is_xml_text(urdf) else os.path.dirname(os.path.abspath(source))
+    if is_xacro_path(urdf):
+        root = parse_xml(expand_xacro(urdf, xacro_args, package_paths).encode('utf-8'),
+                         'URDF')
+    elif xacro_args:
+        raise RobotDescriptionError(f'URDF "{source}": xacro_args given, but the description '
+                                    'is not a .xacro file; leave xacro_args out')
+    else:
+        root = parse_xml(urdf, 'URDF')
     context = _Context(source)
     if root.tag != 'robot':
         raise context.error(f'the root element is <{root.tag}>, not <robot>; give a URDF')
@@ -138,15 +185,64 @@ def load_urdf(urdf, package_paths=None, *, primitive_sections: int = 32) -> Robo
         joints.append(_parse_joint(element, context))
     document_order = tuple(joint.name for joint in joints)
     links, joints = _order_tree(list(link_elements), joints, context)
+    joints = _tolerate_bad_mimics(joints, context)
     resolve_mimics(joints, source)
     elements = []
     for link in links:
         for index, collision in enumerate(link_elements[link].findall('collision')):
             elements.append(_load_collision(collision, link, index, context, package_paths,
                                             base_dir, primitive_sections))
+    held = _held_joints(links[0], joints, elements, context)
+    if context.warnings:
+        warn_load(f'URDF "{source}": {len(context.warnings)} oddit'
+                  f'{"y" if len(context.warnings) == 1 else "ies"} tolerated:\n'
+                  + listed_lines(context.warnings))
     return RobotModel(name=root.get('name', ''), root_link=links[0], links=tuple(links),
                       joints=tuple(joints), elements=tuple(elements), source=source,
-                      joint_document_order=document_order)
+                      joint_document_order=document_order, held_joints=held,
+                      warnings=tuple(context.warnings))
+
+
+def _tolerate_bad_mimics(joints, context):
+    """Make a joint whose ``<mimic>`` names a missing joint, or one with another number of
+    variables, independent, with a warning (urdfdom reads such a URDF, MoveIt ignores the
+    mimic)."""
+    by_name = {joint.name: joint for joint in joints}
+    kept = []
+    for joint in joints:
+        mimic = joint.mimic
+        if mimic is not None and joint.type != 'fixed':
+            target = by_name.get(mimic.joint)
+            problem = None
+            if target is None:
+                problem = f'mimics joint "{mimic.joint}", which does not exist'
+            elif len(target.variables) != 1 or len(joint.variables) != 1:
+                problem = (f'({joint.type}) mimics joint "{mimic.joint}" ({target.type}), '
+                           'which has another number of variables')
+            if problem is not None:
+                context.warnings.append(f'joint "{joint.name}" {problem}; it is treated as an '
+                                        'independent joint; fix the <mimic joint=...> name')
+                joint = dataclasses.replace(joint, mimic=None)
+        kept.append(joint)
+    return kept
+
+
+def _held_joints(root, joints, elements, context):
+    """Name the multi-DOF joints held at identity: the root's only joint, root without geometry."""
+    from_root = [joint for joint in joints if joint.parent == root]
+    root_has_geometry = any(element.link == root for element in elements)
+    held = []
+    for joint in joints:
+        if joint.type not in MULTI_DOF_SUFFIXES:
+            continue
+        if from_root == [joint] and not root_has_geometry:
+            held.append(joint.name)
+            context.warnings.append(
+                f'joint "{joint.name}" ({joint.type}, variables {", ".join(joint.variables)}) '
+                f'is the robot\'s floating base: it is held at identity, so link "{joint.child}" '
+                'at the joint origin is the frame of scene poses; self-collision does not '
+                'depend on it')
+    return tuple(held)
 
 
 def resolve_mimics(joints, source: str = '<robot>') -> dict:
@@ -219,6 +315,13 @@ class _Context:
 
     def __init__(self, source):
         self.source = source
+        self.warnings = []
+        self._warned = set()
+
+    def warn_once(self, key, message):
+        if key not in self._warned:
+            self._warned.add(key)
+            self.warnings.append(message)
 
     def error(self, message):
         return RobotDescriptionError(f'URDF "{self.source}": {message}')
@@ -266,11 +369,6 @@ def _parse_joint(element, context) -> Joint:
     name = context.name_of(element, 'joint')
     owner = f'joint "{name}"'
     kind = element.get('type')
-    if kind in _UNSUPPORTED_JOINT_TYPES:
-        raise context.error(
-            f'{owner} is of type "{kind}", which is not supported (the sensor needs a fixed '
-            'base and one variable per joint); attach the robot to the world with a fixed joint '
-            '(or make its base link the root) instead')
     if kind not in JOINT_TYPES:
         raise context.error(f'{owner} has type "{kind}"; use one of {", ".join(JOINT_TYPES)}')
     ends = {}
@@ -283,7 +381,7 @@ def _parse_joint(element, context) -> Joint:
     axis = context.floats(axis_tag, 'xyz', 3, owner, default=(1.0, 0.0, 0.0))
     norm = float(np.linalg.norm(axis))
     if norm < 1e-12:
-        if kind != 'fixed':
+        if kind not in ('fixed', 'floating'):   # neither uses its axis
             raise context.error(f'{owner} has a zero axis; give <axis xyz="..."/> a direction')
         axis = np.array([1.0, 0.0, 0.0])
     else:
@@ -303,7 +401,7 @@ def _parse_joint(element, context) -> Joint:
         upper = context.number(limit, 'upper', owner, default=0.0)
         if lower > upper:
             raise context.error(f'{owner}: limit lower={lower} is above upper={upper}; swap them')
-    elif kind == 'continuous':
+    elif kind in ('continuous', 'planar', 'floating'):
         lower, upper = -math.inf, math.inf
     else:
         lower = upper = 0.0
@@ -380,6 +478,13 @@ def _load_collision(collision, link, index, context, package_paths, base_dir, se
         if not uri:
             raise context.error(f'{where}: <mesh> lacks filename="..."; add it')
         scale = context.floats(shape, 'scale', 3, where, default=(1.0, 1.0, 1.0))
+        if uri.startswith('package:///') and uri[len('package:///'):].lstrip('/'):
+            fixed = 'package://' + uri[len('package:///'):].lstrip('/')
+            context.warn_once('package:///', f'mesh "{uri}" ({owner}, and every other '
+                              '"package:///" URI) has an empty package name; read as '
+                              f'"{fixed}" (as pinocchio does; ROS resource_retriever refuses '
+                              'it); write package://PACKAGE/...')
+            uri = fixed
         path = mesh_loading.resolve_mesh_uri(uri, package_paths, base_dir, owner=owner)
         vertices, faces = mesh_loading.load_mesh_file(path, scale, owner=owner, uri=uri)
         source = f'mesh {uri}'

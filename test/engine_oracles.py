@@ -17,7 +17,8 @@ class FclOracle:
         self.checker = checker
         self.pin_model = pin.buildModelFromUrdf(urdf_path)
         self.pin_data = self.pin_model.createData()
-        self.frame_ids = {name: self.pin_model.getFrameId(name)
+        # BODY: a joint may share its link's name (anymal's LF_HAA).
+        self.frame_ids = {name: self.pin_model.getFrameId(name, pin.FrameType.BODY)
                           for name in checker.kinematics.link_names}
         self.models = {}
         for element in checker.model.elements:
@@ -59,16 +60,19 @@ class FclOracle:
 
     def pin_configuration(self, positions):
         """pinocchio q from our joint vector (mimic joints get their derived value)."""
+        from collision_sensor.robot_model import resolve_mimics
         q = pin.neutral(self.pin_model)
         values = dict(zip(self.checker.joint_names, positions))
-        for joint in self.checker.model.joints:
-            if joint.mimic is not None:
-                values[joint.name] = (joint.mimic.multiplier * values[joint.mimic.joint]
-                                      + joint.mimic.offset)
+        for name, (source, multiplier, offset) in resolve_mimics(
+                self.checker.model.joints).items():
+            values[name] = multiplier * values[source] + offset
         for name, value in values.items():
             if self.pin_model.existJointName(name):
-                jid = self.pin_model.getJointId(name)
-                q[self.pin_model.joints[jid].idx_q] = value
+                joint = self.pin_model.joints[self.pin_model.getJointId(name)]
+                if joint.nq == 2:   # continuous joint: (cos, sin)
+                    q[joint.idx_q:joint.idx_q + 2] = np.cos(value), np.sin(value)
+                else:
+                    q[joint.idx_q] = value
         return q
 
     def poses(self, positions):

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from collision_sensor.errors import JointStateError, RobotDescriptionError
+from collision_sensor.errors import JointStateError, LoadWarning, RobotDescriptionError
 from collision_sensor.kinematics import (
     JOINT_FIXED, JOINT_PRISMATIC, JOINT_REVOLUTE, build_kinematic_tree, forward_kinematics_kernel)
 from collision_sensor.robot_model import load_urdf, transform_from_xyz_rpy
@@ -257,14 +257,22 @@ def test_wrong_q_shape_names_the_joints(tmp_path):
         tree.forward_kinematics_batch(np.zeros(3))
 
 
-@pytest.mark.parametrize('mimic, culprit', [
-    ('<mimic joint="nowhere"/>', 'nowhere'),
-    ('<mimic joint="j_d"/>', 'mimic cycle'),
-    ('<mimic joint="j_tool"/>', 'fixed'),
-])
-def test_bad_mimic_is_refused(tmp_path, mimic, culprit):
-    # j_c mimics j_a; make j_a mimic something bad instead of being independent.
-    text = CHAIN_URDF.replace('<axis xyz="0 0 2"/>', '<axis xyz="0 0 2"/>' + mimic)
-    with pytest.raises(RobotDescriptionError, match=culprit) as raised:
+def test_mimic_cycle_is_refused(tmp_path):
+    # j_c mimics j_a; make j_a mimic j_d, closing a cycle.
+    text = CHAIN_URDF.replace('<axis xyz="0 0 2"/>', '<axis xyz="0 0 2"/><mimic joint="j_d"/>')
+    with pytest.raises(RobotDescriptionError, match='mimic cycle') as raised:
         load_urdf(write(tmp_path, text))
     assert 'j_a' in str(raised.value)
+
+
+@pytest.mark.parametrize('mimic, culprit', [
+    ('<mimic joint="nowhere"/>', '"nowhere", which does not exist'),
+    ('<mimic joint="j_tool"/>', '"j_tool" \\(fixed\\), which has another number of variables'),
+])
+def test_mimic_of_a_missing_or_fixed_joint_leaves_the_joint_independent(tmp_path, mimic,
+                                                                         culprit):
+    # As MoveIt: the mimic is ignored with a warning, j_a keeps its own variable.
+    text = CHAIN_URDF.replace('<axis xyz="0 0 2"/>', '<axis xyz="0 0 2"/>' + mimic)
+    with pytest.warns(LoadWarning, match=f'joint "j_a" .*{culprit}'):
+        model = load_urdf(write(tmp_path, text))
+    assert 'j_a' in build_kinematic_tree(model).joint_names

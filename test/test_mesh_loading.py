@@ -122,6 +122,29 @@ def test_collada_units_are_applied(tetra_files, tmp_path):
     np.testing.assert_allclose(vertices.max(axis=0), [0.002, 0.001, 0.001])
 
 
+@pytest.mark.parametrize('axis', ['X_UP', 'Y_UP', 'Z_UP'])
+def test_collada_up_axis_is_not_applied_as_in_ros_tools(tetra_files, tmp_path, axis):
+    # assimp puts the up-axis rotation in the root node transform, which MoveIt
+    # (geometric_shapes) and RViz reset: vertices are used in the file's own axes.
+    with open(tetra_files['dae']) as stream:
+        text = re.sub(r'<up_axis>[^<]*</up_axis>', '', stream.read())
+    path = tmp_path / f'tetra_{axis}.dae'
+    path.write_text(text.replace('</asset>', f'<up_axis>{axis}</up_axis></asset>', 1))
+    vertices, _ = load_mesh_file(str(path), [2.0, 3.0, 4.0])
+    np.testing.assert_allclose(vertices.max(axis=0), [2.0, 3.0, 4.0])
+
+
+def test_real_y_up_collada_stays_in_the_link_frame(erd_share):
+    # go1's trunk.dae declares Y_UP but is authored in the link frame (x forward, z up), like
+    # 87 of the example-robot-data DAE files: turning it to Z-up would stand the trunk on end.
+    path = os.path.join(erd_share, 'robots', 'go1_description', 'meshes', 'trunk.dae')
+    with open(path) as stream:
+        assert '<up_axis>Y_UP</up_axis>' in stream.read()
+    vertices, _ = load_mesh_file(path)
+    extent = vertices.max(axis=0) - vertices.min(axis=0)
+    assert extent[0] > 0.4 and extent[2] < 0.15   # long along x, flat along z
+
+
 def test_degenerate_triangles_are_kept(tmp_path):
     mesh = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0]],
                            [[0, 1, 2], [0, 1, 3]], process=False)   # the second has zero area
@@ -192,11 +215,53 @@ def test_package_uri_of_this_package_uses_the_share_directory(monkeypatch, tmp_p
         str(tmp_path), 'meshes/x.stl')
 
 
-def test_package_uri_from_the_ament_index(monkeypatch, tmp_path):
-    (tmp_path / 'x.stl').write_bytes(b'')
-    monkeypatch.setattr(mesh_loading, '_ament_share_directory',
-                        lambda name: str(tmp_path) if name == 'indexed' else None)
-    assert resolve_mesh_uri('package://indexed/x.stl') == os.path.join(str(tmp_path), 'x.stl')
+def _ament_prefix(prefix, name):
+    index = prefix / 'share' / 'ament_index' / 'resource_index' / 'packages'
+    index.mkdir(parents=True, exist_ok=True)
+    (index / name).write_text('')
+    (prefix / 'share' / name).mkdir(parents=True, exist_ok=True)
+    (prefix / 'share' / name / 'x.stl').write_bytes(b'')
+    return prefix / 'share' / name / 'x.stl'
+
+
+def _source_package(root, name):
+    (root / name).mkdir(parents=True)
+    (root / name / 'package.xml').write_text(f'<package format="3"><name>{name}</name></package>')
+    (root / name / 'x.stl').write_bytes(b'')
+    return root / name / 'x.stl'
+
+
+def test_package_uri_order_explicit_then_ament_then_ros_package_path(monkeypatch, tmp_path):
+    first = _ament_prefix(tmp_path / 'overlay', 'pkg')
+    second = _ament_prefix(tmp_path / 'underlay', 'pkg')
+    crawled = _source_package(tmp_path / 'src' / 'deep', 'pkg')
+    monkeypatch.setenv('AMENT_PREFIX_PATH', f'{tmp_path / "overlay"}:{tmp_path / "underlay"}')
+    monkeypatch.setenv('ROS_PACKAGE_PATH', str(tmp_path / 'src'))
+    explicit = tmp_path / 'explicit'
+    explicit.mkdir()
+    (explicit / 'x.stl').write_bytes(b'')
+    assert resolve_mesh_uri('package://pkg/x.stl', {'pkg': str(explicit)}) == str(
+        explicit / 'x.stl')
+    assert resolve_mesh_uri('package://pkg/x.stl') == str(first)   # the overlay first
+    monkeypatch.setenv('AMENT_PREFIX_PATH', str(tmp_path / 'underlay'))
+    assert resolve_mesh_uri('package://pkg/x.stl') == str(second)
+    monkeypatch.setenv('AMENT_PREFIX_PATH', str(tmp_path / 'nothing'))
+    # rospack: the package.xml <name> counts, found at any depth below the entry.
+    assert resolve_mesh_uri('package://pkg/x.stl') == str(crawled)
+
+
+def test_unresolved_package_names_the_package_and_every_place(monkeypatch, tmp_path):
+    monkeypatch.setenv('AMENT_PREFIX_PATH', str(tmp_path / 'prefix'))
+    monkeypatch.setenv('ROS_PACKAGE_PATH', str(tmp_path / 'src'))
+    with pytest.raises(MeshError) as raised:
+        resolve_mesh_uri('package://lost/x.stl', None, None, owner='link "a"')
+    message = str(raised.value)
+    assert 'of package "lost" not found' in message
+    assert 'package_paths (no entry "lost")' in message
+    assert f'ament index {tmp_path}/prefix/share/ament_index/resource_index/packages/lost' in (
+        message)
+    assert f'ROS_PACKAGE_PATH entry {tmp_path}/src' in message
+    assert '--package-path lost=DIR' in message
 
 
 def test_file_and_relative_uris(package_tree, monkeypatch):

@@ -7,7 +7,7 @@ import pytest
 import trimesh
 from lxml import etree
 
-from collision_sensor.errors import MeshError, RobotDescriptionError
+from collision_sensor.errors import LoadWarning, MeshError, RobotDescriptionError
 from collision_sensor.robot_model import load_urdf
 
 
@@ -206,12 +206,49 @@ def test_too_deep_nesting_is_refused():
         load_urdf(text)
 
 
+FLOATING_BASE = """
+  <link name="world"/>
+  <link name="base"><collision><geometry><box size="1 1 1"/></geometry></collision></link>
+  <link name="arm"><collision><geometry><box size="1 1 1"/></geometry></collision></link>
+  <joint name="root_joint" type="{type}">
+    <parent link="world"/> <child link="base"/> <origin xyz="0 0 0.5"/>
+  </joint>
+  <joint name="j" type="revolute">
+    <parent link="base"/> <child link="arm"/> <origin xyz="0 0 2"/>
+    <limit lower="-1" upper="1" effort="2" velocity="3"/>
+  </joint>
+"""
+
+
+@pytest.mark.parametrize('joint_type, variables', [
+    ('floating', ('trans_x', 'trans_y', 'trans_z', 'rot_x', 'rot_y', 'rot_z', 'rot_w')),
+    ('planar', ('x', 'y', 'theta'))])
+def test_floating_base_is_read_and_held_at_identity(joint_type, variables):
+    from collision_sensor.kinematics import build_kinematic_tree
+    with pytest.warns(LoadWarning, match=f'joint "root_joint" \\({joint_type}.*floating base: '
+                                         'it is held at identity'):
+        model = load_urdf(robot(FLOATING_BASE.format(type=joint_type)))
+    joint = {j.name: j for j in model.joints}['root_joint']
+    assert joint.type == joint_type
+    assert joint.variables == tuple(f'root_joint/{v}' for v in variables)
+    assert model.held_joints == ('root_joint',)
+    tree = build_kinematic_tree(model)
+    assert tree.joint_names == ('j',)
+    poses = tree.forward_kinematics(np.array([0.0]))
+    assert np.allclose(poses[tree.link_names.index('base')][:3, 3], [0, 0, 0.5])
+    assert np.allclose(poses[tree.link_names.index('arm')][:3, 3], [0, 0, 2.5])
+
+
 @pytest.mark.parametrize('joint_type', ['floating', 'planar'])
-def test_floating_and_planar_joints_are_refused(joint_type):
-    with pytest.raises(RobotDescriptionError,
-                       match=f'joint "j" is of type "{joint_type}", which is not supported.*'
-                             'fixed joint'):
-        load_urdf(two_links(joint_type))
+def test_floating_and_planar_joints_inside_the_tree_are_refused_by_kinematics(joint_type):
+    from collision_sensor.kinematics import build_kinematic_tree
+    text = FLOATING_BASE.format(type='fixed').replace('type="revolute"', f'type="{joint_type}"')
+    model = load_urdf(robot(text))   # read and represented ...
+    assert model.held_joints == () and model.joints[-1].type == joint_type
+    with pytest.raises(RobotDescriptionError,   # ... but not driven: named, not made fixed
+                       match=f'joint "j" is {joint_type} \\(variables j/.*between links "base" '
+                             'and "arm"; the kinematics cannot drive'):
+        build_kinematic_tree(model)
 
 
 def test_unknown_joint_type_is_refused():
@@ -219,10 +256,25 @@ def test_unknown_joint_type_is_refused():
         load_urdf(two_links('ball'))
 
 
-def test_mimic_of_unknown_joint_is_refused():
+def test_package_uri_with_an_empty_package_name_is_read_with_a_warning(erd_package_paths):
+    mesh = ('<link name="{0}"><collision><geometry><mesh filename="package:///example-robot-data/'
+            'robots/panda_description/meshes/collision/link0.stl"/></geometry></collision></link>')
+    text = robot(mesh.format('a') + mesh.format('b') + '<joint name="j" type="fixed">'
+                 '<parent link="a"/><child link="b"/></joint>')
+    with pytest.warns(LoadWarning, match='1 oddity tolerated') as caught:
+        model = load_urdf(text, erd_package_paths)
+    assert 'empty package name; read as "package://example-robot-data/robots/' in str(
+        caught[0].message)
+    assert len(model.elements) == 2 and len(model.elements[0].faces) > 0
+
+
+def test_mimic_of_unknown_joint_is_tolerated_as_independent():
+    # As urdfdom and MoveIt read alex_psyonic_hands.urdf: the joint moves on its own.
     text = two_links().replace('<axis', '<mimic joint="ghost" multiplier="2"/><axis')
-    with pytest.raises(RobotDescriptionError, match='joint "j" mimics joint "ghost".*not exist'):
-        load_urdf(text)
+    with pytest.warns(LoadWarning, match='joint "j" mimics joint "ghost", which does not exist; '
+                                         'it is treated as an independent joint; fix'):
+        model = load_urdf(text)
+    assert model.joints[0].mimic is None and len(model.warnings) == 1
 
 
 def test_two_roots_are_named():
