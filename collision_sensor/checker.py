@@ -21,6 +21,7 @@ from collision_sensor.bounding_volumes import fit_obb
 from collision_sensor.checker_config import CheckerConfig
 from collision_sensor.errors import JointStateError, SceneError
 from collision_sensor.exception_list import adjacent_pairs, parse_pair_strings, sorted_pair
+from collision_sensor.mesh_loading import SOLID_CLOSED_MESH, Solid, is_closed_surface
 from collision_sensor.kinematics import JOINT_PRISMATIC, KinematicTree, build_kinematic_tree
 from collision_sensor.obb_tree import BOX_WIDTH, box_table, build_forest, forest_view, node_table
 from collision_sensor.array_pack import ArrayPack
@@ -80,6 +81,7 @@ class CollisionChecker:
         if clashes:
             raise SceneError(f'scene object name(s) {", ".join(clashes)} are also link names of '
                              f'robot "{model.name}"; rename the scene objects')
+        self.scene_objects: Tuple[SceneObject, ...] = scene
         self.scene_object_names: Tuple[str, ...] = tuple(obj.name for obj in scene)
         body_names = link_names + list(self.scene_object_names)
         n_links, n_bodies = len(link_names), len(body_names)
@@ -87,16 +89,21 @@ class CollisionChecker:
 
         # One tree per collision element (the paper's per-link sub-groups), in body frames.
         link_index = {name: i for i, name in enumerate(link_names)}
-        meshes, owners = [], []
+        meshes, owners, solids = [], [], []
         for element in model.elements:
             meshes.append((_transformed(element.T_link_element, element.vertices),
                            element.faces))
             owners.append(link_index[element.link])
+            solids.append(self._solid_row(element.solid, element.faces,
+                                          element.T_link_element))
         for s, obj in enumerate(scene):
             meshes.append((np.asarray(obj.vertices, dtype=np.float64), obj.faces))
             owners.append(n_links + s)
+            solids.append(self._solid_row(obj.solid, obj.faces, np.eye(4)))
         order = np.argsort(np.asarray(owners, dtype=np.int64), kind='stable')
         meshes = [meshes[i] for i in order]
+        elem_solid = (np.array([solids[i] for i in order]) if solids
+                      else np.zeros((1, engine.SOLID_WIDTH)))
         owners = np.asarray(owners, dtype=np.int64)[order]
         forest = build_forest(meshes, leaf_size=self.config.leaf_size,
                               fit=self.config.obb_fit_code)
@@ -203,7 +210,8 @@ class CollisionChecker:
             multiplier=kin.multiplier, offset=kin.offset, T_world_body=T_world_body,
             body_boxes=box_table(self._body_center, self._body_axes, self._body_half),
             boxes=box_table(f.center, f.axes, f.half), volume=f.volume, gain=f.gain,
-            tris=f.tris, subtree_boxes=np.zeros((max(n_links, 1), BOX_WIDTH)),
+            tris=f.tris, elem_solid=elem_solid,
+            subtree_boxes=np.zeros((max(n_links, 1), BOX_WIDTH)),
             clearance=np.zeros(n_pairs), q_eval=np.zeros((n_pairs, n_joints)),
             reach=self._pair_reach, reach_ext=self._pair_reach_ext, travel=np.zeros((n_pairs, 2)),
             front_until=np.zeros((n_pairs + 1) * front_rows), front_travel=np.zeros(n_pairs))
@@ -286,6 +294,19 @@ class CollisionChecker:
         as a view of the buffer the engine reads and writes in place: for tests, benchmarks and
         inspection (writing to it changes what the engine sees)."""
         return self._views[name]
+
+    def _solid_row(self, solid, faces, T_body_element) -> np.ndarray:
+        """The engine's row for one element (``cpp/query.hpp``: SOLID_*): what it fills, in
+        its body's frame. Primitives are solid; a closed mesh is with ``mesh_containment``."""
+        row = np.zeros(engine.SOLID_WIDTH)
+        if solid is None and self.config.mesh_containment and is_closed_surface(faces):
+            solid = Solid(SOLID_CLOSED_MESH)
+        if solid is not None:
+            row[0] = solid.kind
+            row[1:4] = solid.size
+            row[4:13] = T_body_element[:3, :3].ravel()
+            row[13:16] = T_body_element[:3, 3]
+        return row
 
     def _write_header(self, n_links: int) -> None:
         """Fill the int buffer's header (cpp/query.hpp: H_*) once, after packing."""

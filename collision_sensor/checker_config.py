@@ -18,6 +18,11 @@ obb_fit               'pca'      box fit: 'pca' (vertex covariance, the paper's 
 leaf_size             1          most triangles per tree leaf (1: a leaf box is as
                                  tight as its triangle; measured fastest on Panda and UR5)
 primitive_sections    32         tessellation of URDF/scene cylinders and spheres
+mesh_containment      False      also treat closed (watertight, consistently wound) meshes
+                                 as solid: anything wholly inside one collides with it, as
+                                 with primitives, which are always solid (README, "Contact
+                                 rule"); costs a ray test over the mesh's triangles per
+                                 element pair whose spheres overlap and surfaces do not meet
 ===================== ========== ============================================================
 """
 from dataclasses import dataclass, fields, replace
@@ -44,6 +49,7 @@ class CheckerConfig:
     obb_fit: str = 'pca'
     leaf_size: int = 1
     primitive_sections: int = 32
+    mesh_containment: bool = False
 
     @classmethod
     def from_mapping(cls, config: Optional[Mapping[str, Any]] = None) -> 'CheckerConfig':
@@ -91,9 +97,9 @@ def _converted(config):
                 raise ConfigError('setting allowed_collisions: expected a list of strings '
                                   '"link_a:link_b"')
             out[key] = tuple(value)
-        elif key == 'ignore_adjacent':
+        elif key in ('ignore_adjacent', 'mesh_containment'):
             if not isinstance(value, bool):
-                raise ConfigError(f'setting ignore_adjacent: expected true or false, got {value!r}')
+                raise ConfigError(f'setting {key}: expected true or false, got {value!r}')
             out[key] = value
         elif key == 'motion_tolerance':
             try:

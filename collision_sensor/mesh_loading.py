@@ -36,6 +36,7 @@ inscribed, never larger than the shape.
   triangles. With the default 32 sections: 482 vertices, 960 triangles.
 """
 import functools
+from dataclasses import dataclass
 import os
 import re
 import urllib.parse
@@ -216,6 +217,57 @@ def _collada_meters_per_unit(mesh, path) -> float:
         raise MeshError(f'mesh "{path}" has COLLADA units "{units}", which are not understood; '
                         'give <unit meter="..."/> a positive number')
     return float(match.group(1))
+
+
+#: Solid kinds (``Solid.kind``; the engine's ``cpp/query.hpp``: SOLID_*).
+SOLID_BOX, SOLID_SPHERE, SOLID_CYLINDER, SOLID_CLOSED_MESH = 1, 2, 3, 4
+
+
+@dataclass(frozen=True)
+class Solid:
+    """What a collision element fills, beyond its surface triangles: a primitive is solid.
+
+    ``kind`` is one of ``SOLID_*``; ``size`` ``(3,)``: a box's half extents, a sphere's radius
+    (then 0, 0), a cylinder's radius and half length along z (then 0), in the element frame
+    (centred, axis-aligned, as the tessellators here build them). Something wholly inside a
+    solid collides with it (as FCL reports for primitives), although no triangles meet.
+    """
+
+    kind: int
+    size: tuple = (0.0, 0.0, 0.0)
+
+
+def box_solid(size) -> Solid:
+    """The solid of a box of edge lengths ``size``."""
+    return Solid(SOLID_BOX, tuple(0.5 * float(v) for v in size))
+
+
+def sphere_solid(radius: float) -> Solid:
+    """The solid of a sphere."""
+    return Solid(SOLID_SPHERE, (float(radius), 0.0, 0.0))
+
+
+def cylinder_solid(radius: float, length: float) -> Solid:
+    """The solid of a cylinder along z."""
+    return Solid(SOLID_CYLINDER, (float(radius), 0.5 * float(length), 0.0))
+
+
+def is_closed_surface(faces: np.ndarray) -> bool:
+    """True iff the triangles form closed, consistently oriented surfaces: every directed edge
+    appears once and its reverse once (each edge shared by exactly two faces, wound oppositely).
+    A mesh that passes has an inside; ``mesh_containment`` treats it as solid."""
+    faces = np.asarray(faces, dtype=np.int64)
+    if len(faces) < 4:
+        return False
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    if np.any(edges[:, 0] == edges[:, 1]):
+        return False
+    n = int(faces.max()) + 1
+    directed = edges[:, 0] * n + edges[:, 1]
+    reverse = edges[:, 1] * n + edges[:, 0]
+    if len(np.unique(directed)) != len(directed):
+        return False
+    return bool(np.all(np.isin(reverse, directed)))
 
 
 def box_mesh(size):

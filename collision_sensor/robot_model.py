@@ -43,6 +43,7 @@ import dataclasses
 import math
 import os
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -116,6 +117,7 @@ class CollisionElement:
     T_link_element: np.ndarray
     vertices: np.ndarray
     faces: np.ndarray
+    solid: Optional[mesh_loading.Solid] = None  # primitives: what they fill (see Solid)
 
 
 @dataclass(frozen=True, eq=False)
@@ -473,6 +475,7 @@ def _load_collision(collision, link, index, context, package_paths, base_dir, se
                             'or sphere')
     shape = shapes[0]
     where = f'{owner} <collision> {index}'
+    solid = None
     if shape.tag == 'mesh':
         uri = shape.get('filename')
         if not uri:
@@ -494,23 +497,27 @@ def _load_collision(collision, link, index, context, package_paths, base_dir, se
         size = context.floats(shape, 'size', 3, where)
         _check_non_negative(size, where, 'box size', context)
         vertices, faces = mesh_loading.box_mesh(size)
+        solid = mesh_loading.box_solid(size)
         source = 'box ' + ' '.join(f'{v:g}' for v in size)
     elif shape.tag == 'cylinder':
         radius = context.number(shape, 'radius', where)
         length = context.number(shape, 'length', where)
         _check_non_negative([radius, length], where, 'cylinder radius and length', context)
         vertices, faces = mesh_loading.cylinder_mesh(radius, length, sections)
+        solid = mesh_loading.cylinder_solid(radius, length)
         source = f'cylinder {radius:g} {length:g}'
     elif shape.tag == 'sphere':
         radius = context.number(shape, 'radius', where)
         _check_non_negative([radius], where, 'sphere radius', context)
         vertices, faces = mesh_loading.sphere_mesh(radius, sections)
+        solid = mesh_loading.sphere_solid(radius)
         source = f'sphere {radius:g}'
     else:
         raise context.error(f'{where}: shape <{shape.tag}> is not supported; use mesh, box, '
                             'cylinder or sphere')
     return CollisionElement(link=link, index=index, name=name, source=source,
-                            T_link_element=T_link_element, vertices=vertices, faces=faces)
+                            T_link_element=T_link_element, vertices=vertices, faces=faces,
+                            solid=solid)
 
 
 def _check_non_negative(values, where, what, context):

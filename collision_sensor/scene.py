@@ -30,6 +30,7 @@ Every error is a :class:`SceneError` naming the file, the object and the fix.
 import math
 import os
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 import yaml
@@ -56,6 +57,7 @@ class SceneObject:
     T_world_object: np.ndarray
     vertices: np.ndarray
     faces: np.ndarray
+    solid: Optional[mesh_loading.Solid] = None  # primitives: what they fill
 
 
 def load_scene(scene, package_paths=None, *,
@@ -141,21 +143,25 @@ def _parse_object(entry, position, where, package_paths, base_dir, sections) -> 
         raise SceneError(f'{owner}: {shape} has unknown key(s) {", ".join(extra)}; write '
                          f'{_EXAMPLES[shape]}')
     T_world_object = _pose(entry.get('pose'), owner)
+    solid = None
     if shape == 'box':
         size = _numbers(spec.get('size'), 3, f'{owner}: box size', _EXAMPLES['box'])
         if np.any(size <= 0):
             raise SceneError(f'{owner}: box size {size.tolist()} must be three positive '
                              f'numbers; write {_EXAMPLES["box"]}')
         vertices, faces = mesh_loading.box_mesh(size)
+        solid = mesh_loading.box_solid(size)
         source = 'box ' + ' '.join(f'{v:g}' for v in size)
     elif shape == 'cylinder':
         radius = _positive(spec.get('radius'), f'{owner}: cylinder radius', _EXAMPLES[shape])
         length = _positive(spec.get('length'), f'{owner}: cylinder length', _EXAMPLES[shape])
         vertices, faces = mesh_loading.cylinder_mesh(radius, length, sections)
+        solid = mesh_loading.cylinder_solid(radius, length)
         source = f'cylinder {radius:g} {length:g}'
     elif shape == 'sphere':
         radius = _positive(spec.get('radius'), f'{owner}: sphere radius', _EXAMPLES[shape])
         vertices, faces = mesh_loading.sphere_mesh(radius, sections)
+        solid = mesh_loading.sphere_solid(radius)
         source = f'sphere {radius:g}'
     else:
         uri = spec.get('filename')
@@ -171,7 +177,7 @@ def _parse_object(entry, position, where, package_paths, base_dir, sections) -> 
                                                       error=SceneError)
         source = f'mesh {uri}'
     return SceneObject(name=name, source=source, T_world_object=T_world_object,
-                       vertices=vertices, faces=faces)
+                       vertices=vertices, faces=faces, solid=solid)
 
 
 _EXAMPLES = {

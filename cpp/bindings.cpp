@@ -175,6 +175,7 @@ PYBIND11_MODULE(_engine, m) {
     m.attr("INT_SLOTS") = py::tuple(int_slots);
     m.attr("HEADER_SIZE") = cs::HEADER_SIZE;
     m.attr("NOT_AN_ARRAY") = NOT_AN_ARRAY;
+    m.attr("SOLID_WIDTH") = cs::SOLID_WIDTH;
     m.attr("LAYOUT_WIDTH") = cs::LAYOUT_WIDTH;
     m.attr("N_SCALARS") = cs::N_SCALARS;
     m.attr("S_TOLERANCE") = cs::S_TOLERANCE;

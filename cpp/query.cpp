@@ -80,6 +80,7 @@ Engine::Engine(double* F, int64_t f_size, int64_t* I, int64_t i_size) {
     check_shape("gain", fs[gain], n_nodes, 1, 1);
     check_shape("tris", fs[tris], -1, 3, 3);
     check_shape("subtree_boxes", fs[subtree_boxes], L1, BOX_WIDTH, 1);
+    check_shape("elem_solid", fs[elem_solid], std::max<int64_t>(is[roots].size, 1), SOLID_WIDTH, 1);
     check_shape("clearance", fs[clearance], n_pairs_, 1, 1);
     check_shape("q_eval", fs[q_eval], n_pairs_, n_joints_, 1);
     check_shape("reach", fs[reach], n_pairs_, n_joints_, 1);
@@ -112,6 +113,7 @@ Engine::Engine(double* F, int64_t f_size, int64_t* I, int64_t i_size) {
     stack_rows_ = is[stack].d0;
     front_capacity_ = fs[front_until].size / (n_pairs_ + 1);
 
+    elem_solid_ = fp[elem_solid];
     scalars_ = fp[scalars];
     kin_ = {n_links_, ip[parent], ip[joint_type], fp[T_parent_joint], fp[axis], ip[q_index],
             fp[multiplier], fp[offset]};
@@ -175,6 +177,33 @@ Engine::Engine(double* F, int64_t f_size, int64_t* I, int64_t i_size) {
             node[NODE_COUNT] < 0 || node[NODE_FIRST] + node[NODE_COUNT] > n_tris)
             throw std::invalid_argument("packed array 'nodes': index out of range");
     }
+    // Each tree's triangles (internal nodes carry no count): the range its leaves cover.
+    const int64_t n_roots = is[roots].size;
+    elem_tris_.assign(2 * n_roots, 0);
+    std::vector<int64_t> pending_nodes;
+    for (int64_t e = 0; e < n_roots; ++e) {
+        int64_t lo = n_tris, hi = 0;
+        pending_nodes.assign(1, roots_[e]);
+        for (int64_t visits = 0; !pending_nodes.empty(); ++visits) {
+            if (visits > n_nodes)  // a node reached twice: a cycle, not a tree
+                throw std::invalid_argument("packed array 'nodes': not a tree");
+            const int64_t* node = forest_.node(pending_nodes.back());
+            pending_nodes.pop_back();
+            if (node[NODE_LEFT] >= 0) {
+                pending_nodes.push_back(node[NODE_LEFT]);
+                pending_nodes.push_back(node[NODE_RIGHT]);
+            } else if (node[NODE_COUNT] > 0) {
+                lo = std::min(lo, node[NODE_FIRST]);
+                hi = std::max(hi, node[NODE_FIRST] + node[NODE_COUNT]);
+            }
+        }
+        elem_tris_[2 * e] = lo < hi ? lo : 0;
+        elem_tris_[2 * e + 1] = lo < hi ? hi : 0;
+    }
+    body_solid_.assign(n_bodies_, 0);
+    for (int64_t b = 0; b < n_bodies_; ++b)
+        for (int64_t e = body_elem_start_[b]; e < body_elem_end_[b]; ++e)
+            if (elem_solid_[SOLID_WIDTH * e] != SOLID_NONE) body_solid_[b] = 1;
 }
 
 // ----------------------------------------------------------------------------- poses
@@ -538,6 +567,104 @@ TreesResult Engine::trees_of_pair(int64_t p, bool track, double scale, double tr
     return {false, -1, -1, gap, 0};
 }
 
+// ----------------------------------------------------------------------------- containment
+
+// True iff point x (in element e's body frame) lies in element e's solid (closed: the
+// boundary counts, as touching does). A box, sphere or cylinder is tested as the true shape,
+// not its tessellation, which lies inside it (cylinders and spheres are inscribed): a point in
+// the sliver between the two counts as inside, erring toward contact, as FCL's true primitives
+// do. A closed mesh: a ray from x crosses its triangles an odd number of times.
+bool Engine::inside_solid(int64_t e, const double* x) const {
+    const double* s = elem_solid_ + SOLID_WIDTH * e;
+    const int kind = int(s[0]);
+    const double* R = s + 4;
+    const double* t = s + 13;
+    // The point in the element frame: R' (x - t).
+    const double d0 = x[0] - t[0], d1 = x[1] - t[1], d2 = x[2] - t[2];
+    const double p0 = R[0] * d0 + R[3] * d1 + R[6] * d2;
+    const double p1 = R[1] * d0 + R[4] * d1 + R[7] * d2;
+    const double p2 = R[2] * d0 + R[5] * d1 + R[8] * d2;
+    switch (kind) {
+        case SOLID_BOX:
+            return std::fabs(p0) <= s[1] && std::fabs(p1) <= s[2] && std::fabs(p2) <= s[3];
+        case SOLID_SPHERE:
+            return p0 * p0 + p1 * p1 + p2 * p2 <= s[1] * s[1];
+        case SOLID_CYLINDER:
+            return p0 * p0 + p1 * p1 <= s[1] * s[1] && std::fabs(p2) <= s[2];
+        case SOLID_CLOSED_MESH: {
+            // Parity of the crossings of a ray from x (body frame: the triangles are there)
+            // along a direction no robot mesh is aligned with; a crossing at an edge or vertex
+            // could count twice or not at all, which this direction makes practically never
+            // happen. Moeller-Trumbore, without division.
+            const double u0 = 0.5773502691896258, u1 = 0.5773502691896257, u2 = 0.5773502691896259;
+            const double w0 = 0.3141592653589793, w1 = -0.2718281828459045, w2 = 0.0;
+            const double r0 = u0 + 1e-3 * w0, r1 = u1 + 1e-3 * w1, r2 = u2 + 1e-3 * w2;
+            int64_t crossings = 0;
+            for (int64_t k = elem_tris_[2 * e]; k < elem_tris_[2 * e + 1]; ++k) {
+                const double* T = forest_.tris + 9 * k;
+                const double e10 = T[3] - T[0], e11 = T[4] - T[1], e12 = T[5] - T[2];
+                const double e20 = T[6] - T[0], e21 = T[7] - T[1], e22 = T[8] - T[2];
+                const double h0 = r1 * e22 - r2 * e21, h1 = r2 * e20 - r0 * e22,
+                             h2 = r0 * e21 - r1 * e20;
+                double det = e10 * h0 + e11 * h1 + e12 * h2;
+                if (det == 0.0) continue;  // the ray is parallel to the triangle
+                const double s0 = x[0] - T[0], s1 = x[1] - T[1], s2 = x[2] - T[2];
+                double u = s0 * h0 + s1 * h1 + s2 * h2;
+                const double q0 = s1 * e12 - s2 * e11, q1 = s2 * e10 - s0 * e12,
+                             q2 = s0 * e11 - s1 * e10;
+                double v = r0 * q0 + r1 * q1 + r2 * q2;
+                double dist = e20 * q0 + e21 * q1 + e22 * q2;
+                if (det < 0.0) {
+                    det = -det;
+                    u = -u;
+                    v = -v;
+                    dist = -dist;
+                }
+                if (u >= 0.0 && v >= 0.0 && u + v <= det && dist > 0.0) ++crossings;
+            }
+            return crossings % 2 == 1;
+        }
+        default:
+            return false;
+    }
+}
+
+// True iff an element of one body lies in a solid element of the other (pair a, b, b at pose
+// in a's frame), called once their triangles are known apart: then one vertex decides for
+// the whole element (it cannot be partly inside without its surface meeting the solid's).
+// Element pairs whose spheres are apart cannot contain one another and are skipped.
+bool Engine::contained(int64_t a, int64_t b, const double* P) const {
+    if (!body_solid_[a] && !body_solid_[b]) return false;
+    for (int64_t ea = body_elem_start_[a]; ea < body_elem_end_[a]; ++ea) {
+        for (int64_t eb = body_elem_start_[b]; eb < body_elem_end_[b]; ++eb) {
+            const bool solid_a = elem_solid_[SOLID_WIDTH * ea] != SOLID_NONE;
+            const bool solid_b = elem_solid_[SOLID_WIDTH * eb] != SOLID_NONE;
+            if (!solid_a && !solid_b) continue;
+            if (elem_tris_[2 * ea] == elem_tris_[2 * ea + 1] ||
+                elem_tris_[2 * eb] == elem_tris_[2 * eb + 1])
+                continue;  // an element without triangles
+            const int64_t ra = roots_[ea], rb = roots_[eb];
+            if (spheres(forest_.box(ra), forest_.box(rb), P).apart) continue;
+            if (solid_a) {  // a vertex of eb, taken to body a: R_ab x + t_ab
+                const double* x = forest_.tris + 9 * elem_tris_[2 * eb];
+                const double y[3] = {P[0] * x[0] + P[1] * x[1] + P[2] * x[2] + P[9],
+                                     P[3] * x[0] + P[4] * x[1] + P[5] * x[2] + P[10],
+                                     P[6] * x[0] + P[7] * x[1] + P[8] * x[2] + P[11]};
+                if (inside_solid(ea, y)) return true;
+            }
+            if (solid_b) {  // a vertex of ea, taken to body b: R_ab' (x - t_ab)
+                const double* x = forest_.tris + 9 * elem_tris_[2 * ea];
+                const double d0 = x[0] - P[9], d1 = x[1] - P[10], d2 = x[2] - P[11];
+                const double y[3] = {P[0] * d0 + P[3] * d1 + P[6] * d2,
+                                     P[1] * d0 + P[4] * d1 + P[7] * d2,
+                                     P[2] * d0 + P[5] * d1 + P[8] * d2};
+                if (inside_solid(eb, y)) return true;
+            }
+        }
+    }
+    return false;
+}
+
 // Re-check pairs todo[:n] (all pairs if full); return how many, and whether a status changed.
 //
 // A full check first rebuilds the volumes spanning several links and culls scene pairs with
@@ -597,6 +724,8 @@ int64_t Engine::recheck_pairs(int64_t n, bool full, bool* changed) {
                     if (hit) {
                         witness_[2 * p] = r.ia;
                         witness_[2 * p + 1] = r.ib;
+                    } else if (contained(a, b, pose)) {
+                        hit = true;  // no triangle witness: the re-check descends again
                     }
                 } else if (track) {
                     gap = box_pair_gap(A, B, pose);

@@ -32,6 +32,7 @@
 #include <mutex>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "kinematics.hpp"
 #include "traversal.hpp"
@@ -42,7 +43,8 @@ namespace collision_sensor {
 // them in this order: it reads these lists from the binding).
 #define CS_FLOAT_SLOTS(X)                                                                     \
     X(scalars) X(q_last) X(q_ref) X(T_parent_joint) X(axis) X(multiplier) X(offset)           \
-    X(T_world_body) X(body_boxes) X(boxes) X(volume) X(gain) X(tris) X(subtree_boxes)         \
+    X(T_world_body) X(body_boxes) X(boxes) X(volume) X(gain) X(tris) X(elem_solid)            \
+    X(subtree_boxes)                                                                          \
     X(clearance) X(q_eval) X(reach) X(reach_ext) X(travel) X(front_until) X(front_travel)
 #define CS_INT_SLOTS(X)                                                                       \
     X(header) X(parent) X(joint_type) X(q_index) X(is_scene) X(body_elem_start)              \
@@ -64,6 +66,14 @@ constexpr int H_N_LINKS = 0, H_BOX_METHOD = 1, H_EXPANSION = 2, H_CHECKED_ONCE =
 constexpr int LAYOUT_WIDTH = 5;
 constexpr int H_I_LAYOUT = H_LAYOUTS + N_FLOAT_SLOTS * LAYOUT_WIDTH;
 constexpr int HEADER_SIZE = H_I_LAYOUT + N_INT_SLOTS * LAYOUT_WIDTH;
+
+// elem_solid[e] (one row per sub-group tree, in roots order): what element e fills besides its
+// surface, in its body's frame: kind, size (3), R (3, 3, row-major), t (3). Primitives are solid
+// (box: half extents; sphere: radius; cylinder along z: radius, half length); a closed mesh is
+// with the checker's mesh_containment. Something wholly inside a solid collides with it though
+// no triangles meet (FCL's rule for primitives); a surface mesh contains nothing.
+constexpr int SOLID_NONE = 0, SOLID_BOX = 1, SOLID_SPHERE = 2, SOLID_CYLINDER = 3,
+              SOLID_CLOSED_MESH = 4, SOLID_WIDTH = 16;
 
 // A pair's clearance is rounded down by this fraction of the pair's coordinate scale (its
 // body boxes' reach plus their distance): it covers the triangle test's contact tolerance,
@@ -129,6 +139,8 @@ class Engine {
     double clearance_margin(int64_t a, int64_t b, const double* pose) const;
     void write_pair_pose(int64_t a, int64_t b, double* pose) const;
     bool boxes_apart(const double* A, const double* B, const double* P) const;
+    bool contained(int64_t a, int64_t b, const double* pose) const;
+    bool inside_solid(int64_t e, const double* x) const;
     TreesResult trees_of_pair(int64_t p, bool track, double scale, double travel, double margin,
                               int64_t a, int64_t b, const double* pose, int64_t wa, int64_t wb);
 
@@ -139,6 +151,9 @@ class Engine {
     int64_t stack_rows_, front_capacity_;
     KinematicTree kin_;
     Forest forest_;
+    const double* elem_solid_;
+    std::vector<uint8_t> body_solid_;  // 1 where a body has a solid element
+    std::vector<int64_t> elem_tris_;   // (E, 2): each tree's triangle range (its leaves')
     double *q_last_, *q_ref_, *T_world_body_, *body_boxes_, *subtree_boxes_, *clearance_,
         *q_eval_, *reach_, *reach_ext_, *travel_, *front_until_, *front_travel_;
     int64_t *is_scene_, *body_elem_start_, *body_elem_end_, *roots_, *pair_a_, *pair_b_,

@@ -1,5 +1,9 @@
 """Independent oracles for whole-robot answers: python-fcl on the same triangles, with
-pinocchio's kinematics, and a brute-force all-triangle-pairs check."""
+pinocchio's kinematics, and a brute-force all-triangle-pairs check.
+
+Primitives are solid (README, "Contact rule"): besides the surfaces, fcl's true primitive
+(fcl.Box, fcl.Sphere, fcl.Cylinder) decides whether a vertex of the other body's element lies
+inside it; one vertex decides for the whole element once no surfaces meet."""
 import numpy as np
 
 import fcl
@@ -21,10 +25,16 @@ class FclOracle:
         self.frame_ids = {name: self.pin_model.getFrameId(name, pin.FrameType.BODY)
                           for name in checker.kinematics.link_names}
         self.models = {}
+        self.solids = {}   # body: [(fcl primitive, T_body_element)]
+        self.vertices = {}  # body: one vertex per element, in the body frame
         for element in checker.model.elements:
             T = element.T_link_element
             vertices = element.vertices @ T[:3, :3].T + T[:3, 3]
             self.models.setdefault(element.link, []).append(self._bvh(vertices, element.faces))
+            self.vertices.setdefault(element.link, []).append(vertices[0])
+            if element.solid is not None:
+                self.solids.setdefault(element.link, []).append((self._primitive(element.solid),
+                                                                 T))
         self.scene_poses = {}
         for name in checker.scene_object_names:
             b = checker._body_index[name]
@@ -38,6 +48,34 @@ class FclOracle:
                 meshes.append(self._bvh(vertices, faces))
             self.models[name] = meshes
             self.scene_poses[name] = checker._T_world_body[b].copy()
+            self.vertices[name] = [m_tris[0] for m_tris in (
+                self._tris_of_tree(f, f.roots[e]).reshape(-1, 3) for e in range(start, end))]
+            solid = checker.scene_objects[checker.scene_object_names.index(name)].solid
+            if solid is not None:
+                self.solids[name] = [(self._primitive(solid), np.eye(4))]
+
+    @staticmethod
+    def _primitive(solid):
+        from collision_sensor.mesh_loading import SOLID_BOX, SOLID_SPHERE
+        h = solid.size
+        if solid.kind == SOLID_BOX:
+            return fcl.Box(2 * h[0], 2 * h[1], 2 * h[2])
+        if solid.kind == SOLID_SPHERE:
+            return fcl.Sphere(h[0])
+        return fcl.Cylinder(h[0], 2 * h[1])
+
+    def _contains(self, a, b, Ta, Tb):
+        """A vertex of one of b's elements inside one of a's primitives (fcl decides)."""
+        request = fcl.CollisionRequest()
+        for primitive, T_local in self.solids.get(a, ()):
+            T = Ta @ T_local
+            solid = fcl.CollisionObject(primitive, fcl.Transform(T[:3, :3], T[:3, 3]))
+            for vertex in self.vertices[b]:
+                x = Tb[:3, :3] @ vertex + Tb[:3, 3]
+                point = fcl.CollisionObject(fcl.Sphere(1e-12), fcl.Transform(np.eye(3), x))
+                if fcl.collide(solid, point, request, fcl.CollisionResult()):
+                    return True
+        return False
 
     @staticmethod
     def _tris_of_tree(forest, root):
@@ -102,6 +140,6 @@ class FclOracle:
                         break
                 if found:
                     break
-            if found:
+            if found or self._contains(a, b, Ta, Tb) or self._contains(b, a, Tb, Ta):
                 hits.append((a, b))
         return tuple(hits)

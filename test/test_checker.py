@@ -13,6 +13,7 @@ import pytest
 from collision_sensor import CollisionChecker, ConfigError, JointStateError
 from collision_sensor.sampling import random_configurations, sampling_bounds
 from collision_sensor.triangle_test import triangles_intersect
+from collision_sensor.mesh_loading import SOLID_BOX, SOLID_SPHERE
 from engine_oracles import FclOracle
 
 N_FCL_CONFIGURATIONS = 10_000
@@ -151,10 +152,47 @@ def _world_triangles(checker):
     return {name: np.ascontiguousarray(np.concatenate(parts)) for name, parts in out.items()}
 
 
+def _world_solids(checker):
+    """{body: [(solid, T_world_element, one vertex of each element in the world)]}."""
+    poses = checker.link_poses()
+    out = {}
+    for element in checker.model.elements:
+        T = poses[element.link] @ element.T_link_element
+        out.setdefault(element.link, []).append((element.solid, T,
+                                                 element.vertices[0] @ T[:3, :3].T + T[:3, 3]))
+    for name, obj in zip(checker.scene_object_names, checker.scene_objects):
+        T = poses[name]
+        out.setdefault(name, []).append((obj.solid, T, obj.vertices[0] @ T[:3, :3].T + T[:3, 3]))
+    return out
+
+
+def _inside(solid, T, x):
+    """x (world) inside the true primitive ``solid`` placed at T (boundary included)."""
+    if solid is None:
+        return False
+    p = T[:3, :3].T @ (x - T[:3, 3])
+    h = solid.size
+    if solid.kind == SOLID_BOX:
+        return bool(np.all(np.abs(p) <= h))
+    if solid.kind == SOLID_SPHERE:
+        return bool(p @ p <= h[0] ** 2)
+    return bool(p[0] ** 2 + p[1] ** 2 <= h[0] ** 2 and abs(p[2]) <= h[1])
+
+
 def _brute_force_pairs(checker):
+    """Pairs whose triangles meet (all triangle pairs), or with a part of one body wholly
+    inside a primitive of the other (one vertex of each element decides, once no triangles
+    meet): the contact rule, README "Contact rule"."""
     tris = _world_triangles(checker)
+    solids = _world_solids(checker)
+
+    def contained(a, b):
+        return any(_inside(solid, T, vertex) for solid, T, _ in solids[a]
+                   for _, _, vertex in solids[b])
+
     return tuple(pair for pair in checker.checked_pairs
-                 if _any_triangle_pair_meets(tris[pair[0]], tris[pair[1]]))
+                 if _any_triangle_pair_meets(tris[pair[0]], tris[pair[1]])
+                 or contained(*pair) or contained(pair[1], pair[0]))
 
 
 @pytest.mark.parametrize('leaf_size', [1, 3])

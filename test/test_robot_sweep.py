@@ -30,16 +30,6 @@ EXPECTED_WARNINGS = {
     'talos_data/talos_full_v2': 'URDF: mesh "package:///example-robot-data/',
 }
 
-#: Robots whose answers differ from fcl's for a known reason outside the loader.
-_COINCIDENT = ('at q = 0 the hand_index, hand_mrl and hand_thumb links carry identical 1 mm '
-               'collision spheres at the same pose: identical surfaces touch everywhere, which '
-               'the contact rule counts (README, "Contact rule") and fcl\'s triangle test, '
-               'blind to coplanar triangles, does not')
-XFAIL = {
-    'tiago_description/tiago': _COINCIDENT,
-    'tiago_description/tiago_dual': _COINCIDENT,
-}
-
 #: Robots that take long to load or check (over 10 s here: 300k+ triangles); name -> why.
 SLOW = {
     'g1_description/g1_29dof_with_hand_rev_1_0': '368,200 triangles',
@@ -57,8 +47,6 @@ def _params():
         marks = []
         if robot.name in SLOW:
             marks.append(pytest.mark.slow)
-        if robot.name in XFAIL:
-            marks.append(pytest.mark.xfail(reason=XFAIL[robot.name], strict=True))
         yield pytest.param(robot, id=robot.name, marks=marks)
 
 
