@@ -843,3 +843,37 @@ def _ancestors(kin, i):
     while kin.parent[chain[-1]] >= 0:
         chain.append(int(kin.parent[chain[-1]]))
     return chain
+
+
+@pytest.mark.filterwarnings('ignore::collision_sensor.errors.LoadWarning')   # elbow's axis
+def test_update_equals_check_with_multi_dof_joints_inside_the_tree():
+    """A planar elbow under a revolute shoulder, a floating joint under it: every variable
+    moves, one at a time, several at once, or by jumps."""
+    settings = {'primitive_sections': 8, 'ignore_adjacent': False}
+    incremental, scratch = (CollisionChecker.from_urdf(MID_TREE_MULTI_DOF, scene=SMALL_SCENE,
+                                                       config=settings) for _ in range(2))
+    names = incremental.joint_names
+    rng = np.random.default_rng(17)
+    q = incremental.kinematics.neutral()
+    changes, skipped, previous = 0, 0, None
+    for step in range(2000):
+        choice = rng.integers(3)
+        if choice == 0:
+            q[rng.integers(len(q))] += rng.normal(0.0, 0.03)
+        elif choice == 1:
+            q += rng.normal(0.0, 0.01, len(q))
+        else:
+            q = rng.uniform(-0.3, 0.3, len(q))
+            q[names.index('shoulder')] = rng.uniform(-2.5, 2.5)
+            q[names.index('elbow/theta')] = rng.uniform(-4, 4)
+        translations = [j for j, name in enumerate(names) if '/trans_' in name
+                        or name.endswith(('/x', '/y'))]
+        q[translations] = np.clip(q[translations], -0.3, 0.3)
+        if not np.any(q[names.index('extend/rot_x'):names.index('extend/rot_w') + 1]):
+            q[names.index('extend/rot_w')] = 1.0
+        got, expected = incremental.update(q), scratch.check(q)
+        assert got.colliding_pairs == expected.colliding_pairs, (step, list(q))
+        changes += got.colliding_pairs != previous
+        skipped += got.rechecked_pairs < len(incremental.checked_pairs)
+        previous = got.colliding_pairs
+    assert changes > 5 and skipped > 100
