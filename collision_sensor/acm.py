@@ -143,12 +143,13 @@ def find_adjacent(model, link_names: Sequence[str]) -> Set[Pair]:
 
 
 def default_configuration(checker, srdf=None, state: Optional[str] = None) -> np.ndarray:
-    """Return the default pose: zeros, with the named SRDF ``group_state`` applied.
+    """Return the default pose: zeros (identity quaternions), with the named SRDF
+    ``group_state`` applied.
 
     :param srdf: a loaded :class:`Srdf` (needed when ``state`` is given).
     :raises ConfigError: ``state`` is given without an SRDF, or the SRDF lacks it.
     """
-    q = np.zeros(len(checker.joint_names))
+    q = checker.kinematics.neutral()   # a floating joint's quaternion: the identity
     if state is None:
         return q
     if srdf is None:

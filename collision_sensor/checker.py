@@ -12,6 +12,7 @@ Everything between ``positions`` and the pair statuses runs in one call into the
 engine (``cpp/query.hpp``: ``Engine::query``, C++17); this module turns files into flat arrays
 once, and names back into answers.
 """
+import dataclasses
 import math
 from typing import Dict, Iterable, List, Mapping, NamedTuple, Optional, Sequence, Tuple, Union
 
@@ -19,14 +20,15 @@ import numpy as np
 
 from collision_sensor.bounding_volumes import fit_obb
 from collision_sensor.checker_config import CheckerConfig
-from collision_sensor.errors import JointStateError, SceneError
+from collision_sensor.errors import JointStateError, SceneError, SrdfError
 from collision_sensor.exception_list import adjacent_pairs, parse_pair_strings, sorted_pair
+from collision_sensor.kinematics import (JOINT_FLOATING, JOINT_PLANAR, JOINT_PRISMATIC,
+                                         KinematicTree, build_kinematic_tree)
 from collision_sensor.mesh_loading import SOLID_CLOSED_MESH, Solid, is_closed_surface
-from collision_sensor.kinematics import JOINT_PRISMATIC, KinematicTree, build_kinematic_tree
 from collision_sensor.obb_tree import BOX_WIDTH, box_table, build_forest, forest_view, node_table
 from collision_sensor.array_pack import ArrayPack
 from collision_sensor.compiled import engine
-from collision_sensor.robot_model import RobotModel, load_urdf
+from collision_sensor.robot_model import Joint, RobotModel, load_urdf
 from collision_sensor.scene import SceneObject, load_scene
 from collision_sensor.srdf import Srdf, load_srdf_for_model
 
@@ -36,6 +38,13 @@ _NOT_AN_ARRAY = engine.NOT_AN_ARRAY
 #: few of them; the bound keeps a random stream from growing the cache without end).
 RESULT_CACHE_SIZE = 4096
 Positions = Union[Mapping[str, float], Sequence[float], np.ndarray]
+#: How far a point can move per unit of a floating joint's quaternion component, for the
+#: incremental bounds (_pair_reaches): huge, so that any move beyond motion_tolerance forces
+#: a re-check (the true bound grows as 1 / |quaternion|; the engine refuses quaternions with a
+#: norm below QUATERNION_NORM_MIN = 1e-100, which keeps it below this, see cpp/kinematics.hpp).
+#: Finite on purpose: inf * 0 would be NaN.
+QUATERNION_REACH = 1e300
+_VARIABLE_COUNT = {JOINT_PLANAR: 3, JOINT_FLOATING: 7}
 
 
 class CheckResult(NamedTuple):
@@ -58,7 +67,10 @@ def _transformed(T: np.ndarray, vertices: np.ndarray) -> np.ndarray:
 class CollisionChecker:
     """Self-collision and robot-versus-scene checking for one robot.
 
-    Bodies are the robot's links (world == the root link's frame) and the scene objects. Pairs
+    Bodies are the robot's links and the scene objects. The world frame, in which scene poses
+    are given, is the root link's frame; with an SRDF whose ``virtual_joint`` is planar or
+    floating, it is the virtual joint's ``parent_frame`` (added as a link without geometry above
+    the URDF root), and the robot stands where the joint's variables place it. Pairs
     are every two bodies with geometry, robot-robot and robot-scene, minus the exception list
     (adjacent links, SRDF ``disable_collisions``, ``allowed_collisions``). Contact means the
     two bodies' triangle surfaces share a point (touching counts); a body wholly inside another
@@ -72,7 +84,7 @@ class CollisionChecker:
         :raises CollisionSensorError: on a bad scene, configuration or exception list.
         """
         self.config = CheckerConfig.from_mapping(config)
-        self.model = model
+        model = self.model = _with_virtual_joint(model, srdf)
         self.kinematics: KinematicTree = build_kinematic_tree(model)
         kin = self.kinematics
         link_names = list(kin.link_names)
@@ -187,7 +199,7 @@ class CollisionChecker:
             if kin.parent[i] >= 0:
                 depends[:, i] = depends[:, kin.parent[i]]
             if kin.q_index[i] >= 0:
-                depends[kin.q_index[i], i] = True
+                depends[_variables(kin, i), i] = True
                 joint_prismatic[kin.q_index[i]] += kin.joint_type[i] == JOINT_PRISMATIC
         joint_links = depends.nonzero()
         joint_links_start = np.searchsorted(joint_links[0], np.arange(n_joints + 1))
@@ -205,7 +217,7 @@ class CollisionChecker:
         scalars = np.zeros(engine.N_SCALARS)
         scalars[engine.S_TOLERANCE] = self.config.motion_tolerance
         floats = dict(
-            scalars=scalars, q_last=np.zeros(n_joints), q_ref=np.zeros(n_joints),
+            scalars=scalars, q_last=kin.neutral(), q_ref=kin.neutral(),
             T_parent_joint=kin.T_parent_joint, axis=kin.axis,
             multiplier=kin.multiplier, offset=kin.offset, T_world_body=T_world_body,
             body_boxes=box_table(self._body_center, self._body_axes, self._body_half),
@@ -350,7 +362,7 @@ class CollisionChecker:
             links = above[a] ^ (above[b] if b < n_links else set())
             for k in links:
                 if kin.q_index[k] >= 0:
-                    path[p, kin.q_index[k]] = 1
+                    path[p, _variables(kin, k)] = 1
         return path
 
     def _pair_reaches(self, n_links: int, vertex_radius: np.ndarray) -> np.ndarray:
@@ -366,6 +378,16 @@ class CollisionChecker:
         Both times |multiplier|, summed over the joints variable j drives. E is taken at the
         new state: moving the prismatic variables first, then the others, is a path from the
         old state along which every bound holds.
+
+        Planar and floating joints translate, then rotate about the translated origin (their
+        child frame's). Translation variables: 1, as a prismatic joint. Planar theta: as a
+        revolute joint about the child frame's origin, so the joint's own translation is not
+        in its lever arm, and translation variables do not count in E. Quaternion components:
+        QUATERNION_REACH (any move re-checks). A rotating joint k with a planar or floating
+        joint between it and x would have that joint's translation in its lever arm; such a
+        k gets QUATERNION_REACH too (rare: multi-DOF joints are mostly the root's), so E stays
+        the prismatic joints' sum. Below both bodies' common ancestor (a floating base under
+        self-collision pairs) a joint moves nothing relative, and is skipped.
         """
         kin = self.kinematics
         n_joints = len(kin.joint_names)
@@ -387,13 +409,24 @@ class CollisionChecker:
                         continue  # above the common ancestor, or not driven
                     below = chain[:depth]  # from x up to, excluding, k
                     m = abs(kin.multiplier[k]) * (1.0 + 1e-9)
-                    if kin.joint_type[k] == JOINT_PRISMATIC:
-                        reach[p, kin.q_index[k]] += m
+                    j = kin.q_index[k]
+                    kind = kin.joint_type[k]
+                    if kind == JOINT_PRISMATIC:
+                        reach[p, j] += m
                         continue
-                    reach[p, kin.q_index[k]] += m * (float(offset_norm[below].sum())
-                                                     + vertex_radius[x])
+                    lever = float(offset_norm[below].sum()) + vertex_radius[x]
+                    if any(kin.joint_type[c] in _VARIABLE_COUNT for c in below):
+                        lever = QUATERNION_REACH   # a multi-DOF translation in the lever arm
+                    if kind == JOINT_PLANAR:
+                        reach[p, j:j + 2] += m   # x, y
+                        j += 2                   # theta: below, as a revolute joint
+                    elif kind == JOINT_FLOATING:
+                        reach[p, j:j + 3] += m   # trans_x, trans_y, trans_z
+                        reach[p, j + 3:j + 7] = QUATERNION_REACH
+                        continue
+                    reach[p, j] = min(reach[p, j] + m * lever, QUATERNION_REACH)
                     if any(kin.joint_type[c] == JOINT_PRISMATIC for c in below):
-                        reach_ext[p, kin.q_index[k]] += m
+                        reach_ext[p, j] += m
         return reach, reach_ext
 
     # ------------------------------------------------------------------ queries
@@ -471,8 +504,16 @@ class CollisionChecker:
         moving a prismatic joint beyond the engine's range)."""
         where = f'configuration {row}, ' if row is not None else ''
         value = q[j]
+        name = self.joint_names[j]
+        if math.isfinite(value) and name.endswith('/rot_x'):
+            joint = name[:-len('/rot_x')]
+            values = ', '.join(f'{v:g}' for v in q[j:j + 4])
+            return (f'{where}floating joint "{joint}": quaternion (rot_x, rot_y, rot_z, rot_w) '
+                    f'= ({values}) is zero (norm below {engine.QUATERNION_NORM_MIN:g}); send a '
+                    'unit quaternion, (0, 0, 0, 1) for no rotation (nothing was changed)')
         if math.isfinite(value):
-            why = (f'moves a joint out of the engine\'s range (a prismatic joint by more than '
+            why = (f'moves a joint out of the engine\'s range (a prismatic joint, or a planar or '
+                   f'floating joint\'s translation, by more than '
                    f'{engine.PRISMATIC_VALUE_MAX:g} m, or a value that overflows); send a '
                    'value within the joint\'s limits')
         else:
@@ -602,3 +643,44 @@ class CollisionChecker:
                 T_body_box[:3, 3] = f.center[node]
                 boxes.append((name, T_world_body[b] @ T_body_box, f.half[node].copy()))
         return boxes
+
+
+def _variables(kin: KinematicTree, k: int) -> slice:
+    """The variables of q that the joint above link k reads (consecutive)."""
+    j = int(kin.q_index[k])
+    return slice(j, j + _VARIABLE_COUNT.get(int(kin.joint_type[k]), 1))
+
+
+def _with_virtual_joint(model: RobotModel, srdf: Optional[Srdf]) -> RobotModel:
+    """Return ``model`` with the SRDF's planar or floating virtual joint above its root link.
+
+    The virtual joint's ``parent_frame`` becomes the root (a link without geometry) and the
+    world frame; its variables come first in ``q``, as in MoveIt's variable order. A fixed
+    virtual joint changes nothing (the root link already is the world frame). Only the first
+    virtual joint is used (the SRDF loader keeps only those that reach the root link).
+
+    :raises SrdfError: the parent frame is already a link of the robot.
+    """
+    moving = [joint for joint in (srdf.virtual_joints if srdf is not None else ())
+              if joint.type != 'fixed']
+    if not moving:
+        return model
+    virtual = moving[0]
+    if model.root_link == virtual.parent_frame and any(
+            joint.name == virtual.name for joint in model.joints):
+        return model   # already added (a checker built on another checker's model)
+    if virtual.parent_frame in model.links:
+        raise SrdfError(f'SRDF "{srdf.source}": virtual joint "{virtual.name}" has parent_frame '
+                        f'"{virtual.parent_frame}", which is a link of the robot; name the '
+                        'world frame differently')
+    if any(joint.name == virtual.name for joint in model.joints):
+        raise SrdfError(f'SRDF "{srdf.source}": virtual joint "{virtual.name}" has the name of '
+                        'a URDF joint; rename it')
+    joint = Joint(name=virtual.name, type=virtual.type, parent=virtual.parent_frame,
+                  child=virtual.child_link, T_parent_joint=np.eye(4),
+                  axis=np.array([0.0, 0.0, 1.0]), lower=-math.inf, upper=math.inf,
+                  velocity=0.0, effort=0.0, mimic=None)
+    order = model.joint_document_order or tuple(j.name for j in model.joints)
+    return dataclasses.replace(
+        model, root_link=virtual.parent_frame, links=(virtual.parent_frame,) + model.links,
+        joints=(joint,) + model.joints, joint_document_order=(virtual.name,) + order)

@@ -1,23 +1,34 @@
 """Forward kinematics of a robot model over flat arrays (computed in C++).
 
 A :class:`KinematicTree` holds the tree as structure-of-arrays indexed by link (``L`` links,
-root first, every parent before its children), and the configuration ``q`` holds one value per
-movable, non-mimic joint (``J`` values, URDF document order). Each link ``i`` except the root is
-reached through the joint above it::
+root first, every parent before its children), and the configuration ``q`` holds the variables
+of the movable, non-mimic joints (``J`` values, URDF document order): one per revolute,
+continuous or prismatic joint, MoveIt's three ``<joint>/x``, ``/y``, ``/theta`` per planar joint
+and seven ``<joint>/trans_x``, ``/trans_y``, ``/trans_z``, ``/rot_x``, ``/rot_y``, ``/rot_z``,
+``/rot_w`` per floating joint, consecutive. Each link ``i`` except the root is reached through
+the joint above it::
 
     value = multiplier[i] * q[q_index[i]] + offset[i]     # mimic chains already composed
-    T_world_link[i] = T_world_link[parent[i]] @ T_parent_joint[i] @ M(joint_type[i], value)
+    v = q[q_index[i]:q_index[i] + 3 or 7]                 # a multi-DOF joint's variables
+    T_world_link[i] = T_world_link[parent[i]] @ T_parent_joint[i] @ M(joint_type[i], ...)
 
     M(FIXED)     = I
     M(REVOLUTE)  = [Rodrigues(axis[i], value), 0; 0, 1]   # continuous joints too
     M(PRISMATIC) = [I, value * axis[i]; 0, 1]
+    M(PLANAR)    = [Rz(v[2]), (v[0], v[1], 0); 0, 1]      # the joint frame's x-y plane
+    M(FLOATING)  = [R(v[3:7] / |v[3:7]|), v[0:3]; 0, 1]   # quaternion x, y, z, w
+
+A planar joint moves in its joint frame's x-y plane whatever its URDF ``<axis>`` (MoveIt's
+PlanarJointModel does the same; :func:`collision_sensor.robot_model.load_urdf` warns about an
+axis other than z). A multi-DOF joint is never a mimic (the loader makes such a mimic
+independent), so its multiplier and offset are 1 and 0. :meth:`KinematicTree.neutral` is the
+zero configuration with every quaternion the identity (rot_w = 1).
 
 "world" is the root link's frame: ``T_world_link[0]`` is the identity.
 
 :func:`forward_kinematics_kernel` runs ``cpp/kinematics.hpp``, the code the query engine
 itself runs for each link it needs (lazily, inside a query).
 """
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,9 +36,15 @@ from collision_sensor.compiled import engine
 from collision_sensor.errors import JointStateError, RobotDescriptionError
 from collision_sensor.robot_model import RobotModel, resolve_mimics
 
-JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC = 0, 1, 2
+JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC, JOINT_PLANAR, JOINT_FLOATING = 0, 1, 2, 3, 4
 _JOINT_CODES = {'fixed': JOINT_FIXED, 'revolute': JOINT_REVOLUTE,
-                'continuous': JOINT_REVOLUTE, 'prismatic': JOINT_PRISMATIC}
+                'continuous': JOINT_REVOLUTE, 'prismatic': JOINT_PRISMATIC,
+                'planar': JOINT_PLANAR, 'floating': JOINT_FLOATING}
+#: Each multi-DOF variable suffix: (lower, upper) bounds, as MoveIt gives them.
+_VARIABLE_BOUNDS = {'x': (-np.inf, np.inf), 'y': (-np.inf, np.inf), 'theta': (-np.inf, np.inf),
+                    'trans_x': (-np.inf, np.inf), 'trans_y': (-np.inf, np.inf),
+                    'trans_z': (-np.inf, np.inf), 'rot_x': (-1.0, 1.0), 'rot_y': (-1.0, 1.0),
+                    'rot_z': (-1.0, 1.0), 'rot_w': (-1.0, 1.0)}
 
 
 def forward_kinematics_kernel(q, parent, joint_type, T_parent_joint, axis, q_index, multiplier,
@@ -37,10 +54,12 @@ def forward_kinematics_kernel(q, parent, joint_type, T_parent_joint, axis, q_ind
 
     :param q: ``(J,) float64`` joint values.
     :param parent: ``(L,) int64`` parent link index, -1 for the root (index 0).
-    :param joint_type: ``(L,) int64`` JOINT_FIXED / JOINT_REVOLUTE / JOINT_PRISMATIC.
+    :param joint_type: ``(L,) int64`` JOINT_FIXED / _REVOLUTE / _PRISMATIC / _PLANAR /
+        _FLOATING.
     :param T_parent_joint: ``(L, 4, 4) float64`` joint origins.
     :param axis: ``(L, 3) float64`` unit joint axes, in the joint frame.
-    :param q_index: ``(L,) int64`` index into ``q`` of the driving value, -1 if fixed.
+    :param q_index: ``(L,) int64`` index into ``q`` of the driving value (a multi-DOF joint's
+        first variable), -1 if fixed.
     :param multiplier: ``(L,) float64`` joint value = multiplier * q[q_index] + offset.
     :param offset: ``(L,) float64``.
     :param T_world_link: ``(L, 4, 4) float64`` output, written in place (rows 3 included).
@@ -67,7 +86,8 @@ class KinematicTree:
     Per link (``L``): ``parent``, ``joint_type``, ``q_index`` ``(L,) int64``;
     ``T_parent_joint (L, 4, 4)``, ``axis (L, 3)``, ``multiplier``, ``offset (L,) float64``;
     ``link_joint`` the joint above each link (None for the root). Per variable (``J``):
-    ``joint_names``, ``lower``, ``upper (J,) float64``.
+    ``joint_names`` (MoveIt's variable names for multi-DOF joints), ``lower``, ``upper (J,)
+    float64``.
     """
 
     link_names: tuple[str, ...]
@@ -82,6 +102,20 @@ class KinematicTree:
     link_joint: tuple[str | None, ...]
     lower: np.ndarray
     upper: np.ndarray
+
+    def neutral(self) -> np.ndarray:
+        """Return the zero configuration with every floating joint's quaternion the identity.
+
+        :return: ``(J,) float64``.
+        """
+        q = np.zeros(len(self.joint_names))
+        q[[j for j, name in enumerate(self.joint_names)
+           if name.endswith('/rot_w') and self._is_floating_variable(j)]] = 1.0
+        return q
+
+    def _is_floating_variable(self, j) -> bool:
+        first = j - 6   # rot_w is a floating joint's seventh variable
+        return bool(np.any((self.joint_type == JOINT_FLOATING) & (self.q_index == first)))
 
     def forward_kinematics(self, q) -> np.ndarray:
         """Return the pose of every link for one configuration.
@@ -127,29 +161,23 @@ def build_kinematic_tree(model: RobotModel) -> KinematicTree:
     :param model: a model from :func:`collision_sensor.robot_model.load_urdf` (links in
         topological order, root first).
     :return: the tree; its ``q`` order is the URDF document order of the movable, non-mimic
-        joints.
-    :raises RobotDescriptionError: a mimic of an unknown or fixed joint, a mimic cycle, links
-        not in topological order, or a planar or floating joint other than a held floating
-        base (``model.held_joints``, built as fixed at identity).
+        joints, a multi-DOF joint giving its MoveIt variables in MoveIt's order.
+    :raises RobotDescriptionError: a mimic of an unknown or fixed joint, a mimic cycle, a
+        multi-DOF joint in a mimic relation, or links not in topological order.
     """
-    held = set(model.held_joints)
-    for joint in model.joints:
-        if joint.type in ('planar', 'floating') and joint.name not in held:
-            raise RobotDescriptionError(
-                f'URDF "{model.source}": joint "{joint.name}" is {joint.type} (variables '
-                f'{", ".join(joint.variables)}) between links "{joint.parent}" and '
-                f'"{joint.child}"; the kinematics cannot drive planar or floating joints yet '
-                '(only a floating base out of a root link without geometry is held at '
-                'identity); make the joint fixed, or split the robot at it')
-    model_joints = [dataclasses.replace(joint, type='fixed') if joint.name in held else joint
-                    for joint in model.joints]
-    model = dataclasses.replace(model, joints=tuple(model_joints))
     mimics = resolve_mimics(model.joints, model.source)
+    by_name = {joint.name: joint for joint in model.joints}
+    for name, (source, _, _) in mimics.items():
+        if len(by_name[name].variables) != 1 or len(by_name[source].variables) != 1:
+            raise RobotDescriptionError(
+                f'URDF "{model.source}": joint "{name}" ({by_name[name].type}) mimics joint '
+                f'"{source}" ({by_name[source].type}); a planar or floating joint can neither '
+                'mimic nor be mimicked; remove the <mimic>')
     link_index = {name: i for i, name in enumerate(model.links)}
     # model.joints follow their child link; the q vector follows the URDF document instead, which
     # is the order load_urdf read them in and which other tools (yourdfpy) use too.
-    joint_names = tuple(joint.name for joint in _document_order(model)
-                        if joint.type != 'fixed' and joint.name not in mimics)
+    joint_names = tuple(variable for joint in _document_order(model) if joint.name not in mimics
+                        for variable in joint.variables)
     variable = {name: j for j, name in enumerate(joint_names)}
     joints_by_name = {joint.name: joint for joint in model.joints}
     L = len(model.links)
@@ -176,9 +204,17 @@ def build_kinematic_tree(model: RobotModel) -> KinematicTree:
         if joint.type == 'fixed':
             continue
         source, multiplier[i], offset[i] = mimics.get(joint.name, (joint.name, 1.0, 0.0))
-        q_index[i] = variable[source]
-    lower = np.array([joints_by_name[name].lower for name in joint_names], dtype=np.float64)
-    upper = np.array([joints_by_name[name].upper for name in joint_names], dtype=np.float64)
+        q_index[i] = variable[joints_by_name[source].variables[0]]
+    bounds = []
+    for joint in _document_order(model):
+        if joint.name in mimics:
+            continue
+        if len(joint.variables) == 1:
+            bounds.append((joint.lower, joint.upper))
+        else:
+            bounds.extend(_VARIABLE_BOUNDS[v.rsplit('/', 1)[1]] for v in joint.variables)
+    lower = np.array([b[0] for b in bounds], dtype=np.float64).reshape(-1)
+    upper = np.array([b[1] for b in bounds], dtype=np.float64).reshape(-1)
     return KinematicTree(
         link_names=tuple(model.links), joint_names=joint_names, parent=parent,
         joint_type=joint_type, T_parent_joint=np.ascontiguousarray(T_parent_joint),

@@ -15,16 +15,13 @@ Conventions:
 - ``links`` lists the root first, then a depth-first walk where the children of a link follow
   the document order of their joints; ``joints`` follow their child link in that order.
 
-Multi-DOF joints: ``planar`` (``<axis>`` is the plane's normal) and ``floating`` joints are
-read into the model with MoveIt's variable names (:attr:`Joint.variables`: ``<joint>/x``,
-``/y``, ``/theta``; ``<joint>/trans_x``, ``/trans_y``, ``/trans_z``, ``/rot_x``, ``/rot_y``,
-``/rot_z``, ``/rot_w``). The kinematics cannot drive them yet: a multi-DOF joint out of the
-root link whose root link has no collision geometry and no other joint (a "world" link, the
-URDF form of a floating base) is *held* at its zero value, i.e. identity (listed in
-:attr:`RobotModel.held_joints`, with a :class:`LoadWarning`): the collision bodies then do not
-depend on it, and the robot's frame for scenes is that joint's child link placed at the
-joint's origin. Any other planar or floating joint makes
-:func:`collision_sensor.kinematics.build_kinematic_tree` fail naming it.
+Multi-DOF joints: ``planar`` and ``floating`` joints are read with MoveIt's variable names
+(:attr:`Joint.variables`: ``<joint>/x``, ``/y``, ``/theta``; ``<joint>/trans_x``, ``/trans_y``,
+``/trans_z``, ``/rot_x``, ``/rot_y``, ``/rot_z``, ``/rot_w``) and driven by
+:mod:`collision_sensor.kinematics`. A planar joint moves in its joint frame's x-y plane, as
+MoveIt's PlanarJointModel does whatever the URDF says; an explicit ``<axis>`` other than
+``(0, 0, +-1)`` (urdfdom's plane normal) is therefore tolerated with a warning. A floating
+joint's ``<axis>`` is not used.
 
 Tolerated with a :class:`LoadWarning` naming the file, the joint and the fix (as urdfdom and
 MoveIt tolerate them): a ``<mimic>`` naming a joint that does not exist, or a joint with
@@ -128,8 +125,8 @@ class RobotModel:
     order of their child link; ``elements`` is grouped by link in ``links`` order, then by index.
     ``joint_document_order`` names the joints in the order the URDF lists them (the order of the
     configuration vector, see :mod:`collision_sensor.kinematics`); empty means ``joints`` order.
-    ``held_joints`` are the multi-DOF root joints held at identity (see the module docstring);
-    ``warnings`` what was tolerated, one readable line each.
+    ``held_joints`` is always empty: multi-DOF joints are driven now (kept for callers that
+    read it); ``warnings`` what was tolerated, one readable line each.
     """
 
     name: str
@@ -194,14 +191,13 @@ def load_urdf(urdf, package_paths=None, *, primitive_sections: int = 32,
         for index, collision in enumerate(link_elements[link].findall('collision')):
             elements.append(_load_collision(collision, link, index, context, package_paths,
                                             base_dir, primitive_sections))
-    held = _held_joints(links[0], joints, elements, context)
     if context.warnings:
         warn_load(f'URDF "{source}": {len(context.warnings)} oddit'
                   f'{"y" if len(context.warnings) == 1 else "ies"} tolerated:\n'
                   + listed_lines(context.warnings))
     return RobotModel(name=root.get('name', ''), root_link=links[0], links=tuple(links),
                       joints=tuple(joints), elements=tuple(elements), source=source,
-                      joint_document_order=document_order, held_joints=held,
+                      joint_document_order=document_order,
                       warnings=tuple(context.warnings))
 
 
@@ -227,24 +223,6 @@ def _tolerate_bad_mimics(joints, context):
                 joint = dataclasses.replace(joint, mimic=None)
         kept.append(joint)
     return kept
-
-
-def _held_joints(root, joints, elements, context):
-    """Name the multi-DOF joints held at identity: the root's only joint, root without geometry."""
-    from_root = [joint for joint in joints if joint.parent == root]
-    root_has_geometry = any(element.link == root for element in elements)
-    held = []
-    for joint in joints:
-        if joint.type not in MULTI_DOF_SUFFIXES:
-            continue
-        if from_root == [joint] and not root_has_geometry:
-            held.append(joint.name)
-            context.warnings.append(
-                f'joint "{joint.name}" ({joint.type}, variables {", ".join(joint.variables)}) '
-                f'is the robot\'s floating base: it is held at identity, so link "{joint.child}" '
-                'at the joint origin is the frame of scene poses; self-collision does not '
-                'depend on it')
-    return tuple(held)
 
 
 def resolve_mimics(joints, source: str = '<robot>') -> dict:
@@ -388,6 +366,11 @@ def _parse_joint(element, context) -> Joint:
         axis = np.array([1.0, 0.0, 0.0])
     else:
         axis = axis / norm
+        if kind == 'planar' and axis_tag is not None and abs(abs(axis[2]) - 1.0) > 1e-9:
+            context.warnings.append(
+                f'{owner} (planar) has <axis xyz="{axis_tag.get("xyz")}"> (line '
+                f'{axis_tag.sourceline}); the joint moves in its frame\'s x-y plane (normal z), '
+                'as MoveIt drives it; rotate the joint <origin> so that z is the normal')
     limit = element.find('limit')
     velocity = effort = 0.0
     if limit is not None:

@@ -122,8 +122,12 @@ cs::KinematicTree kinematic_tree(const Array<int64_t>& parent, const Array<int64
         const int64_t p = parent.data()[i];
         if ((i == 0) != (p < 0) || p >= i)
             throw py::value_error("parent: links must come root first, parents before children");
-        if (joint_type.data()[i] != cs::JOINT_FIXED &&
-            (q_index.data()[i] < 0 || q_index.data()[i] >= n_joints))
+        const int64_t kind = joint_type.data()[i];
+        if (kind < cs::JOINT_FIXED || kind > cs::JOINT_FLOATING)
+            throw py::value_error("joint_type: unknown joint type " + std::to_string(kind));
+        if (kind != cs::JOINT_FIXED &&
+            (q_index.data()[i] < 0 ||
+             q_index.data()[i] + cs::joint_variable_count(kind) > n_joints))
             throw py::value_error("q_index: index out of range for " + std::to_string(n_joints) +
                                   " joint values");
     }
@@ -193,6 +197,7 @@ PYBIND11_MODULE(_engine, m) {
     m.attr("N_COUNTERS") = int(cs::N_COUNTERS);
     m.attr("POSE_WIDTH") = cs::POSE_WIDTH;
     m.attr("PRISMATIC_VALUE_MAX") = cs::PRISMATIC_VALUE_MAX;
+    m.attr("QUATERNION_NORM_MIN") = cs::QUATERNION_NORM_MIN;
     m.attr("BOX_EPS_REL") = cs::BOX_EPS_REL;
     m.attr("BOX_EPS_PARALLEL") = cs::BOX_EPS_PARALLEL;
     m.attr("TRIANGLE_EPS_REL") = cs::TRIANGLE_EPS_REL;

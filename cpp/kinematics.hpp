@@ -6,6 +6,14 @@
 //     T_world_link[i] = T_world_link[parent[i]] T_parent_joint[i] M(joint_type[i], value)
 //     M(FIXED) = I;  M(REVOLUTE) = [Rodrigues(axis[i], value), 0; 0, 1];
 //     M(PRISMATIC) = [I, value axis[i]; 0, 1]
+// Multi-DOF joints read several consecutive variables v = q[q_index[i]], q[q_index[i] + 1], ...
+// (MoveIt's order; a multi-DOF joint is never a mimic, so multiplier and offset are unused):
+//     M(PLANAR)   = [Rz(v2), (v0, v1, 0); 0, 1]      x, y, theta: the joint frame's x-y plane
+//     M(FLOATING) = [R(v3..v6 / |v3..v6|), (v0, v1, v2); 0, 1]    translation, then quaternion
+//                                                                 (x, y, z, w), normalised
+// Both translate first, then rotate about the translated origin (the child frame's origin).
+// The planar joint's URDF <axis> is not used: its plane is the joint frame's x-y plane, as
+// MoveIt's PlanarJointModel has it (robot_model.py warns about another axis).
 // "world" is the root link's frame. Poses are (4, 4) row-major blocks of 16 doubles.
 #pragma once
 
@@ -16,13 +24,39 @@
 
 namespace collision_sensor {
 
-constexpr int64_t JOINT_FIXED = 0, JOINT_REVOLUTE = 1, JOINT_PRISMATIC = 2;
+constexpr int64_t JOINT_FIXED = 0, JOINT_REVOLUTE = 1, JOINT_PRISMATIC = 2, JOINT_PLANAR = 3,
+                  JOINT_FLOATING = 4;
+
+// How many consecutive variables of q a joint of this type reads.
+inline int64_t joint_variable_count(int64_t kind) {
+    return kind == JOINT_FIXED ? 0 : kind == JOINT_PLANAR ? 3 : kind == JOINT_FLOATING ? 7 : 1;
+}
 
 // The largest |value| of a prismatic joint (m) the engine takes. Every coordinate, box and
 // gap it computes then stays far from overflow (their squares included), so its answers keep
 // their meaning; beyond it a link would sit 1000 km away. A revolute joint takes any finite
-// value (it enters through cos and sin only).
+// value (it enters through cos and sin only). The translation variables of planar and floating
+// joints are held to the same bound.
 constexpr double PRISMATIC_VALUE_MAX = 1e6;
+
+// The smallest norm of a floating joint's quaternion the engine takes (below it, its direction
+// is rounding noise). It also keeps the checker's bound on how far a quaternion component moves
+// a point (checker.py: QUATERNION_REACH, 1e300 per unit) valid: changing the quaternion by dq
+// turns the rotation by at most about pi |dq| / |quaternion| <= pi 1e100 |dq|, which times any
+// lever arm under 1e199 m stays below it.
+constexpr double QUATERNION_NORM_MIN = 1e-100;
+
+// Quaternion (x, y, z, w) scaled by 1 / its largest |component| (no overflow in the squares);
+// false if it is zero or its norm is below QUATERNION_NORM_MIN. q must be finite.
+CS_ALWAYS_INLINE bool scaled_quaternion(const double* v, double* x, double* y, double* z,
+                                        double* w, double* n2) {
+    const double s = std::fmax(std::fmax(std::fabs(v[0]), std::fabs(v[1])),
+                               std::fmax(std::fabs(v[2]), std::fabs(v[3])));
+    if (!(s > 0.0)) return false;
+    *x = v[0] / s; *y = v[1] / s; *z = v[2] / s; *w = v[3] / s;
+    *n2 = *x * *x + *y * *y + *z * *z + *w * *w;   // in [1, 4]
+    return s * std::sqrt(*n2) >= QUATERNION_NORM_MIN;
+}
 
 struct KinematicTree {
     int64_t n_links;
@@ -35,14 +69,26 @@ struct KinematicTree {
     const double* offset;           // (L,)
 };
 
-// -1 if every joint value that q gives is usable (finite; prismatic ones within
-// PRISMATIC_VALUE_MAX), else the index into q of the first variable that gives one that is not.
+// -1 if every joint value that q gives is usable (finite; prismatic ones and the translations of
+// planar and floating joints within PRISMATIC_VALUE_MAX; a floating joint's quaternion not zero,
+// see QUATERNION_NORM_MIN), else the index into q of the first variable that gives one that is
+// not (for a quaternion, its first variable, rot_x).
 inline int64_t unusable_variable(const KinematicTree& kin, const double* q, int64_t n_joints) {
     for (int64_t j = 0; j < n_joints; ++j)
         if (!std::isfinite(q[j])) return j;
     for (int64_t i = 0; i < kin.n_links; ++i) {
         const int64_t kind = kin.joint_type[i];
         if (kind == JOINT_FIXED) continue;
+        const double* v = q + kin.q_index[i];
+        if (kind == JOINT_PLANAR || kind == JOINT_FLOATING) {   // finite: checked above
+            const int64_t n_translations = kind == JOINT_PLANAR ? 2 : 3;
+            for (int64_t k = 0; k < n_translations; ++k)
+                if (!(std::fabs(v[k]) <= PRISMATIC_VALUE_MAX)) return kin.q_index[i] + k;
+            double x, y, z, w, n2;
+            if (kind == JOINT_FLOATING && !scaled_quaternion(v + 3, &x, &y, &z, &w, &n2))
+                return kin.q_index[i] + 3;
+            continue;
+        }
         const double value = kin.multiplier[i] * q[kin.q_index[i]] + kin.offset[i];
         if (!std::isfinite(value) ||
             (kind == JOINT_PRISMATIC && !(std::fabs(value) <= PRISMATIC_VALUE_MAX)))
@@ -71,6 +117,44 @@ CS_ALWAYS_INLINE void set_link_pose(const KinematicTree& kin, int64_t i, const d
             const double r00 = c + v * x * x, r01 = v * x * y - s * z, r02 = v * x * z + s * y;
             const double r10 = v * x * y + s * z, r11 = c + v * y * y, r12 = v * y * z - s * x;
             const double r20 = v * x * z - s * y, r21 = v * y * z + s * x, r22 = c + v * z * z;
+            const double a00 = m00 * r00 + m01 * r10 + m02 * r20;
+            const double a01 = m00 * r01 + m01 * r11 + m02 * r21;
+            const double a02 = m00 * r02 + m01 * r12 + m02 * r22;
+            const double a10 = m10 * r00 + m11 * r10 + m12 * r20;
+            const double a11 = m10 * r01 + m11 * r11 + m12 * r21;
+            const double a12 = m10 * r02 + m11 * r12 + m12 * r22;
+            const double a20 = m20 * r00 + m21 * r10 + m22 * r20;
+            const double a21 = m20 * r01 + m21 * r11 + m22 * r21;
+            const double a22 = m20 * r02 + m21 * r12 + m22 * r22;
+            m00 = a00; m01 = a01; m02 = a02;
+            m10 = a10; m11 = a11; m12 = a12;
+            m20 = a20; m21 = a21; m22 = a22;
+        } else if (kind == JOINT_PLANAR || kind == JOINT_FLOATING) {
+            // M = [Rm, tm]: t <- t + J.R tm, then J.R <- J.R Rm (translate, then rotate).
+            const double* v = q + kin.q_index[i];
+            const double tz = kind == JOINT_FLOATING ? v[2] : 0.0;
+            t0 += m00 * v[0] + m01 * v[1] + m02 * tz;
+            t1 += m10 * v[0] + m11 * v[1] + m12 * tz;
+            t2 += m20 * v[0] + m21 * v[1] + m22 * tz;
+            double r00, r01, r02, r10, r11, r12, r20, r21, r22;
+            if (kind == JOINT_PLANAR) {
+                const double c = std::cos(v[2]), s = std::sin(v[2]);
+                r00 = c; r01 = -s; r02 = 0.0;
+                r10 = s; r11 = c; r12 = 0.0;
+                r20 = 0.0; r21 = 0.0; r22 = 1.0;
+            } else {
+                // Unit quaternion u = (x, y, z, w) / sqrt(n2): R = I + 2 w [u]x + 2 [u]x^2,
+                // written with k = 2 / n2 so that no square root is taken.
+                double x = 0.0, y = 0.0, z = 0.0, w = 1.0, n2 = 1.0;
+                scaled_quaternion(v + 3, &x, &y, &z, &w, &n2);   // usable: validated first
+                const double k = 2.0 / n2;
+                const double xx = k * x * x, yy = k * y * y, zz = k * z * z;
+                const double xy = k * x * y, xz = k * x * z, yz = k * y * z;
+                const double wx = k * w * x, wy = k * w * y, wz = k * w * z;
+                r00 = 1.0 - yy - zz; r01 = xy - wz; r02 = xz + wy;
+                r10 = xy + wz; r11 = 1.0 - xx - zz; r12 = yz - wx;
+                r20 = xz - wy; r21 = yz + wx; r22 = 1.0 - xx - yy;
+            }
             const double a00 = m00 * r00 + m01 * r10 + m02 * r20;
             const double a01 = m00 * r01 + m01 * r11 + m02 * r21;
             const double a02 = m00 * r02 + m01 * r12 + m02 * r22;

@@ -159,8 +159,11 @@ Engine::Engine(double* F, int64_t f_size, int64_t* I, int64_t i_size) {
     for (int64_t i = 0; i < n_links_; ++i) {
         if (kin_.parent[i] >= i || (i > 0 && kin_.parent[i] < 0) || (i == 0 && kin_.parent[0] >= 0))
             throw std::invalid_argument("packed array 'parent': links are not parents first");
-        if (kin_.joint_type[i] != JOINT_FIXED &&
-            (kin_.q_index[i] < 0 || kin_.q_index[i] >= n_joints_))
+        if (kin_.joint_type[i] < JOINT_FIXED || kin_.joint_type[i] > JOINT_FLOATING)
+            throw std::invalid_argument("packed array 'joint_type': unknown joint type");
+        if (kin_.joint_type[i] != JOINT_FIXED &&   // a multi-DOF joint's variables all in q
+            (kin_.q_index[i] < 0 ||
+             kin_.q_index[i] + joint_variable_count(kin_.joint_type[i]) > n_joints_))
             throw std::invalid_argument("packed array 'q_index': index out of range");
     }
     for (int64_t b = 0; b < n_bodies_; ++b)

@@ -4,10 +4,15 @@ pinocchio's kinematics, and a brute-force all-triangle-pairs check.
 Primitives are solid (README, "Contact rule"): besides the surfaces, fcl's true primitive
 (fcl.Box, fcl.Sphere, fcl.Cylinder) decides whether a vertex of the other body's element lies
 inside it; one vertex decides for the whole element once no surfaces meet."""
+import os
+
 import numpy as np
 
 import fcl
 import pinocchio as pin
+
+#: pinocchio's root joint for an SRDF virtual joint, by type.
+ROOT_JOINTS = {'floating': pin.JointModelFreeFlyer, 'planar': pin.JointModelPlanar}
 
 
 class FclOracle:
@@ -19,11 +24,21 @@ class FclOracle:
 
     def __init__(self, checker, urdf_path):
         self.checker = checker
-        self.pin_model = pin.buildModelFromUrdf(urdf_path)
+        build = pin.buildModelFromUrdf if os.path.exists(urdf_path) else pin.buildModelFromXML
+        virtual = checker.model.joints[0] if checker.model.joints else None
+        if virtual is not None and virtual.parent == checker.model.root_link and (
+                virtual.type in ROOT_JOINTS and 'name="' + virtual.name + '"' not in (
+                    open(urdf_path).read() if os.path.exists(urdf_path) else urdf_path)):
+            # An SRDF virtual joint above the URDF root: pinocchio's own root joint.
+            self.pin_model = build(urdf_path, ROOT_JOINTS[virtual.type](), virtual.name)
+        else:
+            self.pin_model = build(urdf_path)
         self.pin_data = self.pin_model.createData()
-        # BODY: a joint may share its link's name (anymal's LF_HAA).
+        # BODY: a joint may share its link's name (anymal's LF_HAA). The virtual joint's
+        # parent frame is pinocchio's universe (no geometry, so never in a pair).
         self.frame_ids = {name: self.pin_model.getFrameId(name, pin.FrameType.BODY)
-                          for name in checker.kinematics.link_names}
+                          for name in checker.kinematics.link_names
+                          if self.pin_model.existFrame(name, pin.FrameType.BODY)}
         self.models = {}
         self.solids = {}   # body: [(fcl primitive, T_body_element)]
         self.vertices = {}  # body: one vertex per element, in the body frame
@@ -104,6 +119,16 @@ class FclOracle:
         for name, (source, multiplier, offset) in resolve_mimics(
                 self.checker.model.joints).items():
             values[name] = multiplier * values[source] + offset
+        for name in self.pin_model.names[1:]:
+            joint = self.pin_model.joints[self.pin_model.getJointId(name)]
+            i = joint.idx_q
+            if joint.nq == 7:   # free flyer: (x, y, z, qx, qy, qz, qw), a unit quaternion
+                quaternion = np.array([values[f'{name}/rot_{a}'] for a in 'xyzw'])
+                q[i:i + 3] = [values[f'{name}/trans_{a}'] for a in 'xyz']
+                q[i + 3:i + 7] = quaternion / np.linalg.norm(quaternion)
+            elif joint.nq == 4:   # planar: (x, y, cos theta, sin theta)
+                theta = values[f'{name}/theta']
+                q[i:i + 4] = values[f'{name}/x'], values[f'{name}/y'], np.cos(theta), np.sin(theta)
         for name, value in values.items():
             if self.pin_model.existJointName(name):
                 joint = self.pin_model.joints[self.pin_model.getJointId(name)]

@@ -663,3 +663,255 @@ def test_update_from_fronts_equals_check_in_near_contact(tmp_path, box_test):
     assert 5 < len({tuple(row) for row in expected})  # in and out of contact
     assert incremental.counters[COUNT_FRONT_STARTS] > 200
     assert incremental.counters[COUNT_FRONT_UNTESTED] > 10_000
+
+
+# ---------------------------------------------------------------- SRDF virtual joints
+
+def _virtual_srdf(kind, parent='odom'):
+    return (f'<robot name="small"><virtual_joint name="base_joint" type="{kind}" '
+            f'parent_frame="{parent}" child_link="base"/></robot>')
+
+
+def _small_on_a_base(kind, **config):
+    settings = {'primitive_sections': 10, 'ignore_adjacent': False}
+    settings.update(config)
+    return CollisionChecker.from_urdf(SMALL_ROBOT, srdf=_virtual_srdf(kind), scene=SMALL_SCENE,
+                                      config=settings)
+
+
+def _base_configurations(checker, n, rng):
+    """Random configurations whose base variables place the robot around the scene: any
+    heading, quaternions of any norm."""
+    Q = random_configurations(checker, n, seed=int(rng.integers(1 << 30)))
+    for j, name in enumerate(checker.joint_names):
+        if name.endswith(('/x', '/y', '/trans_x', '/trans_y')):
+            Q[:, j] = rng.uniform(-0.5, 0.5, n)
+        elif name.endswith('/trans_z'):
+            Q[:, j] = rng.uniform(-0.2, 0.3, n)
+        elif '/rot_' in name:
+            Q[:, j] = rng.normal(size=n) * (0.05 if name.endswith(('rot_x', 'rot_y')) else 1.0)
+        elif name.endswith('/theta'):
+            Q[:, j] = rng.uniform(-4, 4, n)
+    return Q
+
+
+@pytest.mark.parametrize('kind, variables', [
+    ('floating', ('trans_x', 'trans_y', 'trans_z', 'rot_x', 'rot_y', 'rot_z', 'rot_w')),
+    ('planar', ('x', 'y', 'theta'))])
+def test_a_virtual_joint_places_the_robot_in_the_world(kind, variables):
+    checker = _small_on_a_base(kind)
+    assert checker.joint_names[:len(variables)] == tuple(f'base_joint/{v}' for v in variables)
+    assert checker.kinematics.link_names[:2] == ('odom', 'base')
+    assert checker.model.root_link == 'odom' and 'odom' not in checker.link_names
+    # Self-collision pairs do not depend on the base, robot-vs-scene pairs do.
+    path = checker._pair_paths(checker._n_links)
+    for p, pair in enumerate(checker.checked_pairs):
+        on_scene = bool(set(pair) & set(checker.scene_object_names))
+        assert path[p, :len(variables)].all() == on_scene, pair
+    # Neutral start: the quaternion is the identity, so a partial mapping is usable.
+    assert checker.positions.get('base_joint/rot_w', 1.0) == 1.0
+    checker.check({'shoulder': 0.1})
+
+
+@pytest.mark.parametrize('kind', ['floating', 'planar'])
+def test_robot_on_a_moving_base_matches_fcl_and_pinocchio(kind, tmp_path):
+    """Link poses against pinocchio with its own root joint (free flyer, planar), verdicts
+    against python-fcl on the same triangles placed by pinocchio, the scene in the world."""
+    checker = _small_on_a_base(kind)
+    urdf = tmp_path / 'small.urdf'
+    urdf.write_text(SMALL_ROBOT)
+    oracle = FclOracle(checker, str(urdf))
+    assert oracle.pin_model.joints[1].nq == {'floating': 7, 'planar': 4}[kind]
+    rng = np.random.default_rng(11)
+    seen_scene_hits = set()
+    for q in _base_configurations(checker, 300, rng):
+        result = checker.check(q)
+        poses, theirs = checker.link_poses(), oracle.poses(q)
+        for link in checker.link_names:
+            assert np.abs(poses[link] - theirs[link]).max() < 1e-9, (link, list(q))
+        assert result.colliding_pairs == oracle.colliding_pairs(q), list(q)
+        seen_scene_hits.update(pair for pair in result.colliding_pairs
+                               if set(pair) & set(checker.scene_object_names))
+    assert len(seen_scene_hits) >= 3   # the base really took the robot into the scene
+
+
+@pytest.mark.parametrize('kind', ['floating', 'planar'])
+@pytest.mark.parametrize('mode', ['base', 'mixed'])
+def test_update_equals_check_when_the_base_moves(kind, mode):
+    incremental = _small_on_a_base(kind)
+    scratch = _small_on_a_base(kind)
+    rng = np.random.default_rng(21 + len(mode) + len(kind))
+    n_base = 7 if kind == 'floating' else 3
+    q = _base_configurations(incremental, 1, rng)[0]
+    changes, skipped, previous = 0, 0, None
+    n_self = sum(not set(pair) & set(incremental.scene_object_names)
+                 for pair in incremental.checked_pairs)
+    for step in range(2000):
+        choice = rng.integers(5)
+        if mode == 'base' or choice == 0:      # one base variable, small or large
+            j = rng.integers(n_base)
+            q[j] += rng.normal(0.0, 0.02 if rng.random() < 0.8 else 0.5)
+        elif choice == 1:
+            q = _base_configurations(incremental, 1, rng)[0]   # a jump
+        elif choice == 2:
+            q[n_base + rng.integers(len(q) - n_base)] += rng.normal(0.0, 0.05)
+        elif choice == 3:
+            q[:n_base] += rng.normal(0.0, 0.01, n_base)
+        q[:2] = np.clip(q[:2], -0.6, 0.6)   # x, y: the base stays around the scene
+        if kind == 'floating':
+            q[2] = np.clip(q[2], -0.3, 0.4)
+            if not np.any(q[3:7]):
+                q[6] = 1.0
+        got = incremental.update(q)
+        expected = scratch.check(q)
+        assert got.colliding_pairs == expected.colliding_pairs, (step, list(q))
+        changes += got.colliding_pairs != previous
+        if mode == 'base' and step > 0:
+            # a base motion re-checks robot-vs-scene pairs only
+            assert got.rechecked_pairs <= len(incremental.checked_pairs) - n_self
+        skipped += got.rechecked_pairs < len(incremental.checked_pairs)
+        previous = got.colliding_pairs
+    assert changes > 5 and skipped > 100
+
+
+def test_a_zero_quaternion_is_refused_and_changes_nothing():
+    checker = _small_on_a_base('floating')
+    q = checker.kinematics.neutral()
+    q[0] = 0.3
+    before = checker.check(q)
+    for bad in ([0.0, 0.0, 0.0, 0.0], [1e-120, 0.0, -1e-120, 0.0]):
+        q_bad = q.copy()
+        q_bad[3:7] = bad
+        for call in (checker.check, checker.update):
+            with pytest.raises(JointStateError, match='floating joint "base_joint": quaternion '
+                                                      r'\(rot_x, rot_y, rot_z, rot_w\) = .* is '
+                                                      'zero .*send a unit quaternion'):
+                call(q_bad)
+        with pytest.raises(JointStateError, match='configuration 1, floating joint '
+                                                  '"base_joint": quaternion'):
+            checker.check_batch(np.stack([q, q_bad]))
+    with pytest.raises(JointStateError, match='joint "base_joint/trans_y": position 2000000.0 '
+                                              'moves a joint out of the engine'):
+        checker.update({'base_joint/trans_y': 2e6})
+    assert checker.positions == dict(zip(checker.joint_names, q))
+    assert checker.update(q) == before._replace(rechecked_pairs=0)
+    # Any non-zero quaternion is normalised: a scaled one gives the same poses.
+    q[3:7] = [0.1, -0.2, 0.3, 0.9]
+    checker.check(q)
+    poses = checker.link_poses()
+    q[3:7] *= 1e-50
+    checker.check(q)
+    for name, T in checker.link_poses().items():
+        assert np.allclose(T, poses[name], atol=1e-12), name
+
+
+def test_a_fixed_virtual_joint_changes_nothing():
+    plain = CollisionChecker.from_urdf(SMALL_ROBOT, scene=SMALL_SCENE)
+    fixed = CollisionChecker.from_urdf(SMALL_ROBOT, srdf=_virtual_srdf('fixed', 'world'),
+                                       scene=SMALL_SCENE)
+    assert fixed.joint_names == plain.joint_names
+    assert fixed.kinematics.link_names == plain.kinematics.link_names
+
+
+def test_a_virtual_joint_parent_frame_that_is_a_link_is_an_error():
+    from collision_sensor import SrdfError
+    with pytest.raises(SrdfError, match='parent_frame "upper", which is a link of the robot'):
+        CollisionChecker.from_urdf(SMALL_ROBOT, srdf=_virtual_srdf('planar', 'upper'))
+
+
+MID_TREE_MULTI_DOF = SMALL_ROBOT.replace(
+    '<joint name="extend" type="prismatic">', '<joint name="extend" type="floating">').replace(
+    '<joint name="elbow" type="continuous">', '<joint name="elbow" type="planar">')
+
+
+@pytest.mark.filterwarnings('ignore::collision_sensor.errors.LoadWarning')   # elbow's axis
+@pytest.mark.parametrize('urdf, srdf', [
+    (SMALL_ROBOT, _virtual_srdf('floating')), (SMALL_ROBOT, _virtual_srdf('planar')),
+    (MID_TREE_MULTI_DOF, None), (MID_TREE_MULTI_DOF, _virtual_srdf('planar'))])
+def test_reach_bounds_how_far_each_variable_moves_a_pair(urdf, srdf):
+    """_pair_reaches: moving variable j by d moves no vertex of either body by more than
+    |d| (reach + reach_ext E) relative to the other, measured on the triangles."""
+    checker = CollisionChecker.from_urdf(urdf, srdf=srdf, scene=SMALL_SCENE,
+                                         config={'primitive_sections': 8,
+                                                 'ignore_adjacent': False})
+    reach, reach_ext = checker._pair_reach, checker._pair_reach_ext
+    kin = checker.kinematics
+    vertices = {}
+    for element in checker.model.elements:
+        T = element.T_link_element
+        vertices.setdefault(element.link, []).append(element.vertices @ T[:3, :3].T + T[:3, 3])
+    vertices = {name: np.concatenate(v) for name, v in vertices.items()}
+    rng = np.random.default_rng(5)
+    for q in _base_configurations(checker, 30, rng):
+        extension = sum(abs(q[kin.q_index[i]]) for i in range(len(kin.link_names))
+                        if kin.joint_type[i] == 2)
+        T0 = checker.kinematics.forward_kinematics(q)
+        for j in range(len(q)):
+            d = rng.choice([1e-3, -0.05, 0.3])
+            moved = q.copy()
+            moved[j] += d
+            T1 = checker.kinematics.forward_kinematics(moved)
+            for p, (a, b) in enumerate(checker.checked_pairs):
+                if b in checker.scene_object_names or a in checker.scene_object_names:
+                    link = a if b in checker.scene_object_names else b
+                    i = kin.link_names.index(link)
+                    rel0, rel1, points = T0[i], T1[i], vertices[link]
+                    shift = np.linalg.norm((points @ (rel1 - rel0)[:3, :3].T
+                                            + (rel1 - rel0)[:3, 3]), axis=1).max()
+                else:   # both bodies' vertices, in their common ancestor's frame
+                    ia, ib = kin.link_names.index(a), kin.link_names.index(b)
+                    above = _ancestors(kin, ia)
+                    common = next(k for k in _ancestors(kin, ib) if k in above)
+                    shift = 0.0
+                    for x in (a, b):
+                        ix = kin.link_names.index(x)
+                        delta = (np.linalg.inv(T1[common]) @ T1[ix]
+                                 - np.linalg.inv(T0[common]) @ T0[ix])
+                        shift += np.linalg.norm(
+                            vertices[x] @ delta[:3, :3].T + delta[:3, 3], axis=1).max()
+                bound = abs(d) * (reach[p, j] + reach_ext[p, j] * extension)
+                assert shift <= bound + 1e-9, (checker.checked_pairs[p], kin.joint_names[j],
+                                               shift, bound)
+    assert np.isfinite(reach).all()   # never inf: inf * 0 would be NaN
+    assert (reach.max() == 1e300) == any('/rot_' in name for name in kin.joint_names)
+
+
+def _ancestors(kin, i):
+    chain = [i]
+    while kin.parent[chain[-1]] >= 0:
+        chain.append(int(kin.parent[chain[-1]]))
+    return chain
+
+
+@pytest.mark.filterwarnings('ignore::collision_sensor.errors.LoadWarning')   # elbow's axis
+def test_update_equals_check_with_multi_dof_joints_inside_the_tree():
+    """A planar elbow under a revolute shoulder, a floating joint under it: every variable
+    moves, one at a time, several at once, or by jumps."""
+    settings = {'primitive_sections': 8, 'ignore_adjacent': False}
+    incremental, scratch = (CollisionChecker.from_urdf(MID_TREE_MULTI_DOF, scene=SMALL_SCENE,
+                                                       config=settings) for _ in range(2))
+    names = incremental.joint_names
+    rng = np.random.default_rng(17)
+    q = incremental.kinematics.neutral()
+    changes, skipped, previous = 0, 0, None
+    for step in range(2000):
+        choice = rng.integers(3)
+        if choice == 0:
+            q[rng.integers(len(q))] += rng.normal(0.0, 0.03)
+        elif choice == 1:
+            q += rng.normal(0.0, 0.01, len(q))
+        else:
+            q = rng.uniform(-0.3, 0.3, len(q))
+            q[names.index('shoulder')] = rng.uniform(-2.5, 2.5)
+            q[names.index('elbow/theta')] = rng.uniform(-4, 4)
+        translations = [j for j, name in enumerate(names) if '/trans_' in name
+                        or name.endswith(('/x', '/y'))]
+        q[translations] = np.clip(q[translations], -0.3, 0.3)
+        if not np.any(q[names.index('extend/rot_x'):names.index('extend/rot_w') + 1]):
+            q[names.index('extend/rot_w')] = 1.0
+        got, expected = incremental.update(q), scratch.check(q)
+        assert got.colliding_pairs == expected.colliding_pairs, (step, list(q))
+        changes += got.colliding_pairs != previous
+        skipped += got.rechecked_pairs < len(incremental.checked_pairs)
+        previous = got.colliding_pairs
+    assert changes > 5 and skipped > 100

@@ -6,7 +6,7 @@ from scipy.spatial.transform import Rotation
 from collision_sensor.errors import JointStateError, LoadWarning, RobotDescriptionError
 from collision_sensor.kinematics import (
     JOINT_FIXED, JOINT_PRISMATIC, JOINT_REVOLUTE, build_kinematic_tree, forward_kinematics_kernel)
-from collision_sensor.robot_model import load_urdf, transform_from_xyz_rpy
+from collision_sensor.robot_model import load_urdf, resolve_mimics, transform_from_xyz_rpy
 
 N_CONFIGS = 1000
 TOLERANCE = 1e-9
@@ -276,3 +276,130 @@ def test_mimic_of_a_missing_or_fixed_joint_leaves_the_joint_independent(tmp_path
     with pytest.warns(LoadWarning, match=f'joint "j_a" .*{culprit}'):
         model = load_urdf(write(tmp_path, text))
     assert 'j_a' in build_kinematic_tree(model).joint_names
+
+
+# A tree with a floating root, a revolute arm, and a planar and a floating joint inside it (the
+# planar one under a rotated origin, the floating one with a prismatic joint above it).
+MULTI_DOF_ROBOT = '''<robot name="multi">
+  <link name="world"/> <link name="base"/> <link name="arm"/> <link name="slider"/>
+  <link name="cart"/> <link name="tool"/>
+  <joint name="root" type="floating"><parent link="world"/><child link="base"/>
+    <origin xyz="0.1 -0.2 0.3" rpy="0.3 0.2 0.1"/></joint>
+  <joint name="shoulder" type="revolute"><parent link="base"/><child link="arm"/>
+    <origin xyz="0 0 0.5" rpy="0 0.4 0"/><axis xyz="0 1 0"/>
+    <limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <joint name="plane" type="planar"><parent link="arm"/><child link="cart"/>
+    <origin xyz="0.4 0 0" rpy="0.5 -0.3 1.0"/><axis xyz="0 0 1"/></joint>
+  <joint name="slide" type="prismatic"><parent link="base"/><child link="slider"/>
+    <origin xyz="0 0.3 0"/><axis xyz="1 0 0"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="free" type="floating"><parent link="slider"/><child link="tool"/>
+    <origin xyz="0 0 0.2" rpy="1 0 0"/></joint>
+</robot>'''
+
+
+def _pinocchio_q(pin_model, tree, q):
+    """pinocchio's q from ours: floating (x, y, z, qx, qy, qz, qw) with the quaternion
+    normalised (pinocchio expects a unit one), planar (x, y, cos theta, sin theta)."""
+    values = dict(zip(tree.joint_names, q))
+    out = np.zeros(pin_model.nq)
+    for joint_id in range(1, pin_model.njoints):
+        name, joint = pin_model.names[joint_id], pin_model.joints[joint_id]
+        i = joint.idx_q
+        if joint.nq == 7:
+            quaternion = np.array([values[f'{name}/rot_{a}'] for a in 'xyzw'])
+            out[i:i + 3] = [values[f'{name}/trans_{a}'] for a in 'xyz']
+            out[i + 3:i + 7] = quaternion / np.linalg.norm(quaternion)
+        elif joint.nq == 4:
+            theta = values[f'{name}/theta']
+            out[i:i + 4] = values[f'{name}/x'], values[f'{name}/y'], np.cos(theta), np.sin(theta)
+        else:
+            out[i] = values[name]
+    return out
+
+
+def _random_multi_dof(tree, n, rng):
+    Q = random_configurations(tree, n, int(rng.integers(1 << 30)))
+    for j, name in enumerate(tree.joint_names):
+        if '/trans_' in name or name.endswith(('/x', '/y')):
+            Q[:, j] = rng.uniform(-3, 3, n)
+        elif '/rot_' in name:   # any non-zero quaternion, of any norm
+            Q[:, j] = rng.normal(size=n) * 10.0 ** rng.uniform(-3, 3, n)
+    return Q
+
+
+def test_planar_and_floating_joints_match_pinocchio(tmp_path):
+    import pinocchio as pin
+    path = write(tmp_path, MULTI_DOF_ROBOT)
+    tree = build_kinematic_tree(load_urdf(path))
+    assert tree.joint_names == (
+        'root/trans_x', 'root/trans_y', 'root/trans_z', 'root/rot_x', 'root/rot_y',
+        'root/rot_z', 'root/rot_w', 'shoulder', 'plane/x', 'plane/y', 'plane/theta', 'slide',
+        'free/trans_x', 'free/trans_y', 'free/trans_z', 'free/rot_x', 'free/rot_y',
+        'free/rot_z', 'free/rot_w')
+    assert list(tree.neutral()) == [0] * 6 + [1] + [0] * 11 + [1]
+    assert tree.lower[3] == -1 and tree.upper[6] == 1 and np.isinf(tree.lower[10])
+    pin_model = pin.buildModelFromUrdf(path)
+    data = pin_model.createData()
+    frames = [pin_model.getFrameId(name, pin.FrameType.BODY) for name in tree.link_names]
+    Q = _random_multi_dof(tree, 300, np.random.default_rng(7))
+    ours = tree.forward_kinematics_batch(Q)
+    for q, T in zip(Q, ours):
+        pin.framesForwardKinematics(pin_model, data, _pinocchio_q(pin_model, tree, q))
+        theirs = np.stack([data.oMf[f].homogeneous for f in frames])
+        assert np.abs(T - theirs).max() < TOLERANCE
+
+
+def test_floating_root_matches_pinocchio_free_flyer_on_a_real_robot(panda_urdf,
+                                                                    erd_package_paths):
+    """panda under pinocchio's JointModelFreeFlyer, and ours under a URDF floating joint from a
+    "world" link added to the same file."""
+    import pinocchio as pin
+    text = open(panda_urdf).read()
+    root = load_urdf(panda_urdf, erd_package_paths).root_link
+    start = text.index('>', text.index('<robot')) + 1
+    text = (text[:start] + '<link name="fk_world"/><joint name="fk_base" type="floating">'
+            f'<parent link="fk_world"/><child link="{root}"/></joint>' + text[start:])
+    model = load_urdf(text, erd_package_paths)
+    tree = build_kinematic_tree(model)
+    mimics = resolve_mimics(model.joints)
+    assert tree.joint_names[:7] == tuple(f'fk_base/{v}' for v in (
+        'trans_x', 'trans_y', 'trans_z', 'rot_x', 'rot_y', 'rot_z', 'rot_w'))
+    pin_model = pin.buildModelFromUrdf(panda_urdf, pin.JointModelFreeFlyer())
+    data = pin_model.createData()
+    frames = [pin_model.getFrameId(name, pin.FrameType.BODY) for name in tree.link_names[1:]]
+    Q = _random_multi_dof(tree, 100, np.random.default_rng(3))
+    for q, T in zip(Q, tree.forward_kinematics_batch(Q)):
+        values = dict(zip(tree.joint_names, q))
+        values.update({name: m * values[source] + o for name, (source, m, o) in mimics.items()})
+        pq = pin.neutral(pin_model)
+        pq[:3] = q[:3]
+        pq[3:7] = q[3:7] / np.linalg.norm(q[3:7])   # pinocchio's order x, y, z, w too
+        for joint_id in range(2, pin_model.njoints):
+            pq[pin_model.joints[joint_id].idx_q] = values[pin_model.names[joint_id]]
+        pin.framesForwardKinematics(pin_model, data, pq)
+        theirs = np.stack([data.oMf[f].homogeneous for f in frames])
+        assert np.abs(T[1:] - theirs).max() < TOLERANCE
+
+
+def test_a_planar_axis_other_than_z_is_tolerated_with_a_warning(tmp_path):
+    """The plane is the joint frame's x-y plane whatever the axis (MoveIt, pinocchio)."""
+    text = MULTI_DOF_ROBOT.replace('<axis xyz="0 0 1"/></joint>', '<axis xyz="1 0 0"/></joint>')
+    with pytest.warns(LoadWarning, match='joint "plane" \\(planar\\) has <axis xyz="1 0 0">.*'
+                                         'x-y plane'):
+        tree = build_kinematic_tree(load_urdf(write(tmp_path, text)))
+    reference = build_kinematic_tree(load_urdf(write(tmp_path, MULTI_DOF_ROBOT, 'b.urdf')))
+    Q = _random_multi_dof(tree, 20, np.random.default_rng(1))
+    assert np.array_equal(tree.forward_kinematics_batch(Q),
+                          reference.forward_kinematics_batch(Q))
+
+
+def test_a_multi_dof_joint_in_a_mimic_is_refused_when_built_by_hand(tmp_path):
+    import dataclasses
+    from collision_sensor.robot_model import Mimic
+    model = load_urdf(write(tmp_path, MULTI_DOF_ROBOT))
+    joints = tuple(dataclasses.replace(j, mimic=Mimic('shoulder', 1.0, 0.0))
+                   if j.name == 'plane' else j for j in model.joints)
+    with pytest.raises(RobotDescriptionError, match='joint "plane" \\(planar\\) mimics joint '
+                                                    '"shoulder"'):
+        build_kinematic_tree(dataclasses.replace(model, joints=joints))

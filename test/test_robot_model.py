@@ -2,6 +2,8 @@
 import math
 import os
 
+import warnings
+
 import numpy as np
 import pytest
 import trimesh
@@ -223,32 +225,32 @@ FLOATING_BASE = """
 @pytest.mark.parametrize('joint_type, variables', [
     ('floating', ('trans_x', 'trans_y', 'trans_z', 'rot_x', 'rot_y', 'rot_z', 'rot_w')),
     ('planar', ('x', 'y', 'theta'))])
-def test_floating_base_is_read_and_held_at_identity(joint_type, variables):
+def test_floating_base_is_read_and_driven(joint_type, variables):
     from collision_sensor.kinematics import build_kinematic_tree
-    with pytest.warns(LoadWarning, match=f'joint "root_joint" \\({joint_type}.*floating base: '
-                                         'it is held at identity'):
+    with warnings.catch_warnings():
+        warnings.simplefilter('error', LoadWarning)   # nothing is held any more
         model = load_urdf(robot(FLOATING_BASE.format(type=joint_type)))
     joint = {j.name: j for j in model.joints}['root_joint']
     assert joint.type == joint_type
     assert joint.variables == tuple(f'root_joint/{v}' for v in variables)
-    assert model.held_joints == ('root_joint',)
+    assert model.held_joints == ()
     tree = build_kinematic_tree(model)
-    assert tree.joint_names == ('j',)
-    poses = tree.forward_kinematics(np.array([0.0]))
-    assert np.allclose(poses[tree.link_names.index('base')][:3, 3], [0, 0, 0.5])
-    assert np.allclose(poses[tree.link_names.index('arm')][:3, 3], [0, 0, 2.5])
+    assert tree.joint_names == joint.variables + ('j',)
+    q = tree.neutral()
+    q[:2] = 3.0, 4.0   # x (trans_x) and y (trans_y)
+    poses = tree.forward_kinematics(q)
+    assert np.allclose(poses[tree.link_names.index('base')][:3, 3], [3, 4, 0.5])
+    assert np.allclose(poses[tree.link_names.index('arm')][:3, 3], [3, 4, 2.5])
 
 
 @pytest.mark.parametrize('joint_type', ['floating', 'planar'])
-def test_floating_and_planar_joints_inside_the_tree_are_refused_by_kinematics(joint_type):
+def test_floating_and_planar_joints_inside_the_tree_are_driven(joint_type):
     from collision_sensor.kinematics import build_kinematic_tree
     text = FLOATING_BASE.format(type='fixed').replace('type="revolute"', f'type="{joint_type}"')
-    model = load_urdf(robot(text))   # read and represented ...
+    model = load_urdf(robot(text))
     assert model.held_joints == () and model.joints[-1].type == joint_type
-    with pytest.raises(RobotDescriptionError,   # ... but not driven: named, not made fixed
-                       match=f'joint "j" is {joint_type} \\(variables j/.*between links "base" '
-                             'and "arm"; the kinematics cannot drive'):
-        build_kinematic_tree(model)
+    tree = build_kinematic_tree(model)
+    assert tree.joint_names == model.joints[-1].variables
 
 
 def test_unknown_joint_type_is_refused():

@@ -75,7 +75,7 @@ def test_robot_loads_and_agrees_with_fcl(robot):
     if not checker.checked_pairs:
         return   # nothing to compare (no geometry, or every pair excluded)
     oracle = FclOracle(checker, robot.urdf)
-    configurations = [[0.0] * len(checker.joint_names)] + list(
+    configurations = [checker.kinematics.neutral()] + list(
         random_configurations(checker, N_CONFIGURATIONS, seed=sum(map(ord, robot.name))))
     mismatches = []
     for q in configurations:
