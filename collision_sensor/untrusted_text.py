@@ -66,26 +66,29 @@ def quoted(value, limit: int = MAX_SHOWN_CHARS) -> str:
     return f'"{printable(value, limit)}"'
 
 
-def listing(values: Iterable, total: int = None, max_items: int = 10,
-            limit: int = 400) -> str:
-    """Return a bounded, comma-separated list of :func:`printable` values.
+def listing(values: Iterable, total: int = None, max_items: int = 10, limit: int = 400,
+            escape: bool = True) -> str:
+    """Return a bounded, comma-separated list of values.
 
     :param values: the values (only the first ``max_items`` are read).
     :param total: how many there are in all, when ``values`` is a part of them.
     :param max_items: the most values shown.
-    :param limit: the longest result in characters (about; each value is cut too).
+    :param limit: the longest list in characters, before the ``(+N more)``.
+    :param escape: pass each value through :func:`printable`; False for values that are safe
+        already (built from :func:`quoted` parts), which are then only cut.
     :return: e.g. ``a, b, c (+97 more)``.
     """
+    each = max(16, min(MAX_SHOWN_CHARS, limit // 4)) if escape else limit
     shown, count = [], 0
     for value in values:
         if count >= max_items:
             count += 1
             break
-        shown.append(printable(value, max(16, min(MAX_SHOWN_CHARS, limit // 4))))
+        shown.append(printable(value, each) if escape else str(value))
         count += 1
     total = max(total if total is not None else count, len(shown))
     text = ', '.join(shown)
     if len(text) > limit:
-        text = printable(text, limit)
+        text = text[:limit - 3] + '...'
     more = total - len(shown)
     return text + (f' (+{more} more)' if more > 0 else '')
