@@ -71,13 +71,15 @@ def listing(values: Iterable, total: int = None, max_items: int = 10, limit: int
     """Return a bounded, comma-separated list of values.
 
     :param values: the values (only the first ``max_items`` are read).
-    :param total: how many there are in all, when ``values`` is a part of them.
+    :param total: how many there are in all (default: ``len(values)`` when it has one).
     :param max_items: the most values shown.
     :param limit: the longest list in characters, before the ``(+N more)``.
     :param escape: pass each value through :func:`printable`; False for values that are safe
         already (built from :func:`quoted` parts), which are then only cut.
     :return: e.g. ``a, b, c (+97 more)``.
     """
+    if total is None and hasattr(values, '__len__'):
+        total = len(values)
     each = max(16, min(MAX_SHOWN_CHARS, limit // 4)) if escape else limit
     shown, count = [], 0
     for value in values:

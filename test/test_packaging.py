@@ -116,7 +116,7 @@ def test_import_loads_no_ros(module):
 
 def test_import_probe_sees_ros_when_it_is_loaded():
     # The control: the node does import rclpy and message packages, and the probe says so.
-    loaded = ros_modules_loaded_by('collision_sensor.node')
+    loaded = ros_modules_loaded_by('collision_sensor.sensor_node')
     assert 'rclpy' in loaded
     assert 'sensor_msgs' in loaded
 

@@ -43,4 +43,5 @@ def test_listing_is_bounded_whatever_the_number_of_values():
     text = listing(names, total=10_000)
     assert text.endswith('(+9990 more)') and '\n' not in text and len(text) < 500
     assert listing([]) == '' and listing(['a', 'b']) == 'a, b'
+    assert listing([str(i) for i in range(100)], max_items=3) == '0, 1, 2 (+97 more)'
     assert len(listing(['y' * 5000] * 5)) < 500
