@@ -2,25 +2,36 @@
 
 The node itself is :class:`collision_sensor.sensor_node.CollisionSensorNode` (also importable
 from here). This module stays light on purpose: the console script imports it before ``main``
-runs, and importing the node pulls in rclpy, numba and the message packages (about a second).
-``main`` therefore first turns SIGINT and SIGTERM into a stop request, and only then imports
-the rest, loads the robot and spins; a signal in any phase (importing, loading the robot,
-building its trees, compiling the query, checking) ends the process with exit status 0, no
-traceback and no core dump.
+runs, while importing the node pulls in rclpy, numba and the message packages (about a second).
 
-How: the first SIGINT or SIGTERM raises :class:`KeyboardInterrupt` in the main thread (where
-all loading and spinning happen; rclpy, once initialised, chains its own handler to this one and
-wakes the executor); later signals are ignored, so that a second Ctrl-C cannot interrupt the
-clean-up. Work left on other threads (a robot_description being built) is abandoned: the
-process ends with ``os._exit`` after the clean-up, so no interpreter teardown races it.
+How a stop works, in every phase, with exit status 0, no traceback and no core dump:
+
+- ``main`` first makes SIGINT and SIGTERM set a flag (:class:`StopRequest`). The handler
+  raises nothing: an exception thrown from a signal handler lands wherever the main thread
+  happens to be, and inside a finaliser or an import lock callback Python prints it as
+  "Exception ignored" and swallows it, so the stop would be lost.
+- Start-up (importing rclpy and numba, ``rclpy.init``, loading the robot, building its trees,
+  running the query once) runs on a thread of its own, which nothing can interrupt; the main
+  thread only waits for it or for the flag. A stop during start-up ends the process there, with
+  ``os._exit(0)`` after flushing the output: nothing has been published, and tearing the
+  interpreter down under a thread in the middle of C code (a build, a compile) could crash.
+- Once up, the main thread spins. rclpy's own handlers (installed by ``rclpy.init``, chained to
+  ours) shut the context down, the executor wakes up within milliseconds and the node is
+  destroyed in order. Work left on other threads (a robot_description being built) is dropped
+  the same way as during start-up.
+
+A signal in the first ~0.1 s, while the interpreter itself starts and before any line of this
+package runs, takes the signal's default action: no Python program can handle it.
 """
 import os
 import signal
 import sys
 import threading
+import traceback
 
 _EXPORTED = ('CollisionSensorNode', 'LATCHED_QOS', 'VERDICT_QOS', 'JOINT_STATES_QOS',
              'RELIABLE_INPUT_QOS', 'quaternion_from_matrix')
+_POLL = 0.02    # s between looks at the flag while start-up runs
 
 
 def __getattr__(name):
@@ -30,8 +41,8 @@ def __getattr__(name):
     raise AttributeError(f'module "collision_sensor.node" has no attribute "{name}"')
 
 
-class StopOnSignal:
-    """Turn the first SIGINT or SIGTERM into a :class:`KeyboardInterrupt`; ignore later ones.
+class StopRequest:
+    """Remember the first SIGINT or SIGTERM; raise nothing.
 
     :ivar signal_name: the signal that asked to stop (``None`` before).
     """
@@ -41,44 +52,74 @@ class StopOnSignal:
     def __init__(self):
         self.signal_name = None
 
-    def install(self) -> 'StopOnSignal':
+    def install(self) -> 'StopRequest':
         """Install the handlers (main thread only); return self."""
         for signum in self.SIGNALS:
             signal.signal(signum, self._handle)
         return self
 
     def _handle(self, signum, frame):
-        if self.signal_name is not None:
-            return
-        self.signal_name = signal.Signals(signum).name
-        raise KeyboardInterrupt(self.signal_name)
+        if self.signal_name is None:
+            self.signal_name = signal.Signals(signum).name
 
 
-def _finish(status: int) -> int:
-    """Return ``status``, or end the process now if a background thread still works."""
-    busy = [thread for thread in threading.enumerate()
-            if thread is not threading.main_thread() and thread.is_alive() and thread.daemon]
-    if busy:
-        # A robot_description build (C code, numba) cannot be interrupted; tearing the
-        # interpreter down under it may crash. Everything that matters is closed already.
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(status)
-    return status
+class _StartUp(threading.Thread):
+    """Import the node, initialise rclpy and build the node, off the main thread."""
+
+    def __init__(self, args):
+        super().__init__(name='start-up', daemon=True)
+        self._args = args
+        self.node = None
+        self.status = None     # 1: configuration failed (logged by the node)
+        self.error = None      # anything else start-up raised
+
+    def run(self):
+        try:
+            from collision_sensor import sensor_node
+            self.node, self.status = sensor_node.start(self._args)
+        except BaseException as error:  # noqa: B902 - reported by main, or moot after a stop
+            # A stop shuts rclpy's context down under the constructor, which then fails
+            # somewhere: main decides whether that is worth a word.
+            self.error = error
+
+
+def _exit_now(status: int) -> None:
+    sys.stdout.flush()
+    sys.stderr.flush()
+    try:    # the C streams too: rcutils logs through them, and os._exit flushes nothing
+        import ctypes
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError):
+        pass
+    os._exit(status)
+
+
+def _background_threads_busy() -> bool:
+    return any(thread.is_alive() and thread.daemon for thread in threading.enumerate()
+               if thread is not threading.current_thread())
 
 
 def main(args=None) -> int:
     """Run the node until SIGINT, SIGTERM or shutdown; return 1 when configuration fails."""
-    stop = StopOnSignal()
+    stop = StopRequest()
     if threading.current_thread() is threading.main_thread():
         stop.install()
-    status = 0
-    try:
-        from collision_sensor.sensor_node import run
-        status = run(args)
-    except KeyboardInterrupt:
-        status = 0
-    return _finish(status)
+    start_up = _StartUp(args)
+    start_up.start()
+    while start_up.is_alive() and stop.signal_name is None:
+        start_up.join(_POLL)
+    if stop.signal_name is not None and start_up.node is None:
+        _exit_now(0)        # during start-up: see the module docstring
+    if start_up.error is not None:
+        traceback.print_exception(start_up.error)
+        return 1
+    if start_up.node is None:
+        return start_up.status
+    from collision_sensor import sensor_node
+    status = sensor_node.spin(start_up.node, stopped=lambda: stop.signal_name is not None)
+    if _background_threads_busy():
+        _exit_now(status)
+    return status
 
 
 if __name__ == '__main__':

@@ -251,7 +251,7 @@ class _SubscriptionThread:
                     wait_set.add_subscription(subscription.handle)
                     wait_set.add_guard_condition(self._wake.handle)
                     wait_set.wait(timeout_ns)
-                    while not self._stopping:
+                    while not self._stopping and self._node.context.ok():
                         taken = subscription.handle.take_message(subscription.msg_type,
                                                                  subscription.raw)
                         if taken is None:
@@ -365,9 +365,6 @@ class CollisionSensorNode(Node):
             self._configure()
         except Exception as error:  # noqa: B902 - logged, then raised to the caller as it is
             self.get_logger().fatal(f'configuration failed: {printable(error, 2000)}')
-            self.destroy_node()
-            raise
-        except BaseException:       # a stop request (SIGINT, SIGTERM) while loading
             self.destroy_node()
             raise
 
@@ -504,6 +501,8 @@ class CollisionSensorNode(Node):
     # -- joint states -------------------------------------------------------------------------
 
     def _log(self, level: str, text: str) -> None:
+        if not self.context.ok():
+            return      # shutting down: rosout is gone, and the lines would only be noise
         # One call site per severity: rclpy ties each call site to one severity.
         logger = self.get_logger()
         if level == 'info':
@@ -551,6 +550,8 @@ class CollisionSensorNode(Node):
             try:
                 self._process(msg, notes)
             except Exception as error:  # noqa: B902 - one message must never stop the node
+                if not self.context.ok():
+                    return      # shutting down: the publishers are gone, nothing to report
                 self._totals['engine_errors'] += 1
                 notes.append(('warning', 'internal', 'joint state skipped after an internal '
                               f'error: {printable(repr(error), 300)}'))
@@ -820,23 +821,36 @@ def _bound(value) -> str:
     return 'none' if value is None else f'{value:.6g}'
 
 
-def run(args=None) -> int:
-    """Run the node until SIGINT, SIGTERM or shutdown; return 1 when configuration fails.
+def start(args=None):
+    """Initialise rclpy and build the node; return ``(node, None)`` or ``(None, 1)``.
 
-    ``collision_sensor_node`` is :func:`collision_sensor.node.main`, which turns the signals into
-    :class:`KeyboardInterrupt` before it calls this.
+    ``collision_sensor_node`` (:func:`collision_sensor.node.main`) calls this on a start-up
+    thread and :func:`spin` on the main thread.
     """
     rclpy.init(args=args)
-    node = None
     try:
-        node = CollisionSensorNode()
-        rclpy.spin(node)
+        return CollisionSensorNode(), None
+    except CollisionSensorError:
+        rclpy.try_shutdown()
+        return None, 1    # the node logged the reason
+
+
+def spin(node, stopped: Callable[[], bool] = lambda: False) -> int:
+    """Spin ``node`` until shutdown (rclpy's signal handlers shut the context down); return 0.
+
+    :param stopped: returns True once a stop was requested (checked before spinning).
+    """
+    try:
+        if not stopped():
+            rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except CollisionSensorError:
-        return 1    # the node logged the reason
+    except Exception:  # noqa: B902
+        # rclpy (Jazzy) can fail to build its next wait set when a signal shuts the context
+        # down in the middle of an executor turn: that is the stop asked for, not an error.
+        if node.context.ok() and not stopped():
+            raise
     finally:
-        if node is not None:
-            node.destroy_node()
+        node.destroy_node()
         rclpy.try_shutdown()
     return 0

@@ -649,3 +649,141 @@ def test_console_script_with_params_file(ros, tmp_path, panda_urdf, panda_srdf, 
             pytest.fail(f'the node did not stop on SIGINT:\n{output}')
     assert process.returncode == 0, output
     assert 'robot loaded from urdf_path' in output
+
+
+# -- hostile robot_description ------------------------------------------------------------------
+
+def test_robot_description_is_content_never_a_path(ros, tmp_path, panda_urdf, erd_share, capfd):
+    def factory(urdf, **kwargs):
+        opened.append(urdf)
+        return CollisionChecker.from_urdf(urdf, **kwargs)
+
+    opened = []
+    fifo = tmp_path / 'fifo'
+    os.mkfifo(fifo)      # reading it would block the loader for ever
+    ros.add(CollisionSensorNode(
+        namespace=ros.namespace, context=ros.context, checker_factory=factory,
+        parameter_overrides=[Parameter('package_paths', value=[f'example-robot-data={erd_share}'])]))
+    description = ros.publisher(String, 'robot_description', LATCHED_QOS)
+    diagnostics = ros.record(DiagnosticArray, '/diagnostics', reliable(100))
+    texts = ('/etc/passwd', '/dev/zero', str(fifo), panda_urdf, 'x\n[ERROR] forged')
+    for count, text in enumerate(texts, 1):
+        description.publish(String(data=text))
+
+        def rejected():
+            for msg in diagnostics.messages:
+                for status in msg.status:
+                    values = {kv.key: kv.value for kv in status.values}
+                    if values.get('robot_description_rejected_total') == str(count):
+                        return True
+            return False
+        assert ros.spin_until(rejected, 5.0), text
+    err = logged(ros, capfd, '')
+    # Throttled: the first rejection is logged, the others counted.
+    assert 'robot_description rejected: robot_description: not URDF XML text (it starts with ' \
+           '"/etc/passwd")' in err and 'give a path with the urdf_path parameter' in err
+    assert opened == []     # nothing reached the loader, let alone a file
+    description.publish(String(data=SLIDER_URDF))
+    assert 'ready: checking' in logged(ros, capfd, 'ready: checking', timeout=60.0)
+    assert opened == [SLIDER_URDF.encode()]    # as bytes: parsed as the document, never a path
+
+
+# -- start-up and stopping, as a process --------------------------------------------------------
+
+def node_process(namespace, *extra, urdf=None, srdf=None, erd_share=None):
+    args = [NODE_SCRIPT, '--ros-args', '-r', f'__ns:={namespace}', '-p',
+            'joint_states_qos:=reliable']
+    if urdf:
+        args += ['-p', f'urdf_path:={urdf}', '-p', f'srdf_path:={srdf}', '-p',
+                 f'package_paths:=["example-robot-data={erd_share}"]']
+    env = dict(os.environ, RCUTILS_CONSOLE_OUTPUT_FORMAT='[{severity}] {message}',
+               PYTHONUNBUFFERED='1')
+    return subprocess.Popen(args + list(extra), stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=env)
+
+
+def stop(process, signum, timeout=30.0):
+    """Send ``signum``; return (exit status, output, seconds to exit)."""
+    started = time.monotonic()
+    process.send_signal(signum)
+    try:
+        output, _ = process.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        output, _ = process.communicate()
+        pytest.fail(f'the node did not stop within {timeout} s of {signum!r}:\n{output}')
+    return process.returncode, output, time.monotonic() - started
+
+
+def assert_clean_exit(status, output):
+    assert status == 0, output
+    assert 'Traceback' not in output and 'core dumped' not in output, output
+    assert 'Error' not in output and 'Exception' not in output, output
+
+
+def wait_until_signals_are_handled(process, timeout=30.0):
+    """Wait until the process catches SIGTERM (bit 15 of SigCgt in /proc/PID/status).
+
+    Before that the interpreter itself is starting (about 0.1 s, no package code has run):
+    there a signal takes its default action, which no Python program can change.
+    """
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        with open(f'/proc/{process.pid}/status') as stream:
+            caught = next(int(line.split()[1], 16) for line in stream
+                          if line.startswith('SigCgt:'))
+        if caught & (1 << (signal.SIGTERM - 1)):
+            return
+        time.sleep(0.002)
+    pytest.fail('the node never installed its SIGTERM handler')
+
+
+@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+@pytest.mark.parametrize('delay', [0.0, 0.3, 1.0, 2.5], ids=lambda d: f'{d}s')
+def test_signal_while_starting_exits_cleanly(ros, panda_urdf, panda_srdf, erd_share, signum,
+                                             delay):
+    # From its first statement the process imports rclpy and numba, loads the Panda, builds
+    # its trees and runs the query once: each delay lands in another phase.
+    process = node_process(ros.namespace, urdf=panda_urdf, srdf=panda_srdf, erd_share=erd_share)
+    wait_until_signals_are_handled(process)
+    time.sleep(delay)
+    status, output, _ = stop(process, signum)
+    assert_clean_exit(status, output)
+
+
+@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+def test_signal_while_waiting_for_robot_description_exits_cleanly(ros, signum):
+    process = node_process(ros.namespace)
+    # Its first /diagnostics: the node is spinning, waiting for a robot.
+    name = f'{ros.namespace.strip("/")}/collision_sensor: collision sensor'
+    diagnostics = ros.record(DiagnosticArray, '/diagnostics', reliable(100))
+    assert ros.spin_until(lambda: any(status.name == name for msg in diagnostics.messages
+                                      for status in msg.status), 60.0)
+    status, output, seconds = stop(process, signum)
+    assert_clean_exit(status, output)
+    assert 'waiting for the robot on robot_description' in output and seconds < 5.0
+
+
+@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+def test_ready_line_then_signal_while_checking_exits_cleanly(ros, panda_urdf, panda_srdf,
+                                                             erd_share, poses, signum):
+    process = node_process(ros.namespace, urdf=panda_urdf, srdf=panda_srdf, erd_share=erd_share)
+    try:
+        assert ros.spin_until(
+            lambda: ros.probe.count_subscribers(f'{ros.namespace}/joint_states') > 0, 120.0)
+        probe = Probe(ros)
+        assert probe.send(joint_state(poses['hit']), timeout=30.0)[0]
+        # A stream while the signal arrives: the node is checking.
+        states = [joint_state(poses[key]) for key in ('free', 'hit') * 200]
+        for msg in states:
+            probe.joint_states.publish(msg)
+    finally:
+        status, output, seconds = stop(process, signum)
+    assert_clean_exit(status, output)
+    lines = output.splitlines()
+    # One "ready" line, after the robot was loaded, before any other line about joint states.
+    ready = [i for i, line in enumerate(lines) if line.startswith('[INFO] ready: checking ')]
+    loaded = [i for i, line in enumerate(lines) if 'robot loaded from urdf_path' in line]
+    assert len(ready) == 1 and loaded and loaded[0] < ready[0], output
+    assert f'{ros.namespace}/joint_states (reliable)' in lines[ready[0]]
+    assert seconds < 5.0, output
