@@ -31,7 +31,10 @@ CONSOLE_SCRIPTS = ('collision_sensor_node', 'collision_sensor_play', 'collision_
                    'collision_sensor_bench', 'collision_sensor_acm', 'collision_sensor_demo')
 ROS_FREE_MODULES = ('collision_sensor', 'collision_sensor.checker', 'collision_sensor.sequences',
                     'collision_sensor.acm', 'collision_sensor.offline_check',
-                    'collision_sensor.demo')
+                    'collision_sensor.demo',
+                    # The console script's module installs its signal handlers before it
+                    # imports ROS or the engine (see its docstring): it must stay light.
+                    'collision_sensor.node')
 AMENT_MARKER = 'share/ament_index/resource_index/packages/' + PACKAGE
 PY = f'python{sys.version_info.major}.{sys.version_info.minor}'
 # Prints where the package and its data were found; run from outside the checkout.
