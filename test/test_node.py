@@ -663,7 +663,8 @@ def test_robot_description_is_content_never_a_path(ros, tmp_path, panda_urdf, er
     os.mkfifo(fifo)      # reading it would block the loader for ever
     ros.add(CollisionSensorNode(
         namespace=ros.namespace, context=ros.context, checker_factory=factory,
-        parameter_overrides=[Parameter('package_paths', value=[f'example-robot-data={erd_share}'])]))
+        parameter_overrides=[Parameter('package_paths',
+                                       value=[f'example-robot-data={erd_share}'])]))
     description = ros.publisher(String, 'robot_description', LATCHED_QOS)
     diagnostics = ros.record(DiagnosticArray, '/diagnostics', reliable(100))
     texts = ('/etc/passwd', '/dev/zero', str(fifo), panda_urdf, 'x\n[ERROR] forged')
