@@ -4,7 +4,12 @@ With no arguments it
 
 1. starts ``collision_sensor_node`` as a process of its own on the bundled demo cell (the arm,
    its SRDF and the washer scene; ``joint_states_qos: reliable``), in the namespace
-   ``/collision_sensor_demo``, and waits until it has loaded the robot and subscribed;
+   ``/collision_sensor_demo``, and waits until it is ready: its ``ready:`` log line (the robot
+   loaded, its trees built, the query run once) and its joint_states subscription matched.
+   However long that takes (a cold numba cache compiles for a minute or more on a busy
+   machine) the demo waits, saying so every :data:`PROGRESS_PERIOD` seconds, as long as the
+   node process lives; it fails, with the node's output above, only if the node exits, or
+   after ``--timeout`` seconds when one is given;
 2. plays the paper's experiment (``config/sequences/paper_experiment.csv``) into it with the
    player's :class:`~collision_sensor.player.SequencePlayer`, at the recorded timing, header
    stamps set to the recorded times;
@@ -45,7 +50,9 @@ PROG = 'collision_sensor_demo'
 DEFAULT_SEQUENCE = 'paper_experiment'
 NAMESPACE = '/collision_sensor_demo'
 NODE_NAME = 'collision_sensor'          # the node's default name
-START_TIMEOUT = 120.0   # s for the node to load the robot; a cold numba cache compiles first
+START_TIMEOUT = None    # s for the node to be ready; None: as long as the node process lives
+PROGRESS_PERIOD = 15.0  # s between "still starting" lines while the node starts
+READY_MARK = 'ready: checking '   # the node's one line once it subscribes to joint_states
 VERDICT_TIMEOUT = 60.0  # s for one verdict (the first check may compile kernels)
 DIAGNOSTICS_WAIT = 3.0  # s to wait at the end for the last /diagnostics period
 STOP_TIMEOUT = 10.0     # s for the node to exit on SIGINT before it is killed
@@ -118,6 +125,7 @@ class NodeProcess:
         env.setdefault('RCUTILS_CONSOLE_OUTPUT_FORMAT', '[{severity}] {message}')
         env.setdefault('PYTHONUNBUFFERED', '1')
         self.lines: List[str] = []
+        self.ready = threading.Event()
         self._echo = echo
         self.process = subprocess.Popen(command, stdout=subprocess.PIPE,
                                         stderr=subprocess.STDOUT, text=True, env=env)
@@ -128,6 +136,8 @@ class NodeProcess:
         for line in self.process.stdout:
             line = line.rstrip('\n')
             self.lines.append(line)
+            if READY_MARK in line:
+                self.ready.set()
             if self._echo is not None:
                 print(f'  node | {line}', file=self._echo, flush=True)
 
@@ -138,8 +148,7 @@ class NodeProcess:
     def stop(self) -> int:
         """Stop the node with SIGINT (as Ctrl-C would), killing it if it hangs; return status.
 
-        What the node prints from here on is kept in :attr:`lines` but not echoed: a node
-        stopped while starting prints a KeyboardInterrupt traceback that only confuses.
+        What the node prints from here on is kept in :attr:`lines` but not echoed.
         """
         self._echo = None
         if self.process.poll() is None:
@@ -262,6 +271,42 @@ def summary_lines(seq, verdicts: Sequence[Tuple[Pair, ...]], played: float,
 
 
 
+def wait_until_ready(node, publisher, pairs_sub, timeout: Optional[float], say,
+                     progress_period: float = PROGRESS_PERIOD) -> float:
+    """Wait until the node is ready and matched both ways; return the seconds it took.
+
+    Ready: the node logged its ``ready:`` line (it subscribes to joint_states only after the
+    robot is loaded, its trees built and the query run once), ``publisher`` (joint_states) has
+    a subscriber and ``pairs_sub`` (colliding_pairs) a publisher.
+
+    :param node: the :class:`NodeProcess`.
+    :param timeout: seconds, or ``None`` to wait as long as the node process lives.
+    :param say: prints one line.
+    :raises DemoError: the node exited first, or ``timeout`` passed.
+    """
+    started = time.monotonic()
+    next_progress = started + progress_period
+    while not (node.ready.is_set() and publisher.get_subscription_count() >= 1
+               and pairs_sub.get_publisher_count() >= 1):
+        status = node.exited()
+        if status is not None:
+            raise DemoError(f'collision_sensor_node exited with status {status} before it was '
+                            'ready (its output is above)')
+        now = time.monotonic()
+        if timeout is not None and now - started > timeout:
+            raise DemoError(f'collision_sensor_node did not subscribe to '
+                            f'{publisher.topic_name} within {timeout:g} s (--timeout); it is '
+                            'still starting: wait longer, or leave --timeout out to wait as '
+                            'long as it runs')
+        if now >= next_progress:
+            next_progress += progress_period
+            say(f'still waiting for collision_sensor_node to be ready ({now - started:.0f} s; '
+                'the first start compiles the engine, which takes a minute or more on a busy '
+                'machine) ...')
+        time.sleep(_POLL)
+    return time.monotonic() - started
+
+
 def _stamp_ns(seconds: float) -> int:
     # as player._stamp_from_seconds rounds it
     return int(round(seconds * 1e9))
@@ -320,20 +365,8 @@ def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast
         spinner.start()
         player = SequencePlayer(seq, context=context, stamp='recorded')
 
-        # Up: the node subscribes to joint_states last, once the robot is loaded.
         started = time.monotonic()
-        while (player.publisher.get_subscription_count() < 1
-               or pairs_sub.get_publisher_count() < 1):
-            status = node.exited()
-            if status is not None:
-                raise DemoError(f'collision_sensor_node exited with status {status} before it '
-                                'subscribed to joint_states (its output is above)')
-            if time.monotonic() - started > start_timeout:
-                raise DemoError(f'collision_sensor_node did not subscribe to '
-                                f'{player.publisher.topic_name} within {start_timeout:g} s; '
-                                'is the numba cache being built on a busy machine? Try again '
-                                'or pass a larger --timeout')
-            time.sleep(_POLL)
+        wait_until_ready(node, player.publisher, pairs_sub, start_timeout, say)
         timing = ('as fast as the node answers' if fast else f'{rate:g} frames/s' if rate
                   else 'recorded timing')
         say(f'node up after {time.monotonic() - started:.1f} s; playing '
@@ -406,7 +439,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--namespace', default=NAMESPACE,
                         help='namespace of the node and the demo (default %(default)s)')
     parser.add_argument('--timeout', type=float, default=START_TIMEOUT, metavar='S',
-                        help='seconds for the node to come up (default %(default)g)')
+                        help='seconds for the node to be ready (default: as long as the node '
+                             'process runs)')
     parser.add_argument('--describe-panda', action='store_true',
                         help='instead: print the Panda of example-robot-data as the robot '
                              'model layer reads it (tree, collision elements, poses)')

@@ -9,18 +9,41 @@ The rules, in the order they are applied to one message:
 2. ``name`` and ``position`` of different lengths: rejected whole;
 3. a name given twice: rejected whole;
 4. a position that is NaN or infinite (for any joint, known or not): rejected whole;
-5. derived joints (mimic joints: they follow their source joint, so their own value is not
+5. a known joint with limits whose value lies beyond them by more than ``limit_tolerance``
+   (rad or m): by the ``limit_policy``, ``'reject'`` (the default) rejects the message whole,
+   ``'clamp'`` stores the nearest limit instead, ``'accept'`` stores the value as given. Values
+   beyond a limit by at most the tolerance (sensor noise, calibration) are stored as given.
+   Joints without limits (continuous) take any finite value;
+6. derived joints (mimic joints: they follow their source joint, so their own value is not
    used) are skipped silently; any other name the robot does not move (unknown or fixed joints)
-   is ignored and reported once, the first time it is seen (``Outcome.new_unknown``);
-6. the positions of the known joints are stored; joints a message does not name keep the value
+   is ignored and reported once, the first time it is seen (``Outcome.new_unknown``). Memory
+   stays bounded: at most ``max_unknown_names`` names are remembered, later ones are only
+   counted (``unknown_overflow``);
+7. the positions of the known joints are stored; joints a message does not name keep the value
    they had, so publishers that each name a subset (arm, gripper) merge into one state.
 
 A rejected message changes nothing: neither the stored positions nor the set of unknown names.
+Reasons quote names through :func:`~collision_sensor.untrusted_text.printable` (escaped,
+bounded), so they are safe to log.
 """
 import enum
 import math
 from dataclasses import dataclass, field
 from typing import Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
+
+from collision_sensor.untrusted_text import listing, quoted
+
+#: What a value beyond a joint's limits does (rule 5).
+LIMIT_POLICIES = ('reject', 'clamp', 'accept')
+#: Default of ``limit_tolerance``: rad or m a value may lie beyond a limit and still be taken as
+#: given. 0.01 rad (0.57 deg) / 10 mm is above encoder noise and calibration offsets of
+#: industrial arms, and far below the errors it is meant to catch (degrees sent as radians,
+#: joints out of order, uninitialised values).
+DEFAULT_LIMIT_TOLERANCE = 0.01
+#: Default of ``max_unknown_names``: unknown names remembered (and each reported once).
+MAX_UNKNOWN_NAMES = 100
+#: Most names listed in one rejection reason.
+_MAX_LISTED = 5
 
 
 class Verdict(enum.Enum):
@@ -37,6 +60,7 @@ class Problem(enum.Enum):
     LENGTH_MISMATCH = 'length mismatch'
     DUPLICATE_NAMES = 'duplicate names'
     NOT_FINITE = 'non-finite position'
+    OUT_OF_LIMITS = 'beyond the joint limits'
 
 
 @dataclass(frozen=True)
@@ -48,7 +72,11 @@ class Outcome:
     :ivar reason: one sentence naming the problem and the joints at fault (empty unless rejected).
     :ivar updated: the known joints this message set, in message order.
     :ivar unknown: the names in this message that the robot does not move.
-    :ivar new_unknown: the subset of ``unknown`` never seen before (warn once about these).
+    :ivar new_unknown: the subset of ``unknown`` never seen before and now remembered (warn
+        once about these).
+    :ivar unremembered: how many names of ``unknown`` were not remembered (the memory of
+        unknown names is full); they may or may not have been seen before.
+    :ivar clamped: the known joints whose value was replaced by a limit (policy ``'clamp'``).
     """
 
     verdict: Verdict
@@ -57,6 +85,8 @@ class Outcome:
     updated: Tuple[str, ...] = ()
     unknown: Tuple[str, ...] = ()
     new_unknown: Tuple[str, ...] = ()
+    unremembered: int = 0
+    clamped: Tuple[str, ...] = ()
 
     @property
     def accepted(self) -> bool:
@@ -76,15 +106,40 @@ class JointStateMerger:
     :param derived_names: joints a robot publishes but whose value follows another joint
         (mimic joints); skipped without a warning.
     :param positions: initial known positions, joint name -> value.
+    :param limits: joint name -> (lower, upper); joints absent, or with a ``None`` or infinite
+        bound, have no limit on that side.
+    :param limit_policy: one of :data:`LIMIT_POLICIES` (rule 5).
+    :param limit_tolerance: rad or m beyond a limit still taken as given, >= 0.
+    :param max_unknown_names: the most unknown names remembered.
+    :ivar unknown_names: the unknown names remembered, at most ``max_unknown_names``.
+    :ivar unknown_overflow: how many times a name was not remembered because the memory of
+        unknown names was full.
     """
 
     joint_names: Sequence[str]
     derived_names: frozenset = frozenset()
     positions: Dict[str, float] = field(default_factory=dict)
+    limits: Mapping[str, Tuple[Optional[float], Optional[float]]] = field(default_factory=dict)
+    limit_policy: str = 'reject'
+    limit_tolerance: float = DEFAULT_LIMIT_TOLERANCE
+    max_unknown_names: int = MAX_UNKNOWN_NAMES
     unknown_names: set = field(default_factory=set)
+    unknown_overflow: int = 0
 
     def __post_init__(self):
+        if self.limit_policy not in LIMIT_POLICIES:
+            raise ValueError(f'limit_policy "{self.limit_policy}" is not one of '
+                             f'{", ".join(LIMIT_POLICIES)}')
+        if not (math.isfinite(self.limit_tolerance) and self.limit_tolerance >= 0.0):
+            raise ValueError(f'limit_tolerance {self.limit_tolerance} is not a finite number >= 0')
         self.joint_names = tuple(self.joint_names)
+        # Finite bounds only: None and +-inf mean "no limit on this side".
+        self._bounds = {}
+        for name, (lower, upper) in dict(self.limits).items():
+            lower = lower if lower is not None and math.isfinite(lower) else None
+            upper = upper if upper is not None and math.isfinite(upper) else None
+            if lower is not None or upper is not None:
+                self._bounds[name] = (lower, upper)
         self._known = frozenset(self.joint_names)
         self.derived_names = frozenset(self.derived_names) - self._known
         unexpected = set(self.positions) - self._known
@@ -111,6 +166,7 @@ class JointStateMerger:
         """
         if len(positions) == 0:
             return Outcome(Verdict.IGNORED)
+        names = list(names)
         if len(names) != len(positions):
             return _rejected(
                 Problem.LENGTH_MISMATCH,
@@ -124,12 +180,35 @@ class JointStateMerger:
                 seen.add(name)
             return _rejected(
                 Problem.DUPLICATE_NAMES,
-                f'joint names given more than once: {", ".join(map(repr, duplicates))}')
+                'joint names given more than once: '
+                + listing(map(quoted, duplicates), max_items=_MAX_LISTED, escape=False))
         bad = [(name, value) for name, value in zip(names, positions)
                if not math.isfinite(value)]
         if bad:
-            listing = ', '.join(f'{name!r}={value}' for name, value in bad)
-            return _rejected(Problem.NOT_FINITE, f'positions that are not finite: {listing}')
+            return _rejected(Problem.NOT_FINITE, 'positions that are not finite: ' + listing(
+                (f'{quoted(name)}={value}' for name, value in bad), total=len(bad),
+                max_items=_MAX_LISTED, escape=False))
+
+        values = {}
+        clamped, beyond = [], []
+        for name, value in zip(names, positions):
+            if name not in self._known:
+                continue
+            value = float(value)
+            bounds = self._bounds.get(name)
+            if bounds is not None:
+                lower, upper = bounds
+                tolerance = self.limit_tolerance
+                if ((lower is not None and value < lower - tolerance)
+                        or (upper is not None and value > upper + tolerance)):
+                    beyond.append((name, value, lower, upper))
+                    if self.limit_policy == 'clamp':
+                        value = min(max(value, -math.inf if lower is None else lower),
+                                    math.inf if upper is None else upper)
+                        clamped.append(name)
+            values[name] = value
+        if beyond and self.limit_policy == 'reject':
+            return _rejected(Problem.OUT_OF_LIMITS, _limits_reason(beyond, self.limit_tolerance))
 
         updated, unknown = [], []
         for name in names:
@@ -137,26 +216,50 @@ class JointStateMerger:
                 updated.append(name)
             elif name not in self.derived_names:
                 unknown.append(name)
-        new_unknown = tuple(name for name in unknown if name not in self.unknown_names)
-        self.unknown_names.update(new_unknown)
-        for name, value in zip(names, positions):
-            if name in self._known:
-                self.positions[name] = float(value)
+        new_unknown, unremembered = [], 0
+        for name in unknown:
+            if name in self.unknown_names:
+                continue
+            if len(self.unknown_names) < self.max_unknown_names:
+                self.unknown_names.add(name)
+                new_unknown.append(name)
+            else:
+                unremembered += 1
+        self.unknown_overflow += unremembered
+        self.positions.update(values)
         verdict = Verdict.ACCEPTED if updated else Verdict.IGNORED
         return Outcome(verdict, updated=tuple(updated), unknown=tuple(unknown),
-                       new_unknown=new_unknown)
+                       new_unknown=tuple(new_unknown), unremembered=unremembered,
+                       clamped=tuple(clamped))
 
-    def carry_over(self, joint_names: Sequence[str],
-                   derived_names: Iterable[str] = ()) -> 'JointStateMerger':
+    def carry_over(self, joint_names: Sequence[str], derived_names: Iterable[str] = (),
+                   limits: Optional[Mapping[str, Tuple[float, float]]] = None
+                   ) -> 'JointStateMerger':
         """Return a merger for a new robot model that keeps the positions of shared joints.
 
         Unknown names start afresh: they are reported once more against the new model.
 
         :param joint_names: the new model's movable joints.
         :param derived_names: the new model's mimic joints.
+        :param limits: the new model's joint limits (default: keep these).
         """
         kept = {name: value for name, value in self.positions.items() if name in joint_names}
-        return JointStateMerger(joint_names, frozenset(derived_names), positions=kept)
+        return JointStateMerger(joint_names, frozenset(derived_names), positions=kept,
+                                limits=self.limits if limits is None else limits,
+                                limit_policy=self.limit_policy,
+                                limit_tolerance=self.limit_tolerance,
+                                max_unknown_names=self.max_unknown_names)
+
+
+def _limits_reason(beyond, tolerance: float) -> str:
+    def bound(value):
+        return 'none' if value is None else f'{value:.6g}'
+    joints = listing((f'joint {quoted(name)} at {value:.6g} outside its limits '
+                      f'[{bound(lower)}, {bound(upper)}]' for name, value, lower, upper in beyond),
+                     total=len(beyond), max_items=_MAX_LISTED, limit=600, escape=False)
+    return (f'{joints} by more than limit_tolerance {tolerance:g}; fix the publisher (units, '
+            'joint order, calibration), or set the parameter joint_limit_policy to "clamp" or '
+            '"accept"')
 
 
 def joints_out_of_limits(positions: Mapping[str, float],

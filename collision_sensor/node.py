@@ -1,641 +1,125 @@
-"""The ROS 2 node: joint states in, a collision verdict out.
+"""``collision_sensor_node``: the console script, which stops cleanly on a signal at any moment.
 
-The node only converts messages and parameters; the checking is :class:`CollisionChecker`'s,
-the merging and validation of joint states :mod:`collision_sensor.joint_state_merger`'s, the
-parameters :mod:`collision_sensor.node_parameters`'s.
+The node itself is :class:`collision_sensor.sensor_node.CollisionSensorNode` (also importable
+from here). This module stays light on purpose: the console script imports it before ``main``
+runs, while importing the node pulls in rclpy, numba and the message packages (about a second).
 
-Topics (relative, so ``-r __ns:=/robot`` moves them):
+How a stop works, in every phase, with exit status 0, no traceback and no core dump:
 
-=================== ==== =================================== ====================================
-topic               dir  type                                QoS
-=================== ==== =================================== ====================================
-joint_states        in   sensor_msgs/JointState              sensor data, or reliable keep-all
-robot_description   in   std_msgs/String                     reliable, transient local, depth 1
-                                                             (only when ``urdf_path`` is empty)
-contact             out  std_msgs/Bool                       reliable, transient local, depth 1
-colliding_pairs     out  diagnostic_msgs/DiagnosticArray     reliable, transient local, depth 1
-~/markers           out  visualization_msgs/MarkerArray      reliable, depth 10 (if enabled)
-/diagnostics        out  diagnostic_msgs/DiagnosticArray     reliable, depth 10, once a second
-=================== ==== =================================== ====================================
+- ``main`` first makes SIGINT and SIGTERM set a flag (:class:`StopRequest`). The handler
+  raises nothing: an exception thrown from a signal handler lands wherever the main thread
+  happens to be, and inside a finaliser or an import lock callback Python prints it as
+  "Exception ignored" and swallows it, so the stop would be lost.
+- Start-up (importing rclpy and numba, ``rclpy.init``, loading the robot, building its trees,
+  running the query once) runs on a thread of its own, which nothing can interrupt; the main
+  thread only waits for it or for the flag. A stop during start-up ends the process there, with
+  ``os._exit(0)`` after flushing the output: nothing has been published, and tearing the
+  interpreter down under a thread in the middle of C code (a build, a compile) could crash.
+- Once up, the main thread spins. rclpy's own handlers (installed by ``rclpy.init``, chained to
+  ours) shut the context down, the executor wakes up within milliseconds and the node is
+  destroyed in order. Work left on other threads (a robot_description being built) is dropped
+  the same way as during start-up.
 
-Every accepted joint state that completes the state (see ``require_all_joints``) gives exactly
-one ``contact`` and then one ``colliding_pairs`` message, in input order; the latter carries the
-joint state's header (stamp and frame) so a consumer can tell which input a verdict answers.
-
-Failure policy: bad configuration raises :class:`~collision_sensor.ConfigError` (or another
-:class:`~collision_sensor.CollisionSensorError`) from the constructor after logging the reason,
-and ``main`` exits with status 1. Once running, nothing a message carries stops the node: bad
-joint states are rejected with a throttled warning, a bad ``robot_description`` is rejected with
-an error and the current model stays, and engine errors are logged.
-
-Threads: joint states are taken and checked on a thread of the node's own
-(:class:`_SubscriptionThread`, for speed), robot descriptions are built on a loader thread
-(:class:`_ModelLoader`, so checking goes on meanwhile), and everything else runs on the
-executor's thread; one lock keeps the model, the merged state and the counters consistent.
+A signal in the first ~0.1 s, while the interpreter itself starts and before any line of this
+package runs, takes the signal's default action: no Python program can handle it.
 """
-import collections
-import math
+import os
+import signal
+import sys
 import threading
-import time
-from typing import Callable, Dict, Optional
+import traceback
 
-import rclpy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Pose
-from rclpy.callback_groups import CallbackGroup
-from rclpy.exceptions import InvalidHandle
-from rclpy.executors import ExternalShutdownException
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-from rclpy.node import Node
-from rclpy.qos import (
-    DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data)
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Bool, ColorRGBA, Header, String
-from visualization_msgs.msg import Marker, MarkerArray
-
-from collision_sensor.errors import CollisionSensorError
-from collision_sensor.joint_state_merger import JointStateMerger, joints_out_of_limits
-from collision_sensor.node_parameters import NodeSettings, declare_node_parameters
-
-#: Verdicts and the robot description: late joiners get the latest message.
-LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-#: ``joint_states_qos: reliable``: every message checked, none dropped. KEEP_ALL, because a
-#: reliable reader acknowledges a message once it is in its history, not once it is taken: with
-#: KEEP_LAST depth N a publisher that waits for acknowledgements (``collision_sensor_play
-#: --as-fast-as-possible``) still overruns the node whenever the node falls N messages behind.
-#: KEEP_ALL makes the writer wait instead (DDS flow control), so replay is lossless.
-RELIABLE_INPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL,
-                                reliability=ReliabilityPolicy.RELIABLE,
-                                durability=DurabilityPolicy.VOLATILE)
-JOINT_STATES_QOS = {'sensor_data': qos_profile_sensor_data, 'reliable': RELIABLE_INPUT_QOS}
-
-DIAGNOSTICS_PERIOD = 1.0    # s, as diagnostic_updater
-WARNING_PERIOD = 1.0        # s between two warnings of one kind
-MARKER_PERIOD = 0.1         # s between marker updates while the colliding set stays the same
-MARKER_COLOR = ColorRGBA(r=1.0, g=0.0, b=0.0, a=0.6)
-READER_WAKE_PERIOD = 0.1    # s; the joint-state thread checks for a stop at least this often
-
-CheckerFactory = Callable[..., object]
+_EXPORTED = ('CollisionSensorNode', 'LATCHED_QOS', 'VERDICT_QOS', 'JOINT_STATES_QOS',
+             'RELIABLE_INPUT_QOS', 'quaternion_from_matrix')
+_POLL = 0.02    # s between looks at the flag while start-up runs
 
 
-class _Throttle:
-    """Let one message per key through per period, and count the ones held back."""
-
-    def __init__(self, period: float):
-        self.period = period
-        self._last: Dict[str, float] = {}
-        self._held = collections.Counter()
-
-    def admit(self, key: str, now: float) -> Optional[int]:
-        """Return how many were held back since the last one, or None to hold this one."""
-        last = self._last.get(key)
-        if last is not None and now - last < self.period:
-            self._held[key] += 1
-            return None
-        self._last[key] = now
-        return self._held.pop(key, 0)
+def __getattr__(name):
+    if name in _EXPORTED:
+        from collision_sensor import sensor_node
+        return getattr(sensor_node, name)
+    raise AttributeError(f'module "collision_sensor.node" has no attribute "{name}"')
 
 
-class _PeriodStats:
-    """Counters of one diagnostics period."""
+class StopRequest:
+    """Remember the first SIGINT or SIGTERM; raise nothing.
+
+    :ivar signal_name: the signal that asked to stop (``None`` before).
+    """
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
     def __init__(self):
-        self.started = time.monotonic()
-        self.received = 0
-        self.rejected = 0
-        self.checks = 0
-        self.check_time_sum = 0.0
-        self.check_time_max = 0.0
+        self.signal_name = None
+
+    def install(self) -> 'StopRequest':
+        """Install the handlers (main thread only); return self."""
+        for signum in self.SIGNALS:
+            signal.signal(signum, self._handle)
+        return self
+
+    def _handle(self, signum, frame):
+        if self.signal_name is None:
+            self.signal_name = signal.Signals(signum).name
 
 
-class _ModelLoader:
-    """Build checkers from ``robot_description`` texts on a worker thread.
+class _StartUp(threading.Thread):
+    """Import the node, initialise rclpy and build the node, off the main thread."""
 
-    Joint states keep being checked with the current model meanwhile; each finished build (a
-    checker, or the error) is queued and ``notify`` is called, from the worker thread, so that
-    the node installs it on the executor's thread. Texts that arrive during a build wait; only the newest
-    waiting one is built.
-    """
+    def __init__(self, args):
+        super().__init__(name='start-up', daemon=True)
+        self._args = args
+        self.node = None
+        self.status = None     # 1: configuration failed (logged by the node)
+        self.error = None      # anything else start-up raised
 
-    def __init__(self, build: Callable[[str], object], notify: Callable[[], None]):
-        self._build = build
-        self._notify = notify
-        self._condition = threading.Condition()
-        self._pending: Optional[str] = None
-        self._closed = False
-        self.busy = False
-        self.results = collections.deque()    # (text, checker or None, error or None)
-        self._thread = threading.Thread(target=self._run, name='robot_description loader',
-                                        daemon=True)
-        self._thread.start()
-
-    def submit(self, text: str) -> None:
-        with self._condition:
-            self._pending = text
-            self._condition.notify()
-
-    def close(self) -> None:
-        with self._condition:
-            self._closed = True
-            self._condition.notify()
-        # A build cannot be interrupted; the thread is a daemon and its result is dropped.
-        self._thread.join(timeout=0.5)
-
-    def _run(self):
-        while True:
-            with self._condition:
-                while self._pending is None and not self._closed:
-                    self._condition.wait()
-                if self._closed:
-                    return
-                text, self._pending = self._pending, None
-                self.busy = True
-            try:
-                checker, error = self._build(text), None
-            except Exception as caught:  # noqa: B902 - any failure rejects this description
-                checker, error = None, caught
-            with self._condition:
-                self.busy = False
-                if self._closed:
-                    return
-                self.results.append((text, checker, error))
-            self._notify()
+    def run(self):
+        try:
+            from collision_sensor import sensor_node
+            self.node, self.status = sensor_node.start(self._args)
+        except BaseException as error:  # noqa: B902 - reported by main, or moot after a stop
+            # A stop shuts rclpy's context down under the constructor, which then fails
+            # somewhere: main decides whether that is worth a word.
+            self.error = error
 
 
-class _OwnThreadGroup(CallbackGroup):
-    """A callback group that executors never run: a thread of the node serves its entities.
-
-    Executors build their wait sets from the entities whose group ``can_execute``, so the
-    subscription in this group is left to :class:`_SubscriptionThread`.
-    """
-
-    def can_execute(self, entity) -> bool:
-        return False
-
-    def beginning_execution(self, entity) -> bool:
-        return False
-
-    def ending_execution(self, entity) -> None:
+def _exit_now(status: int) -> None:
+    sys.stdout.flush()
+    sys.stderr.flush()
+    try:    # the C streams too: rcutils logs through them, and os._exit flushes nothing
+        import ctypes
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError):
         pass
+    os._exit(status)
 
 
-class _SubscriptionThread:
-    """Serve one subscription on a thread of its own, taking every waiting message per wake-up.
-
-    Why not the executor: in rclpy (Jazzy) every executor turn rebuilds its wait set over all
-    the node's entities and wraps the callback in a task, about 0.25 ms of CPU per message
-    measured on a 2-core machine, several times a check of the Panda; at 1 kHz that alone takes a quarter of a
-    core and adds to the latency. Here the wait set is built once and holds this subscription
-    and a guard condition to stop; each wake-up takes all queued messages, in order, so a
-    moment of CPU starvation is caught up without drops. The same pattern as
-    ``rclpy.wait_for_message``.
-
-    :param node: the owning node.
-    :param subscription: a subscription created in an :class:`_OwnThreadGroup`.
-    :param callback: called with each message, on this thread.
-    """
-
-    def __init__(self, node: Node, subscription, callback: Callable, group: CallbackGroup):
-        self._node = node
-        self._subscription = subscription
-        self._callback = callback
-        self._stopping = False
-        self._wake = node.create_guard_condition(lambda: None, callback_group=group)
-        self._wait_set = _rclpy.WaitSet(1, 1, 0, 0, 0, 0, node.context.handle)
-        self._thread = threading.Thread(target=self._run, daemon=True,
-                                        name=f'{subscription.topic_name} reader')
-        self._thread.start()
-
-    def _run(self) -> None:
-        subscription, wait_set = self._subscription, self._wait_set
-        timeout_ns = int(READER_WAKE_PERIOD * 1e9)
-        while not self._stopping:
-            try:
-                with subscription.handle, self._wake.handle:
-                    wait_set.clear_entities()
-                    wait_set.add_subscription(subscription.handle)
-                    wait_set.add_guard_condition(self._wake.handle)
-                    wait_set.wait(timeout_ns)
-                    while not self._stopping:
-                        taken = subscription.handle.take_message(subscription.msg_type,
-                                                                 subscription.raw)
-                        if taken is None:
-                            break
-                        self._callback(taken[0])
-            except InvalidHandle:       # the node is being destroyed
-                return
-            except Exception as error:  # noqa: B902 - e.g. the context was shut down
-                if self._stopping or not self._node.context.ok():
-                    return
-                self._node.get_logger().error(f'joint-state reader: {error!r}',
-                                              throttle_duration_sec=1.0)
-                time.sleep(READER_WAKE_PERIOD)
-
-    def stop(self) -> None:
-        """Stop the thread and wait for it (a message being processed is finished first)."""
-        self._stopping = True
-        try:
-            self._wake.trigger()
-        except InvalidHandle:
-            pass
-        if threading.current_thread() is not self._thread:
-            self._thread.join(timeout=2.0)
-
-
-def quaternion_from_matrix(R) -> tuple:
-    """Return the unit quaternion ``(x, y, z, w)`` of a rotation matrix (Shepperd's method).
-
-    :param R: (3, 3) float, a rotation matrix.
-    """
-    trace = R[0][0] + R[1][1] + R[2][2]
-    # Branch on the largest of w, x, y, z so the square root is of a value >= 1/4 (stable).
-    if trace > max(R[0][0], R[1][1], R[2][2]):
-        s = 2.0 * math.sqrt(1.0 + trace)
-        return ((R[2][1] - R[1][2]) / s, (R[0][2] - R[2][0]) / s, (R[1][0] - R[0][1]) / s,
-                0.25 * s)
-    if R[0][0] >= R[1][1] and R[0][0] >= R[2][2]:
-        s = 2.0 * math.sqrt(1.0 + R[0][0] - R[1][1] - R[2][2])
-        return (0.25 * s, (R[0][1] + R[1][0]) / s, (R[0][2] + R[2][0]) / s,
-                (R[2][1] - R[1][2]) / s)
-    if R[1][1] >= R[2][2]:
-        s = 2.0 * math.sqrt(1.0 + R[1][1] - R[0][0] - R[2][2])
-        return ((R[0][1] + R[1][0]) / s, 0.25 * s, (R[1][2] + R[2][1]) / s,
-                (R[0][2] - R[2][0]) / s)
-    s = 2.0 * math.sqrt(1.0 + R[2][2] - R[0][0] - R[1][1])
-    return ((R[0][2] + R[2][0]) / s, (R[1][2] + R[2][1]) / s, 0.25 * s,
-            (R[1][0] - R[0][1]) / s)
-
-
-def _root_link(checker) -> str:
-    """Return the frame the checker's world poses are in: the robot's root link."""
-    return getattr(getattr(checker, 'model', None), 'root_link', '') or ''
-
-
-def _mimic_joints(checker) -> frozenset:
-    """Return the names of the checker's mimic joints (published by drivers, never needed)."""
-    joints = getattr(getattr(checker, 'model', None), 'joints', ())
-    return frozenset(joint.name for joint in joints if getattr(joint, 'mimic', None) is not None)
-
-
-def _default_checker_factory(urdf, srdf=None, package_paths=None, scene=None, config=None):
-    from collision_sensor import CollisionChecker
-    return CollisionChecker.from_urdf(urdf, srdf=srdf, package_paths=package_paths,
-                                      scene=scene, config=config)
-
-
-class CollisionSensorNode(Node):
-    """Check every joint state for collisions and publish the verdict.
-
-    :param node_name: the node's name.
-    :param checker_factory: builds a checker, called as ``factory(urdf, srdf=, package_paths=,
-        scene=, config=)`` with ``urdf`` a path or XML text (default
-        ``CollisionChecker.from_urdf``); tests inject one that adds faults.
-    :param kwargs: passed to :class:`rclpy.node.Node` (``context``, ``namespace``,
-        ``parameter_overrides``, ...).
-    :raises CollisionSensorError: bad configuration (the reason is logged first).
-    """
-
-    def __init__(self, node_name: str = 'collision_sensor', *,
-                 checker_factory: Optional[CheckerFactory] = None, **kwargs):
-        super().__init__(node_name, **kwargs)
-        self._factory = checker_factory or _default_checker_factory
-        self._checker = None
-        self._merger: Optional[JointStateMerger] = None
-        self._limits: Dict[str, tuple] = {}
-        self._root_frame = ''
-        self._model_source = ''
-        self._loader: Optional[_ModelLoader] = None
-        self._reader: Optional[_SubscriptionThread] = None
-        # Joint states are handled on the reader thread, the rest on the executor's: this lock
-        # keeps the model, the merged state and the counters consistent between them.
-        self._lock = threading.Lock()
-        self._throttle = _Throttle(WARNING_PERIOD)
-        self._period = _PeriodStats()
-        self._rejected_total = 0
-        self._engine_errors = 0
-        self._out_of_limits: Dict[str, tuple] = {}
-        self._last_accepted: Optional[float] = None   # time.monotonic() of the last update
-        self._stale = False
-        self._announced_waiting = False
-        self._last_pairs = None
-        self._last_statuses = []
-        self._in_collision: Optional[bool] = None
-        self._marker_links = ()
-        self._marker_time = 0.0
-        try:
-            self._configure()
-        except Exception as error:  # noqa: B902 - logged, then raised to the caller as it is
-            self.get_logger().fatal(f'configuration failed: {error}')
-            self.destroy_node()
-            raise
-
-    def _configure(self) -> None:
-        self._settings: NodeSettings = declare_node_parameters(self)
-        settings = self._settings
-        if settings.urdf_path:
-            self._install_model(self._build(settings.urdf_path),
-                                f'urdf_path "{settings.urdf_path}"')
-        self._contact_pub = self.create_publisher(Bool, 'contact', LATCHED_QOS)
-        self._pairs_pub = self.create_publisher(DiagnosticArray, 'colliding_pairs', LATCHED_QOS)
-        self._markers_pub = (self.create_publisher(MarkerArray, '~/markers', 10)
-                             if settings.publish_markers else None)
-        self._diagnostics_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
-        if not settings.urdf_path:
-            self._model_guard = self.create_guard_condition(self._on_model_loaded)
-            self._loader = _ModelLoader(self._build, self._model_guard.trigger)
-            self.create_subscription(String, 'robot_description', self._on_robot_description,
-                                     LATCHED_QOS)
-            self.get_logger().info('waiting for the robot on robot_description')
-        # Last, so that no joint state arrives before everything it needs exists.
-        reader_group = _OwnThreadGroup()
-        joint_states = self.create_subscription(
-            JointState, 'joint_states', self._on_joint_state,
-            JOINT_STATES_QOS[settings.joint_states_qos], callback_group=reader_group)
-        self._reader = _SubscriptionThread(self, joint_states, self._on_joint_state,
-                                           reader_group)
-
-    # -- model --------------------------------------------------------------------------------
-
-    def _build(self, urdf: str):
-        settings = self._settings
-        return self._factory(urdf, srdf=settings.srdf_path,
-                             package_paths=settings.package_paths or None,
-                             scene=settings.scene_path, config=settings.checker_config)
-
-    def _install_model(self, checker, source: str) -> None:
-        # Everything is derived first, so that a checker that fails here changes nothing.
-        derived = _mimic_joints(checker)
-        merger = (self._merger.carry_over(checker.joint_names, derived) if self._merger
-                  else JointStateMerger(checker.joint_names, derived))
-        limits = dict(checker.joint_limits)
-        out_of_limits = {name: rest for name, *rest
-                         in joints_out_of_limits(merger.positions, limits)}
-        summary = (f'{len(checker.joint_names)} joints, {len(checker.link_names)} links with '
-                   f'geometry, {len(checker.checked_pairs)} pairs checked')
-        self._clear_markers()
-        self._checker, self._merger, self._limits = checker, merger, limits
-        self._out_of_limits = out_of_limits
-        self._model_source = source
-        self._root_frame = _root_link(checker)
-        self._last_pairs = None
-        self._announced_waiting = False
-        self.get_logger().info(f'robot loaded from {source}: {summary}')
-
-    def _on_robot_description(self, msg: String) -> None:
-        self.get_logger().info(f'robot_description received ({len(msg.data)} characters); '
-                               'loading it while the current model stays in use')
-        self._loader.submit(msg.data)
-
-    def _on_model_loaded(self) -> None:
-        loader = self._loader
-        while loader is not None and loader.results:
-            _, checker, error = loader.results.popleft()
-            if error is not None:
-                keep = ('the current model stays' if self._checker is not None
-                        else 'still no robot model')
-                self.get_logger().error(f'robot_description rejected: {error}; {keep}')
-                continue
-            try:
-                with self._lock:
-                    self._install_model(checker, 'robot_description')
-            except Exception as caught:  # noqa: B902 - a broken checker must not stop the node
-                self.get_logger().error(f'robot_description rejected: {caught!r}')
-
-    # -- joint states -------------------------------------------------------------------------
-
-    def _warn(self, kind: str, text: str) -> None:
-        held = self._throttle.admit(kind, time.monotonic())
-        if held is not None:
-            more = f' ({held} more like this in the last {WARNING_PERIOD:g} s)' if held else ''
-            self.get_logger().warning(text + more)
-
-    def _on_joint_state(self, msg: JointState) -> None:
-        with self._lock:
-            try:
-                self._process(msg)
-            except Exception as error:  # noqa: B902 - one message must never stop the node
-                self._engine_errors += 1
-                self._warn('internal', f'joint state skipped after an internal error: {error!r}')
-
-    def _process(self, msg: JointState) -> None:
-        period = self._period
-        period.received += 1
-        merger = self._merger
-        if merger is None:
-            self._warn('no_model', 'joint state ignored: no robot model yet '
-                       '(waiting for robot_description)')
-            return
-        outcome = merger.merge(msg.name, msg.position)
-        if outcome.problem is not None:
-            period.rejected += 1
-            self._rejected_total += 1
-            self._warn(outcome.problem.name,
-                       f'joint state rejected, state unchanged: {outcome.reason}')
-            return
-        for name in outcome.new_unknown:
-            self.get_logger().warning(
-                f'ignoring joint "{name}" in joint_states: not a movable joint of the robot '
-                'model (warned once)')
-        if not outcome.accepted:
-            return
-        now = time.monotonic()
-        self._last_accepted = now
-        if self._stale:
-            self._stale = False
-            self.get_logger().info('joint states resumed')
-        positions = merger.positions
-        self._update_limits(outcome.updated, positions)
-        if self._settings.require_all_joints and not merger.complete:
-            if not self._announced_waiting:
-                self._announced_waiting = True
-                self.get_logger().info(f'waiting for joints {", ".join(merger.missing())} '
-                                       'before the first verdict (require_all_joints)')
-            return
-        started = time.perf_counter()
-        try:
-            result = self._checker.update(positions)
-        except CollisionSensorError as error:
-            self._engine_errors += 1
-            self._warn('engine', f'collision check failed: {error}')
-            return
-        elapsed = time.perf_counter() - started
-        period.checks += 1
-        period.check_time_sum += elapsed
-        if elapsed > period.check_time_max:
-            period.check_time_max = elapsed
-        self._publish_verdict(msg, result)
-
-    def _update_limits(self, updated, positions) -> None:
-        for name in updated:
-            self._out_of_limits.pop(name, None)
-        for name, value, lower, upper in joints_out_of_limits(positions, self._limits, updated):
-            self._out_of_limits[name] = (value, lower, upper)
-            self._warn('limits', f'joint "{name}" at {value:.6g} is outside its limits '
-                       f'[{lower:.6g}, {upper:.6g}]; checked as given')
-
-    def _publish_verdict(self, msg: JointState, result) -> None:
-        pairs = result.colliding_pairs
-        self._in_collision = bool(result.in_collision)
-        self._contact_pub.publish(Bool(data=self._in_collision))
-        if pairs != self._last_pairs:
-            self._last_pairs = pairs
-            self._last_statuses = [
-                DiagnosticStatus(level=DiagnosticStatus.ERROR, name=f'{a}:{b}',
-                                 message=f'{a} collides with {b}',
-                                 hardware_id=self._root_frame,
-                                 values=[KeyValue(key='link_a', value=a),
-                                         KeyValue(key='link_b', value=b)])
-                for a, b in pairs]
-        self._pairs_pub.publish(DiagnosticArray(header=msg.header, status=self._last_statuses))
-        if self._markers_pub is not None:
-            self._publish_markers(msg, pairs)
-
-    # -- markers ------------------------------------------------------------------------------
-
-    def _publish_markers(self, msg: JointState, pairs) -> None:
-        links = tuple(sorted({name for pair in pairs for name in pair}))
-        if not links:
-            self._clear_markers()
-            return
-        now = time.monotonic()
-        if links == self._marker_links and now - self._marker_time < MARKER_PERIOD:
-            return
-        self._marker_links, self._marker_time = links, now
-        # DELETEALL first: links that stopped colliding lose their boxes in the same message.
-        markers = [Marker(action=Marker.DELETEALL)]
-        for index, (name, T_world_box, half) in enumerate(self._checker.collision_boxes(links)):
-            x, y, z, w = quaternion_from_matrix(T_world_box[:3, :3])
-            pose = Pose()
-            pose.position.x, pose.position.y, pose.position.z = (
-                float(v) for v in T_world_box[:3, 3])
-            pose.orientation.x, pose.orientation.y = x, y
-            pose.orientation.z, pose.orientation.w = z, w
-            marker = Marker(ns=name, id=index, type=Marker.CUBE, action=Marker.ADD, pose=pose,
-                            color=MARKER_COLOR, frame_locked=False)
-            marker.header.frame_id = self._root_frame
-            marker.header.stamp = msg.header.stamp
-            marker.scale.x, marker.scale.y, marker.scale.z = (2.0 * float(h) for h in half)
-            markers.append(marker)
-        self._markers_pub.publish(MarkerArray(markers=markers))
-
-    def _clear_markers(self) -> None:
-        if self._marker_links and getattr(self, '_markers_pub', None) is not None:
-            marker = Marker(action=Marker.DELETEALL)
-            marker.header.frame_id = self._root_frame
-            self._markers_pub.publish(MarkerArray(markers=[marker]))
-        self._marker_links = ()
-
-    # -- diagnostics --------------------------------------------------------------------------
-
-    def _publish_diagnostics(self) -> None:
-        try:
-            with self._lock:
-                status = self.diagnostics_status()
-            self._diagnostics_pub.publish(DiagnosticArray(
-                header=Header(stamp=self.get_clock().now().to_msg()),
-                status=[status]))
-        except Exception as error:  # noqa: B902 - diagnostics must never stop the node
-            self._warn('internal', f'diagnostics skipped after an internal error: {error!r}')
-
-    def diagnostics_status(self) -> DiagnosticStatus:
-        """Close the current diagnostics period and return its status."""
-        now = time.monotonic()
-        period, self._period = self._period, _PeriodStats()
-        elapsed = max(now - period.started, 1e-9)
-        settings = self._settings
-        if (settings.stale_timeout > 0 and self._last_accepted is not None
-                and now - self._last_accepted > settings.stale_timeout):
-            if not self._stale:
-                self._stale = True
-                self.get_logger().warning(
-                    f'joint states stale: none accepted for {now - self._last_accepted:.1f} s '
-                    f'(stale_timeout {settings.stale_timeout:g} s)')
-        merger = self._merger
-        missing = merger.missing() if merger is not None else []
-        unknown = sorted(merger.unknown_names) if merger is not None else []
-        level, message = DiagnosticStatus.OK, 'no collision'
-        if self._in_collision:
-            message = 'in collision: ' + ', '.join(f'{a}:{b}' for a, b in self._last_pairs)
-        problems = []
-        if self._checker is None:
-            level = DiagnosticStatus.ERROR
-            problems.append('no robot model (waiting for robot_description)')
-        elif self._last_accepted is None:
-            level = DiagnosticStatus.WARN
-            problems.append('waiting for joint states')
-        elif settings.require_all_joints and missing:
-            level = DiagnosticStatus.WARN
-            problems.append('waiting for joints ' + ', '.join(missing))
-        if self._out_of_limits:
-            level = max(level, DiagnosticStatus.WARN)
-            problems.append('joints out of limits: ' + ', '.join(sorted(self._out_of_limits)))
-        if period.rejected:
-            level = max(level, DiagnosticStatus.WARN)
-            problems.append(f'{period.rejected} joint states rejected')
-        if self._stale:
-            level = DiagnosticStatus.STALE
-            problems.append(f'stale: no joint state for {now - self._last_accepted:.1f} s')
-        if problems:
-            message = '; '.join(problems + ([message] if self._in_collision else []))
-        mean_ms = 1e3 * period.check_time_sum / period.checks if period.checks else 0.0
-        values = {
-            'input_rate_hz': f'{period.received / elapsed:.1f}',
-            'checks': str(period.checks),
-            'check_time_mean_ms': f'{mean_ms:.4f}',
-            'check_time_max_ms': f'{1e3 * period.check_time_max:.4f}',
-            'rejected': str(period.rejected),
-            'rejected_total': str(self._rejected_total),
-            'engine_errors_total': str(self._engine_errors),
-            'unknown_joints': ', '.join(unknown),
-            'missing_joints': ', '.join(missing),
-            'out_of_limit_joints': ', '.join(
-                f'{name}={value:.6g} [{lower:.6g}, {upper:.6g}]'
-                for name, (value, lower, upper) in sorted(self._out_of_limits.items())),
-            'stale': str(self._stale).lower(),
-            'seconds_since_joint_state': ('' if self._last_accepted is None
-                                          else f'{now - self._last_accepted:.3f}'),
-            'waiting_for_joints': str(bool(settings.require_all_joints and missing)).lower(),
-            'in_collision': str(bool(self._in_collision)).lower(),
-            'model': self._model_source,
-            'model_loading': str(bool(self._loader and (self._loader.busy
-                                                        or self._loader.results))).lower(),
-        }
-        return DiagnosticStatus(
-            level=level, name=f'{self.get_fully_qualified_name().lstrip("/")}: collision sensor',
-            message=message,
-            hardware_id=self._root_frame,
-            values=[KeyValue(key=key, value=value) for key, value in values.items()])
-
-    def destroy_node(self):
-        """Stop the joint-state thread and the model loader, then destroy the node."""
-        if self._reader is not None:
-            self._reader.stop()
-            self._reader = None
-        if self._loader is not None:
-            self._loader.close()
-            self._loader = None
-        return super().destroy_node()
+def _background_threads_busy() -> bool:
+    return any(thread.is_alive() and thread.daemon for thread in threading.enumerate()
+               if thread is not threading.current_thread())
 
 
 def main(args=None) -> int:
-    """Run the node until Ctrl-C or shutdown; return 1 when configuration fails."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = CollisionSensorNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except CollisionSensorError:
-        return 1    # the node logged the reason
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    """Run the node until SIGINT, SIGTERM or shutdown; return 1 when configuration fails."""
+    stop = StopRequest()
+    if threading.current_thread() is threading.main_thread():
+        stop.install()
+    start_up = _StartUp(args)
+    start_up.start()
+    while start_up.is_alive() and stop.signal_name is None:
+        start_up.join(_POLL)
+    if stop.signal_name is not None and start_up.node is None:
+        _exit_now(0)        # during start-up: see the module docstring
+    if start_up.error is not None:
+        traceback.print_exception(start_up.error)
+        return 1
+    if start_up.node is None:
+        return start_up.status
+    from collision_sensor import sensor_node
+    status = sensor_node.spin(start_up.node, stopped=lambda: stop.signal_name is not None)
+    if _background_threads_busy():
+        _exit_now(status)
+    return status
 
 
 if __name__ == '__main__':

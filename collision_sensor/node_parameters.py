@@ -22,6 +22,8 @@ from typing import Any, Dict, List, Mapping, Optional, Tuple
 
 from collision_sensor.checker_config import BOX_TESTS, OBB_FITS, CheckerConfig
 from collision_sensor.errors import ConfigError
+from collision_sensor.joint_state_merger import (
+    DEFAULT_LIMIT_TOLERANCE, LIMIT_POLICIES, MAX_UNKNOWN_NAMES)
 from collision_sensor.mesh_loading import parse_package_paths
 from collision_sensor.traversal import EXPANSION_RULES
 
@@ -76,6 +78,17 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
     ParameterSpec('stale_timeout', 1.0,
                   'seconds without an accepted joint state before the state is reported stale '
                   'on /diagnostics; 0 turns the check off', '>= 0'),
+    ParameterSpec('joint_limit_policy', 'reject',
+                  'a joint state with a value beyond its joint limits (URDF) by more than '
+                  'joint_limit_tolerance: "reject" it whole (state unchanged, warning), '
+                  '"clamp" the value to the limit, or "accept" it as given (reported); joints '
+                  'without limits take any finite value', ' | '.join(LIMIT_POLICIES)),
+    ParameterSpec('joint_limit_tolerance', DEFAULT_LIMIT_TOLERANCE,
+                  'rad or m a value may lie beyond a joint limit and still be taken as given '
+                  '(encoder noise, calibration)', '>= 0'),
+    ParameterSpec('max_unknown_joints', MAX_UNKNOWN_NAMES,
+                  'unknown joint names remembered (listed on /diagnostics, warned about once); '
+                  'more are only counted, so memory stays bounded', '>= 0'),
     ParameterSpec('joint_states_qos', 'sensor_data',
                   'QoS of the joint_states subscription: "sensor_data" (best effort, depth 5) '
                   'or "reliable" (reliable, keep all: every message is checked)',
@@ -101,6 +114,9 @@ class NodeSettings:
     :ivar stale_timeout: seconds; 0 disables the stale check.
     :ivar joint_states_qos: one of :data:`JOINT_STATES_QOS`.
     :ivar publish_markers: publish ``~/markers``.
+    :ivar joint_limit_policy: one of :data:`~collision_sensor.joint_state_merger.LIMIT_POLICIES`.
+    :ivar joint_limit_tolerance: rad or m beyond a limit still taken as given.
+    :ivar max_unknown_joints: unknown joint names remembered.
     """
 
     urdf_path: Optional[str]
@@ -112,6 +128,9 @@ class NodeSettings:
     stale_timeout: float = 1.0
     joint_states_qos: str = 'sensor_data'
     publish_markers: bool = False
+    joint_limit_policy: str = 'reject'
+    joint_limit_tolerance: float = DEFAULT_LIMIT_TOLERANCE
+    max_unknown_joints: int = MAX_UNKNOWN_NAMES
 
 
 def default_values() -> Dict[str, Any]:
@@ -161,6 +180,13 @@ def _non_negative(values, name) -> float:
     return value
 
 
+def _non_negative_int(values, name) -> int:
+    value = values[name]
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise ConfigError(f'parameter {name}: {value!r} is not an integer >= 0')
+    return value
+
+
 def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
     """Validate parameter values and convert them into :class:`NodeSettings`.
 
@@ -204,6 +230,9 @@ def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
         stale_timeout=_non_negative(merged, 'stale_timeout'),
         joint_states_qos=_choice(merged, 'joint_states_qos', JOINT_STATES_QOS),
         publish_markers=bool(merged['publish_markers']),
+        joint_limit_policy=_choice(merged, 'joint_limit_policy', LIMIT_POLICIES),
+        joint_limit_tolerance=_non_negative(merged, 'joint_limit_tolerance'),
+        max_unknown_joints=_non_negative_int(merged, 'max_unknown_joints'),
     )
 
 

@@ -4,31 +4,34 @@ A robot description can arrive from anywhere (a ``robot_description`` topic, a f
 sent), so the parser is locked down:
 
 - lxml with ``resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False``: no
-  external files or URLs are fetched, no entity is expanded;
-- a DOCTYPE that declares entities is rejected outright (the "billion laughs" attack hides in
-  nested entity declarations), before lxml sees the document;
+  external DTD, file or URL is fetched, no entity reference in content is replaced, and
+  libxml2's own limit on entity amplification stops a "billion laughs" while parsing;
+- a document whose DOCTYPE declares entities (general or parameter) is then rejected. The test
+  is on what the parser read (``docinfo.internalDTD``), not on the text: the parser has
+  decoded the document whatever its encoding (UTF-16, UTF-7, ...), which a search of the raw
+  bytes for ``<!ENTITY`` would not (``+ADw-!ENTITY`` is ``<!ENTITY`` in UTF-7);
 - a document larger than :data:`MAX_DOCUMENT_BYTES` (64 MiB) is rejected before it is read;
 - a document nested deeper than :data:`MAX_ELEMENT_DEPTH` (64 elements; a URDF needs 4) is
   rejected.
 
 Comments and processing instructions are dropped while parsing, so callers see elements only.
+
+A ``str`` that starts with ``<`` is taken as the document, any other as a path. Text from the
+network must never be taken for a path: pass it through :func:`document_bytes` first, which
+turns it into ``bytes`` (always the document) or refuses it.
 """
 import os
-import re
 
 from lxml import etree
 
 from collision_sensor.errors import CollisionSensorError, RobotDescriptionError, SrdfError
+from collision_sensor.untrusted_text import listing, printable, quoted
 
 #: Largest document accepted, in bytes. The biggest real URDFs are a few MiB.
 MAX_DOCUMENT_BYTES = 64 * 1024 * 1024
 
 #: Deepest element nesting accepted (the root element is depth 1). URDF needs 4, SRDF 3.
 MAX_ELEMENT_DEPTH = 64
-
-# An entity declaration anywhere in the prolog; XML names are case-sensitive.
-_ENTITY_DECLARATION = re.compile(rb'<!ENTITY\b')
-_DOCTYPE = re.compile(rb'<!DOCTYPE\b')
 
 _ERROR_FOR = {'URDF': RobotDescriptionError, 'SRDF': SrdfError}
 
@@ -43,6 +46,34 @@ def is_xml_text(text_or_path) -> bool:
     if isinstance(text_or_path, bytes):
         return True
     return isinstance(text_or_path, str) and text_or_path.lstrip().startswith('<')
+
+
+def document_bytes(text, what: str = 'URDF', max_bytes: int = None,
+                   origin: str = 'robot_description') -> bytes:
+    """Return XML text received from outside as ``bytes``, so that it is never read as a path.
+
+    :param text: the document as received (``str``).
+    :param what: the document kind named in messages.
+    :param max_bytes: the largest document accepted, in UTF-8 bytes (default
+        :data:`MAX_DOCUMENT_BYTES`).
+    :param origin: where the text came from, for messages (a topic name).
+    :return: the UTF-8 bytes, which :func:`parse_xml` always parses as the document.
+    :raises RobotDescriptionError | SrdfError: ``text`` is not a ``str``, does not start with
+        ``<`` (a path, or not XML at all), or is over ``max_bytes``.
+    """
+    error = _ERROR_FOR.get(what, CollisionSensorError)
+    limit = MAX_DOCUMENT_BYTES if max_bytes is None else max_bytes
+    if not isinstance(text, str):
+        raise error(f'{origin}: expected {what} XML text, got {type(text).__name__}')
+    # Cheap bound first: a UTF-8 character is at least one byte.
+    if len(text) > limit or len(text.encode('utf-8', 'surrogatepass')) > limit:
+        raise error(f'{origin}: {len(text)} characters is over the limit of {limit} bytes; '
+                    f'this is not a plausible {what}')
+    if not text.lstrip().startswith('<'):
+        raise error(f'{origin}: not {what} XML text (it starts with '
+                    f'{quoted(text.lstrip()[:40], 60)}); {origin} carries the document itself, '
+                    'never a file path: give a path with the urdf_path parameter instead')
+    return text.encode('utf-8', 'surrogatepass')
 
 
 def describe_source(text_or_path, what: str = 'URDF') -> str:
@@ -71,7 +102,6 @@ def parse_xml(text_or_path, what: str = 'URDF', *, error: type = None) -> etree.
     error = error or _ERROR_FOR.get(what, CollisionSensorError)
     source = describe_source(text_or_path, what)
     data = _read_bounded(text_or_path, what, source, error)
-    _reject_entity_declarations(data, what, source, error)
     parser = etree.XMLParser(
         resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False,
         remove_comments=True, remove_pis=True, dtd_validation=False)
@@ -79,7 +109,14 @@ def parse_xml(text_or_path, what: str = 'URDF', *, error: type = None) -> etree.
         root = etree.fromstring(data, parser)
     except etree.XMLSyntaxError as exc:
         line = exc.lineno if exc.lineno is not None else '?'
-        message = getattr(exc, 'msg', None) or str(exc)
+        message = printable(getattr(exc, 'msg', None) or str(exc), 300)
+        if 'amplification' in message.lower() or 'external entity' in message.lower():
+            # libxml2 stopped at a declared entity: an expansion over its amplification limit,
+            # or a reference to an external one (never read).
+            raise error(
+                f'{what} "{source}": its DOCTYPE declares entities, which are refused (the '
+                f'parser stopped at line {line}: {message}); remove the DOCTYPE and write the '
+                f'{what} without entities (expand xacro beforehand)') from None
         if 'depth' in message.lower():
             raise error(
                 f'{what} "{source}": elements nested deeper than {MAX_ELEMENT_DEPTH} '
@@ -89,6 +126,7 @@ def parse_xml(text_or_path, what: str = 'URDF', *, error: type = None) -> etree.
             '(is it the complete file, xacro already expanded?)') from None
     if root is None:
         raise error(f'{what} "{source}": the document is empty; give a complete {what}')
+    _reject_entity_declarations(root, what, source, error)
     _check_depth(root, what, source, error)
     return root
 
@@ -116,17 +154,18 @@ def _read_bounded(text_or_path, what, source, error) -> bytes:
     return data
 
 
-def _reject_entity_declarations(data: bytes, what, source, error):
-    doctype = _DOCTYPE.search(data)
-    if doctype is None:
+def _reject_entity_declarations(root, what, source, error):
+    # What the parser read, in whatever encoding the document came: the internal subset of the
+    # DOCTYPE (the external one is never loaded) and every entity it declares.
+    dtd = root.getroottree().docinfo.internalDTD
+    if dtd is None:
         return
-    # Only the internal subset can declare entities; it ends before the root element.
-    if _ENTITY_DECLARATION.search(data, doctype.start()):
-        line = data.count(b'\n', 0, doctype.start()) + 1
+    names = [entity.name for entity in dtd.iterentities()]
+    if names:
         raise error(
-            f'{what} "{source}": DOCTYPE at line {line} declares entities, which are refused '
-            f'(entity expansion can exhaust memory); remove the DOCTYPE and write the {what} '
-            'without entities (expand xacro beforehand)')
+            f'{what} "{source}": its DOCTYPE declares entities ({listing(names, max_items=5)}), '
+            'which are refused (entity expansion can exhaust memory or read files); remove the '
+            f'DOCTYPE and write the {what} without entities (expand xacro beforehand)')
 
 
 def _check_depth(root, what, source, error):

@@ -8,10 +8,12 @@ import random
 import re
 import subprocess
 import sys
+import threading
+import time
 
 import pytest
 
-from collision_sensor import offline_check
+from collision_sensor import demo, offline_check
 
 pytest.importorskip('rclpy')
 
@@ -45,6 +47,10 @@ def test_make_demo_reports_the_contacts_of_the_offline_check(tmp_path, capsys):
     n, hits = len(frames), sum(f['in_collision'] for f in frames)
 
     assert 'robot loaded from urdf_path' in out    # the node's own log line, echoed
+    # The node said it was ready (trees built, query run once) before the demo played.
+    ready = out.index('node | [INFO] ready: checking /collision_sensor_demo/joint_states')
+    assert out.index('robot loaded from urdf_path') < ready < out.index('node up after')
+    assert 'Traceback' not in out + run.stderr
     # Contacts as they happen: each pair enters (+) as often as it leaves (-), first at its
     # first frame.
     changes = re.findall(r'^\s+(\d+\.\d+) s\s+(?:CONTACT|clear)?\s*([+-]) (\S+) -- (\S+)$',
@@ -79,7 +85,50 @@ def test_a_node_that_does_not_come_up_in_time_is_a_clear_error():
     run = run_demo('--timeout', '0.01')
     assert run.returncode == 1, run.stdout + run.stderr
     assert re.search(r'collision_sensor_demo: error: collision_sensor_node did not subscribe '
-                     r'to /collision_sensor_demo/joint_states within 0\.01 s', run.stderr)
+                     r'to /collision_sensor_demo/joint_states within 0\.01 s \(--timeout\)',
+                     run.stderr)
+    assert 'Traceback' not in run.stdout + run.stderr
+
+
+class FakeNode:
+    """A node process that becomes ready, or exits, after some seconds."""
+
+    def __init__(self, ready_after=None, exit_after=None, status=1):
+        self.ready = threading.Event()
+        self._started = time.monotonic()
+        self._ready_after, self._exit_after, self._status = ready_after, exit_after, status
+        if ready_after is not None:
+            threading.Timer(ready_after, self.ready.set).start()
+
+    def exited(self):
+        if self._exit_after is not None and time.monotonic() - self._started > self._exit_after:
+            return self._status
+        return None
+
+
+class Matched:
+    def get_subscription_count(self):
+        return 1
+
+    def get_publisher_count(self):
+        return 1
+
+    topic_name = '/demo/joint_states'
+
+
+def test_a_slow_start_is_waited_for_with_progress_lines():
+    said = []
+    seconds = demo.wait_until_ready(FakeNode(ready_after=0.6), Matched(), Matched(), None,
+                                    said.append, progress_period=0.2)
+    assert seconds >= 0.6 and len(said) >= 2
+    assert all(line.startswith('still waiting for collision_sensor_node to be ready')
+               for line in said)
+
+
+def test_a_node_that_exits_while_starting_is_a_clear_error():
+    with pytest.raises(demo.DemoError, match='exited with status 1 before it was ready'):
+        demo.wait_until_ready(FakeNode(exit_after=0.1), Matched(), Matched(), None,
+                              lambda line: None)
 
 
 def test_a_bad_sequence_fails_before_ros_starts(tmp_path):

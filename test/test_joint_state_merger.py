@@ -42,11 +42,11 @@ def test_order_of_names_does_not_matter():
 @pytest.mark.parametrize('names, positions, problem, words', [
     (['j1', 'j2'], [0.0], Problem.LENGTH_MISMATCH, ['2 names', '1 positions']),
     (['j1'], [0.0, 1.0], Problem.LENGTH_MISMATCH, ['1 names', '2 positions']),
-    (['j1', 'j2', 'j1'], [0.0, 1.0, 2.0], Problem.DUPLICATE_NAMES, ["'j1'"]),
-    (['unknown', 'unknown'], [0.0, 1.0], Problem.DUPLICATE_NAMES, ["'unknown'"]),
-    (['j1', 'j2'], [0.0, math.nan], Problem.NOT_FINITE, ["'j2'=nan"]),
-    (['j1', 'j2'], [math.inf, 0.0], Problem.NOT_FINITE, ["'j1'=inf"]),
-    (['j1', 'ghost'], [0.0, -math.inf], Problem.NOT_FINITE, ["'ghost'=-inf"]),
+    (['j1', 'j2', 'j1'], [0.0, 1.0, 2.0], Problem.DUPLICATE_NAMES, ['"j1"']),
+    (['unknown', 'unknown'], [0.0, 1.0], Problem.DUPLICATE_NAMES, ['"unknown"']),
+    (['j1', 'j2'], [0.0, math.nan], Problem.NOT_FINITE, ['"j2"=nan']),
+    (['j1', 'j2'], [math.inf, 0.0], Problem.NOT_FINITE, ['"j1"=inf']),
+    (['j1', 'ghost'], [0.0, -math.inf], Problem.NOT_FINITE, ['"ghost"=-inf']),
 ])
 def test_malformed_message_is_rejected_whole(names, positions, problem, words):
     merger = merger_with({'j1': 0.5, 'j2': 0.6, 'j3': 0.7, 'finger': 0.01})
@@ -150,3 +150,86 @@ def test_importing_the_merger_does_not_import_rclpy():
     code = ('import sys, collision_sensor.joint_state_merger; '
             'sys.exit(1 if "rclpy" in sys.modules else 0)')
     assert subprocess.run([sys.executable, '-c', code]).returncode == 0
+
+
+# -- joint limits (rule 5) ------------------------------------------------------------------------
+
+LIMITS = {'j1': (-1.0, 1.0), 'j2': (0.0, 0.5), 'j3': (None, None), 'finger': (0.0, math.inf)}
+
+
+def limited(policy='reject', tolerance=0.01):
+    merger = JointStateMerger(JOINTS, limits=LIMITS, limit_policy=policy,
+                              limit_tolerance=tolerance)
+    assert merger.merge(list(JOINTS), [0.0, 0.1, 0.0, 0.02]).accepted
+    return merger
+
+
+@pytest.mark.parametrize('value', [1.0101, -1.02, 1e9, 9.2e18, 1.7e308, -1.7e308])
+def test_values_beyond_the_limits_are_rejected_whole_by_default(value):
+    merger = limited()
+    before = dict(merger.positions)
+    outcome = merger.merge(['j2', 'j1'], [0.2, value])
+    assert outcome.verdict is Verdict.REJECTED and outcome.problem is Problem.OUT_OF_LIMITS
+    assert merger.positions == before     # j2 is not taken either
+    assert f'joint "j1" at {value:.6g} outside its limits [-1, 1]' in outcome.reason
+    assert 'limit_tolerance 0.01' in outcome.reason and 'joint_limit_policy' in outcome.reason
+
+
+@pytest.mark.parametrize('value', [1.0, 1.01, -1.0099, 0.3])
+def test_values_within_the_tolerance_are_taken_as_given(value):
+    merger = limited()
+    assert merger.merge(['j1'], [value]).accepted and merger.positions['j1'] == value
+
+
+def test_joints_without_limits_take_any_finite_value():
+    merger = limited()
+    assert merger.merge(['j3', 'finger'], [1e300, 1e300]).accepted
+    assert merger.positions['j3'] == 1e300 and merger.positions['finger'] == 1e300
+    assert merger.merge(['finger'], [-0.5]).verdict is Verdict.REJECTED   # the lower bound holds
+
+
+def test_clamp_and_accept_policies():
+    merger = limited('clamp')
+    outcome = merger.merge(['j1', 'j2'], [9.2e18, -3.0])
+    assert outcome.accepted and outcome.clamped == ('j1', 'j2')
+    assert merger.positions['j1'] == 1.0 and merger.positions['j2'] == 0.0
+    outcome = merger.merge(['j1'], [1.005])     # within the tolerance: as given
+    assert outcome.clamped == () and merger.positions['j1'] == 1.005
+    merger = limited('accept')
+    outcome = merger.merge(['j1'], [1.7e308])
+    assert outcome.accepted and merger.positions['j1'] == 1.7e308
+
+
+def test_limit_settings_are_validated_and_carried_over():
+    with pytest.raises(ValueError, match='limit_policy'):
+        JointStateMerger(JOINTS, limit_policy='wrap')
+    with pytest.raises(ValueError, match='limit_tolerance'):
+        JointStateMerger(JOINTS, limit_tolerance=-1.0)
+    carried = limited('clamp', 0.2).carry_over(JOINTS, limits={'j1': (0.0, 0.1)})
+    assert carried.limit_policy == 'clamp' and carried.limit_tolerance == 0.2
+    carried.merge(['j1'], [5.0])
+    assert carried.positions['j1'] == 0.1
+
+
+# -- unknown names: bounded memory ----------------------------------------------------------------
+
+def test_unknown_names_are_remembered_up_to_a_cap_and_counted_beyond():
+    merger = JointStateMerger(JOINTS, max_unknown_names=50)
+    flood = [f'ghost_{i}' for i in range(10_000)]
+    outcome = merger.merge(['j1'] + flood, [0.0] * 10_001)
+    assert outcome.accepted and len(outcome.unknown) == 10_000
+    assert outcome.new_unknown == tuple(flood[:50]) and outcome.unremembered == 9_950
+    assert len(merger.unknown_names) == 50 and merger.unknown_overflow == 9_950
+    outcome = merger.merge(flood[:60], [0.0] * 60)    # seen ones are not new, the rest counted
+    assert outcome.new_unknown == () and outcome.unremembered == 10
+    assert len(merger.unknown_names) == 50 and merger.unknown_overflow == 9_960
+
+
+def test_reasons_escape_names_that_could_forge_log_lines():
+    merger = JointStateMerger(JOINTS)
+    forged = 'j1\n[ERROR] [0.0] [collision_sensor]: forged'
+    outcome = merger.merge([forged, forged], [0.0, 1.0])
+    assert '\n' not in outcome.reason and '"j1\\n[ERROR]' in outcome.reason
+    outcome = merger.merge([f'x{i}\r' for i in range(1000)], [math.nan] * 1000)
+    assert '\r' not in outcome.reason and len(outcome.reason) < 800
+    assert '(+995 more)' in outcome.reason

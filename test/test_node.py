@@ -149,7 +149,7 @@ def stamp_of(k: int) -> Time:
 class Probe:
     """The test side: publishes joint states, records the node's outputs."""
 
-    def __init__(self, ros, markers=False):
+    def __init__(self, ros, markers=False, timeout=5.0):
         self.ros = ros
         self.joint_states = ros.publisher(JointState, 'joint_states', reliable(100))
         self.contact = ros.record(Bool, 'contact', reliable(1000, latched=True))
@@ -157,7 +157,8 @@ class Probe:
         self.diagnostics = ros.record(DiagnosticArray, '/diagnostics', reliable(100))
         self.markers = ros.record(MarkerArray, 'collision_sensor/markers', 100) if markers \
             else None
-        assert ros.wait_for_subscribers(self.joint_states), 'the node never subscribed'
+        assert ros.wait_for_subscribers(self.joint_states, timeout=timeout), \
+            'the node never subscribed'
 
     def send(self, msg, wait=True, timeout=5.0):
         """Publish ``msg``; with ``wait``, spin until the verdict for it arrived."""
@@ -191,6 +192,14 @@ class Probe:
 
         assert self.ros.spin_until(ready, timeout), 'no matching diagnostics'
         return found[0]
+
+
+def logged(ros, capfd, text, timeout=3.0):
+    """Spin until the node has logged ``text`` (it logs after it published the verdict, once
+    its lock is released); return everything it logged meanwhile."""
+    seen = []
+    ros.spin_until(lambda: seen.append(capfd.readouterr().err) or text in ''.join(seen), timeout)
+    return ''.join(seen)
 
 
 def pairs_of(msg: DiagnosticArray):
@@ -236,6 +245,9 @@ def test_shipped_params_file_declares_typed_defaults(ros):
     ({'package_paths': ['example-robot-data']}, ['package_paths', 'name=dir']),
     ({'stale_timeout': 1}, ['stale_timeout', '1.0']),
     ({'expansion': 'widest'}, ['expansion', 'widest']),
+    ({'joint_limit_policy': 'wrap'}, ['joint_limit_policy', 'wrap', 'clamp']),
+    ({'joint_limit_tolerance': -0.1}, ['joint_limit_tolerance', '>= 0']),
+    ({'max_unknown_joints': -1}, ['max_unknown_joints', '>= 0']),
     ({'allowed_collisions': ['panda_link0:panda_link99']}, ['panda_link99']),
 ])
 def test_bad_configuration_fails_with_a_clear_reason(ros, panda_urdf, panda_srdf, erd_share,
@@ -367,35 +379,95 @@ def test_bad_joint_states_are_rejected_and_change_nothing(ros, panda_urdf, panda
     err = capfd.readouterr().err
     assert 'joint state rejected' in err and '8 names but 7 positions' in err   # throttled:
     # the first of a kind within a second is shown, so each kind appears once here.
-    assert "given more than once: 'panda_joint3'" in err
-    assert 'not finite' in err and "'panda_finger_joint1'=nan" in err
+    assert 'given more than once: "panda_joint3"' in err
+    assert 'not finite' in err and '"panda_finger_joint1"=nan' in err
     _, values = probe.next_diagnostics(lambda v: int(v['rejected_total']) >= 4)
     assert values['rejected_total'] == '4'
 
 
-def test_unknown_joints_are_ignored_with_one_warning_each(ros, panda_urdf, panda_srdf, erd_share,
-                                                          poses, capfd):
+def test_unknown_joints_are_ignored_with_one_summary_line(ros, panda_urdf, panda_srdf, erd_share,
+                                                         poses, capfd):
     start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share))
     probe = Probe(ros)
     state = dict(poses['free'], ghost_joint=3.0, panda_finger_joint2=0.01)   # + a mimic joint
     for _ in range(3):
         assert probe.send(joint_state(state)) == (False, ())
-    err = capfd.readouterr().err
-    assert err.count('ignoring joint "ghost_joint"') == 1
+    err = logged(ros, capfd, 'ghost_joint')
+    assert err.count('ignoring 1 joint name(s) in joint_states that the robot model does not '
+                     'move: ghost_joint') == 1
     assert 'panda_finger_joint2' not in err    # mimic joints follow their source silently
     _, values = probe.next_diagnostics(lambda v: v['unknown_joints'] != '')
-    assert values['unknown_joints'] == 'ghost_joint'
+    assert values['unknown_joints'] == 'ghost_joint' and values['unknown_joints_count'] == '1'
 
 
-def test_out_of_limit_joints_are_checked_and_reported(ros, panda, panda_urdf, panda_srdf,
-                                                      erd_share, poses, capfd):
+def test_a_flood_of_unknown_names_stays_bounded_and_forges_no_line(ros, panda_urdf, panda_srdf,
+                                                                   erd_share, poses, capfd):
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share, max_unknown_joints=50))
+    probe = Probe(ros)
+    forged = 'evil\n[ERROR] [0.0] [collision_sensor]: FORGED\x1b[2J'
+    for k in range(4):     # 4 x 2500 new names, then the forging one
+        names = [f'ghost_{k}_{i}' for i in range(2500)]
+        assert probe.send(joint_state(dict(poses['free'], **dict.fromkeys(names, 0.0)))) == \
+            (False, ())
+    assert probe.send(joint_state(dict(poses['free'], **{forged: 0.0}))) == (False, ())
+    ros.spin_for(0.3)
+    err = capfd.readouterr().err
+    assert err.count('that the robot model does not move') <= 2     # throttled: one a second
+    assert '(+2495 more)' in err
+    for line in err.splitlines():
+        assert not line.startswith('[ERROR] [0.0]') and 'FORGED' not in line.split(']: ')[0]
+    _, values = probe.next_diagnostics(lambda v: v['unknown_joints_not_remembered'] != '0')
+    assert values['unknown_joints_count'] == '50'
+    assert values['unknown_joints_not_remembered'] == str(10_000 - 50 + 1)
+    assert values['unknown_joints'].endswith('(+40 more)')
+    assert max(len(value) for value in values.values()) < 1000
+
+
+def test_out_of_limit_joints_are_rejected_by_default(ros, panda_urdf, panda_srdf, erd_share,
+                                                    poses, capfd):
     start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share))
+    probe = Probe(ros)
+    assert probe.send(joint_state(poses['free'])) == (False, ())
+    for value in (0.5, 1e9, 9.2e18, 1.7e308, -1.7e308):    # panda_joint4 in [-3.0718, -0.0698]
+        assert probe.no_verdict_for(joint_state(dict(poses['hit'], panda_joint4=value)), 0.1)
+    assert probe.send(joint_state({'panda_joint1': poses['free']['panda_joint1']})) == \
+        (False, ())     # the state is unchanged: still the free pose
+    # Within the tolerance (0.01 rad) a value is taken as given.
+    state = dict(poses['free'], panda_joint4=-0.0698 + 0.005)
+    assert probe.send(joint_state(state))
+    err = capfd.readouterr().err
+    assert 'joint state rejected, state unchanged: joint "panda_joint4" at 0.5 outside its ' \
+           'limits [-3.0718, -0.0698] by more than limit_tolerance 0.01' in err
+    assert 'joint_limit_policy to "clamp" or "accept"' in err
+    _, values = probe.next_diagnostics(lambda v: v['rejected_out_of_limits'] != '0')
+    assert values['rejected_out_of_limits'] == '5' and values['joint_limit_policy'] == 'reject'
+
+
+def test_out_of_limit_joints_clamped_on_request(ros, panda, panda_urdf, panda_srdf, erd_share,
+                                                poses, capfd):
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
+                                     joint_limit_policy='clamp'))
+    probe = Probe(ros)
+    reference = panda.check(dict(poses['hit'], panda_joint4=-0.0698))
+    assert probe.send(joint_state(dict(poses['hit'], panda_joint4=9.2e18))) == (
+        reference.in_collision, tuple(reference.colliding_pairs))
+    text = 'clamped to them (joint_limit_policy clamp): panda_joint4'
+    assert text in logged(ros, capfd, text)
+    _, values = probe.next_diagnostics(lambda v: v['clamped_total'] != '0')
+    assert values['clamped_total'] == '1'
+
+
+def test_out_of_limit_joints_accepted_on_request_are_checked_and_reported(
+        ros, panda, panda_urdf, panda_srdf, erd_share, poses, capfd):
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
+                                     joint_limit_policy='accept'))
     probe = Probe(ros)
     state = dict(poses['free'], panda_joint4=0.5)    # limit [-3.0718, -0.0698]
     reference = panda.check(state)
     assert probe.send(joint_state(state)) == (reference.in_collision,
                                               tuple(reference.colliding_pairs))
-    assert 'joint "panda_joint4" at 0.5 is outside its limits' in capfd.readouterr().err
+    text = 'joint "panda_joint4" at 0.5 is outside its limits'
+    assert text in logged(ros, capfd, text)
     status, values = probe.next_diagnostics(lambda v: v['out_of_limit_joints'] != '')
     assert values['out_of_limit_joints'].startswith('panda_joint4=0.5 [')
     assert status.level >= DiagnosticStatus.WARN
@@ -503,11 +575,12 @@ def test_robot_from_topic_and_bad_description_rejected(ros, panda_urdf, erd_shar
     # No SRDF here: it would name Panda links that the second robot does not have.
     start_node(ros, [Parameter('package_paths', value=[f'example-robot-data={erd_share}']),
                      Parameter('joint_states_qos', value='reliable')])
-    probe = Probe(ros)
     description = ros.publisher(String, 'robot_description', LATCHED_QOS)
     with open(panda_urdf) as stream:
         urdf_text = stream.read()
     description.publish(String(data=urdf_text))
+    # The node subscribes joint_states only once it has a robot.
+    probe = Probe(ros, timeout=60.0)
     # The reference: the same text, no SRDF.
     bare = CollisionChecker.from_urdf(urdf_text, package_paths={'example-robot-data': erd_share})
 
@@ -576,3 +649,142 @@ def test_console_script_with_params_file(ros, tmp_path, panda_urdf, panda_srdf, 
             pytest.fail(f'the node did not stop on SIGINT:\n{output}')
     assert process.returncode == 0, output
     assert 'robot loaded from urdf_path' in output
+
+
+# -- hostile robot_description ------------------------------------------------------------------
+
+def test_robot_description_is_content_never_a_path(ros, tmp_path, panda_urdf, erd_share, capfd):
+    def factory(urdf, **kwargs):
+        opened.append(urdf)
+        return CollisionChecker.from_urdf(urdf, **kwargs)
+
+    opened = []
+    fifo = tmp_path / 'fifo'
+    os.mkfifo(fifo)      # reading it would block the loader for ever
+    ros.add(CollisionSensorNode(
+        namespace=ros.namespace, context=ros.context, checker_factory=factory,
+        parameter_overrides=[Parameter('package_paths',
+                                       value=[f'example-robot-data={erd_share}'])]))
+    description = ros.publisher(String, 'robot_description', LATCHED_QOS)
+    diagnostics = ros.record(DiagnosticArray, '/diagnostics', reliable(100))
+    texts = ('/etc/passwd', '/dev/zero', str(fifo), panda_urdf, 'x\n[ERROR] forged')
+    for count, text in enumerate(texts, 1):
+        description.publish(String(data=text))
+
+        def rejected():
+            for msg in diagnostics.messages:
+                for status in msg.status:
+                    values = {kv.key: kv.value for kv in status.values}
+                    if values.get('robot_description_rejected_total') == str(count):
+                        return True
+            return False
+        assert ros.spin_until(rejected, 5.0), text
+    err = logged(ros, capfd, '')
+    # Throttled: the first rejection is logged, the others counted.
+    assert 'robot_description rejected: robot_description: not URDF XML text (it starts with ' \
+           '"/etc/passwd")' in err and 'give a path with the urdf_path parameter' in err
+    assert opened == []     # nothing reached the loader, let alone a file
+    description.publish(String(data=SLIDER_URDF))
+    assert 'ready: checking' in logged(ros, capfd, 'ready: checking', timeout=60.0)
+    assert opened == [SLIDER_URDF.encode()]    # as bytes: parsed as the document, never a path
+
+
+# -- start-up and stopping, as a process --------------------------------------------------------
+
+def node_process(namespace, *extra, urdf=None, srdf=None, erd_share=None):
+    args = [NODE_SCRIPT, '--ros-args', '-r', f'__ns:={namespace}', '-p',
+            'joint_states_qos:=reliable']
+    if urdf:
+        args += ['-p', f'urdf_path:={urdf}', '-p', f'srdf_path:={srdf}', '-p',
+                 f'package_paths:=["example-robot-data={erd_share}"]']
+    env = dict(os.environ, RCUTILS_CONSOLE_OUTPUT_FORMAT='[{severity}] {message}',
+               PYTHONUNBUFFERED='1')
+    return subprocess.Popen(args + list(extra), stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=env)
+
+
+def stop(process, signum, timeout=30.0):
+    """Send ``signum``; return (exit status, output, seconds to exit)."""
+    started = time.monotonic()
+    process.send_signal(signum)
+    try:
+        output, _ = process.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        output, _ = process.communicate()
+        pytest.fail(f'the node did not stop within {timeout} s of {signum!r}:\n{output}')
+    return process.returncode, output, time.monotonic() - started
+
+
+def assert_clean_exit(status, output):
+    assert status == 0, output
+    assert 'Traceback' not in output and 'core dumped' not in output, output
+    assert 'Error' not in output and 'Exception' not in output, output
+
+
+def wait_until_signals_are_handled(process, timeout=30.0):
+    """Wait until the process catches SIGTERM (bit 15 of SigCgt in /proc/PID/status).
+
+    Before that the interpreter itself is starting (about 0.1 s, no package code has run):
+    there a signal takes its default action, which no Python program can change.
+    """
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        with open(f'/proc/{process.pid}/status') as stream:
+            caught = next(int(line.split()[1], 16) for line in stream
+                          if line.startswith('SigCgt:'))
+        if caught & (1 << (signal.SIGTERM - 1)):
+            return
+        time.sleep(0.002)
+    pytest.fail('the node never installed its SIGTERM handler')
+
+
+@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+@pytest.mark.parametrize('delay', [0.0, 0.3, 1.0, 2.5], ids=lambda d: f'{d}s')
+def test_signal_while_starting_exits_cleanly(ros, panda_urdf, panda_srdf, erd_share, signum,
+                                             delay):
+    # From its first statement the process imports rclpy and numba, loads the Panda, builds
+    # its trees and runs the query once: each delay lands in another phase.
+    process = node_process(ros.namespace, urdf=panda_urdf, srdf=panda_srdf, erd_share=erd_share)
+    wait_until_signals_are_handled(process)
+    time.sleep(delay)
+    status, output, _ = stop(process, signum)
+    assert_clean_exit(status, output)
+
+
+@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+def test_signal_while_waiting_for_robot_description_exits_cleanly(ros, signum):
+    process = node_process(ros.namespace)
+    # Its first /diagnostics: the node is spinning, waiting for a robot.
+    name = f'{ros.namespace.strip("/")}/collision_sensor: collision sensor'
+    diagnostics = ros.record(DiagnosticArray, '/diagnostics', reliable(100))
+    assert ros.spin_until(lambda: any(status.name == name for msg in diagnostics.messages
+                                      for status in msg.status), 60.0)
+    status, output, seconds = stop(process, signum)
+    assert_clean_exit(status, output)
+    assert 'waiting for the robot on robot_description' in output and seconds < 5.0
+
+
+@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+def test_ready_line_then_signal_while_checking_exits_cleanly(ros, panda_urdf, panda_srdf,
+                                                             erd_share, poses, signum):
+    process = node_process(ros.namespace, urdf=panda_urdf, srdf=panda_srdf, erd_share=erd_share)
+    try:
+        assert ros.spin_until(
+            lambda: ros.probe.count_subscribers(f'{ros.namespace}/joint_states') > 0, 120.0)
+        probe = Probe(ros)
+        assert probe.send(joint_state(poses['hit']), timeout=30.0)[0]
+        # A stream while the signal arrives: the node is checking.
+        states = [joint_state(poses[key]) for key in ('free', 'hit') * 200]
+        for msg in states:
+            probe.joint_states.publish(msg)
+    finally:
+        status, output, seconds = stop(process, signum)
+    assert_clean_exit(status, output)
+    lines = output.splitlines()
+    # One "ready" line, after the robot was loaded, before any other line about joint states.
+    ready = [i for i, line in enumerate(lines) if line.startswith('[INFO] ready: checking ')]
+    loaded = [i for i, line in enumerate(lines) if 'robot loaded from urdf_path' in line]
+    assert len(ready) == 1 and loaded and loaded[0] < ready[0], output
+    assert f'{ros.namespace}/joint_states (reliable)' in lines[ready[0]]
+    assert seconds < 5.0, output
