@@ -77,6 +77,8 @@ class Outcome:
     :ivar unremembered: how many names of ``unknown`` were not remembered (the memory of
         unknown names is full); they may or may not have been seen before.
     :ivar clamped: the known joints whose value was replaced by a limit (policy ``'clamp'``).
+    :ivar previous: for :meth:`JointStateMerger.undo`: each stored joint's value before this
+        message (``None``: not heard before).
     """
 
     verdict: Verdict
@@ -87,6 +89,7 @@ class Outcome:
     new_unknown: Tuple[str, ...] = ()
     unremembered: int = 0
     clamped: Tuple[str, ...] = ()
+    previous: Tuple[Tuple[str, Optional[float]], ...] = ()
 
     @property
     def accepted(self) -> bool:
@@ -226,11 +229,22 @@ class JointStateMerger:
             else:
                 unremembered += 1
         self.unknown_overflow += unremembered
+        previous = tuple((name, self.positions.get(name)) for name in values)
         self.positions.update(values)
         verdict = Verdict.ACCEPTED if updated else Verdict.IGNORED
         return Outcome(verdict, updated=tuple(updated), unknown=tuple(unknown),
                        new_unknown=tuple(new_unknown), unremembered=unremembered,
-                       clamped=tuple(clamped))
+                       clamped=tuple(clamped), previous=previous)
+
+    def undo(self, outcome: Outcome) -> None:
+        """Restore the positions a merged message replaced: the checker refused its state
+        (a value its engine cannot honour), so the message is rejected after all and the
+        state must stay what the last verdict described."""
+        for name, value in outcome.previous:
+            if value is None:
+                self.positions.pop(name, None)
+            else:
+                self.positions[name] = value
 
     def carry_over(self, joint_names: Sequence[str], derived_names: Iterable[str] = (),
                    limits: Optional[Mapping[str, Tuple[float, float]]] = None

@@ -36,6 +36,7 @@ inscribed, never larger than the shape.
   triangles. With the default 32 sections: 482 vertices, 960 triangles.
 """
 import functools
+from stat import S_ISREG
 from dataclasses import dataclass
 import os
 import re
@@ -165,6 +166,14 @@ def load_mesh_file(path: str, scale=(1.0, 1.0, 1.0), *, owner: str = 'mesh', uri
                     f'{", ".join(MESH_EXTENSIONS)}; convert it to STL')
     try:
         stat = os.stat(path)
+        # A description from the ROS graph names its mesh files: only regular files of
+        # bounded size are read (never a device such as /dev/zero, a FIFO that blocks, ...).
+        if not S_ISREG(stat.st_mode):
+            raise error(f'{owner}: mesh "{uri}" ({path}) is not a regular file; give a mesh '
+                        'file')
+        if stat.st_size > MAX_MESH_BYTES:
+            raise error(f'{owner}: mesh "{uri}" ({path}) has {stat.st_size} bytes, more than '
+                        f'{MAX_MESH_BYTES}; decimate it for collision checking')
         vertices, faces = _read_mesh(os.path.abspath(path), stat.st_mtime_ns, stat.st_size)
     except error:
         raise
@@ -218,6 +227,9 @@ def _collada_meters_per_unit(mesh, path) -> float:
                         'give <unit meter="..."/> a positive number')
     return float(match.group(1))
 
+
+#: The largest mesh file read (a collision mesh this size holds millions of triangles).
+MAX_MESH_BYTES = 256 * 1024 * 1024
 
 #: Solid kinds (``Solid.kind``; the engine's ``cpp/query.hpp``: SOLID_*).
 SOLID_BOX, SOLID_SPHERE, SOLID_CYLINDER, SOLID_CLOSED_MESH = 1, 2, 3, 4

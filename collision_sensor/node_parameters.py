@@ -49,6 +49,9 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
     ParameterSpec('urdf_path', '',
                   'URDF file of the robot; empty: take the robot from the robot_description '
                   'topic (std_msgs/String, transient local)'),
+    ParameterSpec('xacro_args', (),
+                  'arguments of a .xacro urdf_path, as "name:=value"',
+                  'each entry "name:=value"'),
     ParameterSpec('srdf_path', '',
                   'SRDF file whose disable_collisions entries are not checked; empty: none'),
     ParameterSpec('package_paths', (),
@@ -73,6 +76,9 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
     ParameterSpec('obb_fit', _ENGINE.obb_fit,
                   'how boxes are fitted to triangles when the model is built',
                   ' | '.join(sorted(OBB_FITS))),
+    ParameterSpec('mesh_containment', _ENGINE.mesh_containment,
+                  'treat closed (watertight) meshes as solid: a part wholly inside one '
+                  'collides with it (primitives always are solid)'),
     ParameterSpec('require_all_joints', True,
                   'publish no verdict until every movable joint has been heard at least once'),
     ParameterSpec('stale_timeout', 1.0,
@@ -117,6 +123,7 @@ class NodeSettings:
     :ivar joint_limit_policy: one of :data:`~collision_sensor.joint_state_merger.LIMIT_POLICIES`.
     :ivar joint_limit_tolerance: rad or m beyond a limit still taken as given.
     :ivar max_unknown_joints: unknown joint names remembered.
+    :ivar xacro_args: ``{name: value}`` for a ``.xacro`` urdf_path.
     """
 
     urdf_path: Optional[str]
@@ -131,6 +138,7 @@ class NodeSettings:
     joint_limit_policy: str = 'reject'
     joint_limit_tolerance: float = DEFAULT_LIMIT_TOLERANCE
     max_unknown_joints: int = MAX_UNKNOWN_NAMES
+    xacro_args: Dict[str, str] = field(default_factory=dict)
 
 
 def default_values() -> Dict[str, Any]:
@@ -148,6 +156,17 @@ def _existing_file(values, name) -> Optional[str]:
         raise ConfigError(f'parameter {name}: file "{path}" not found; give an existing file '
                           'or an empty string')
     return path
+
+
+def _parse_xacro_args(entries: List[str]) -> Dict[str, str]:
+    args = {}
+    for entry in entries:
+        name, separator, value = entry.partition(':=')
+        if not separator or not name.strip():
+            raise ConfigError(f'parameter xacro_args: entry "{entry}" is not "name:=value"; '
+                              'write e.g. "arm_id:=panda"')
+        args[name.strip()] = value
+    return args
 
 
 def _parse_allowed_collisions(entries: List[str]) -> List[str]:
@@ -212,6 +231,7 @@ def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
         'box_test': merged['box_test'],
         'expansion': merged['expansion'],
         'obb_fit': merged['obb_fit'],
+        'mesh_containment': bool(merged['mesh_containment']),
     }
     try:
         # The engine validates its own settings; doing it now makes a typo fail configuration
@@ -225,6 +245,7 @@ def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
         srdf_path=_existing_file(merged, 'srdf_path'),
         package_paths=parse_package_paths(merged['package_paths'], 'parameter package_paths'),
         scene_path=_existing_file(merged, 'scene_path'),
+        xacro_args=_parse_xacro_args(merged['xacro_args']),
         checker_config=checker_config,
         require_all_joints=bool(merged['require_all_joints']),
         stale_timeout=_non_negative(merged, 'stale_timeout'),

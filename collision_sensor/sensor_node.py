@@ -68,7 +68,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, ColorRGBA, Header, String
 from visualization_msgs.msg import Marker, MarkerArray
 
-from collision_sensor.errors import CollisionSensorError
+from collision_sensor.errors import CollisionSensorError, JointStateError
 from collision_sensor.joint_state_merger import JointStateMerger, Problem, joints_out_of_limits
 from collision_sensor.node_parameters import NodeSettings, declare_node_parameters
 from collision_sensor.untrusted_text import listing, printable, quoted
@@ -312,10 +312,36 @@ def _mimic_joints(checker) -> frozenset:
     return frozenset(joint.name for joint in joints if getattr(joint, 'mimic', None) is not None)
 
 
-def _default_checker_factory(urdf, srdf=None, package_paths=None, scene=None, config=None):
+def _neutral_positions(checker) -> dict:
+    """Every variable at the checker's neutral state: zeros, identity quaternions."""
+    kinematics = getattr(checker, 'kinematics', None)
+    if kinematics is None or not hasattr(kinematics, 'neutral'):
+        return {name: 0.0 for name in checker.joint_names}
+    return dict(zip(checker.joint_names, (float(v) for v in kinematics.neutral())))
+
+
+def _base_variables(checker) -> dict:
+    """The variables of planar and floating joints (a mobile or floating base, an SRDF virtual
+    joint) at their neutral values. Robots rarely publish them in joint_states (MoveIt takes
+    them from TF): the node starts them at the world origin instead of waiting for them."""
+    kinematics = getattr(checker, 'kinematics', None)
+    if kinematics is None or not hasattr(kinematics, 'neutral'):
+        return {}
+    from collision_sensor.kinematics import JOINT_FLOATING, JOINT_PLANAR
+    sizes = {JOINT_PLANAR: 3, JOINT_FLOATING: 7}
+    neutral = kinematics.neutral()
+    out = {}
+    for kind, first in zip(kinematics.joint_type, kinematics.q_index):
+        for j in range(int(first), int(first) + sizes.get(int(kind), 0)):
+            out[checker.joint_names[j]] = float(neutral[j])
+    return out
+
+
+def _default_checker_factory(urdf, srdf=None, package_paths=None, scene=None, config=None,
+                             xacro_args=None):
     from collision_sensor import CollisionChecker
     return CollisionChecker.from_urdf(urdf, srdf=srdf, package_paths=package_paths,
-                                      scene=scene, config=config)
+                                      scene=scene, config=config, xacro_args=xacro_args)
 
 
 class CollisionSensorNode(Node):
@@ -426,13 +452,15 @@ class CollisionSensorNode(Node):
         Runs on the main thread (``urdf_path``) or the loader thread (``robot_description``).
         """
         settings = self._settings
+        extra = {'xacro_args': settings.xacro_args} if settings.xacro_args else {}
         checker = self._factory(urdf, srdf=settings.srdf_path,
                                 package_paths=settings.package_paths or None,
-                                scene=settings.scene_path, config=settings.checker_config)
-        # At the state a new checker starts in (every joint at 0): check then update, so both
-        # query paths exist (a numba engine compiles them now) and the carried state is the
-        # one the first joint state updates from.
-        start = {name: 0.0 for name in checker.joint_names}
+                                scene=settings.scene_path, config=settings.checker_config,
+                                **extra)
+        # At the state a new checker starts in (every joint at 0, identity quaternions):
+        # check then update, so the carried state is the one the first joint state updates
+        # from, and the first verdict costs what every later one does.
+        start = _neutral_positions(checker)
         checker.check(start)
         checker.update(start)
         return checker
@@ -450,6 +478,8 @@ class CollisionSensorNode(Node):
                                       limit_policy=settings.joint_limit_policy,
                                       limit_tolerance=settings.joint_limit_tolerance,
                                       max_unknown_names=settings.max_unknown_joints)
+        for name, value in _base_variables(checker).items():
+            merger.positions.setdefault(name, value)  # not waited for: see _base_variables
         out_of_limits = {name: rest for name, *rest
                          in joints_out_of_limits(merger.positions, limits)}
         summary = (f'{len(checker.joint_names)} joints, {len(checker.link_names)} links with '
@@ -461,7 +491,10 @@ class CollisionSensorNode(Node):
         self._root_frame = _root_link(checker)
         self._last_pairs = None
         self._announced_waiting = False
-        return [('info', None, f'robot loaded from {printable(source, 300)}: {summary}')]
+        notes = [('info', None, f'robot loaded from {printable(source, 300)}: {summary}')]
+        for line in getattr(checker, 'load_warnings', ()):
+            notes.append(('warning', None, f'while loading the robot: {printable(line, 1000)}'))
+        return notes
 
     def _on_robot_description(self, msg: String) -> None:
         try:
@@ -610,6 +643,16 @@ class CollisionSensorNode(Node):
         started = time.perf_counter()
         try:
             result = self._checker.update(positions)
+        except JointStateError as error:
+            # The engine refuses a value it cannot honour (a slider beyond its range, a zero
+            # quaternion): the message is rejected after all, the state stays as it was.
+            merger.undo(outcome)
+            period.rejected += 1
+            totals['rejected'] += 1
+            totals['rejected_engine_range'] += 1
+            notes.append(('warning', 'ENGINE_RANGE',
+                          f'joint state rejected, state unchanged: {printable(error, 500)}'))
+            return
         except CollisionSensorError as error:
             totals['engine_errors'] += 1
             notes.append(('warning', 'engine',
@@ -775,6 +818,7 @@ class CollisionSensorNode(Node):
             **{key: str(value) for key, value in skipped.items()},
             **{f'rejected_{problem.name.lower()}': str(totals[f'rejected_{problem.name.lower()}'])
                for problem in Problem},
+            'rejected_engine_range': str(totals['rejected_engine_range']),
             'lost_total': str(totals['lost']),
             'clamped_total': str(totals['clamped']),
             'robot_description_rejected_total': str(totals['robot_description_rejected']),

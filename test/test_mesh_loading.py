@@ -289,3 +289,16 @@ def test_missing_mesh_of_text_description_says_what_was_searched():
         resolve_mesh_uri('package://lost/m.stl', None, None, owner='link "a"')
     with pytest.raises(MeshError, match='current directory'):
         resolve_mesh_uri('not/here.stl', None, None, owner='link "a"')
+
+
+def test_only_regular_files_are_read_as_meshes(tmp_path):
+    """A description from the ROS graph names its meshes: a device or a FIFO is refused at
+    once (never read, never waited on)."""
+    import os
+    fifo = tmp_path / 'pipe.stl'
+    os.mkfifo(fifo)
+    zero = tmp_path / 'zero.stl'
+    os.symlink('/dev/zero', zero)
+    for path in (str(zero), str(fifo)):
+        with pytest.raises(MeshError, match='not a regular file'):
+            load_mesh_file(path)

@@ -788,3 +788,67 @@ def test_ready_line_then_signal_while_checking_exits_cleanly(ros, panda_urdf, pa
     assert len(ready) == 1 and loaded and loaded[0] < ready[0], output
     assert f'{ros.namespace}/joint_states (reliable)' in lines[ready[0]]
     assert seconds < 5.0, output
+
+
+# -- robots with a floating base, load warnings (issue: every real robot loads) -----------------
+
+def test_floating_base_robot_from_the_topic_needs_no_base_variables(ros, erd_share, capfd):
+    """a1 (example-robot-data): URDF from robot_description, its SRDF's floating virtual joint
+    "root_joint". The node does not wait for root_joint/* (robots rarely publish them in
+    joint_states): the base sits at the world origin until a joint state names them, and the
+    verdict is the reference checker's for that state."""
+    robots = os.path.join(erd_share, 'robots', 'a1_description')
+    urdf, srdf = os.path.join(robots, 'urdf', 'a1.urdf'), os.path.join(robots, 'srdf', 'a1.srdf')
+    start_node(ros, [Parameter('package_paths', value=[f'example-robot-data={erd_share}']),
+                     Parameter('srdf_path', value=srdf),
+                     Parameter('joint_states_qos', value='reliable')])
+    description = ros.publisher(String, 'robot_description', LATCHED_QOS)
+    with open(urdf) as stream:
+        description.publish(String(data=stream.read()))
+    reference = CollisionChecker.from_urdf(urdf, srdf=srdf,
+                                           package_paths={'example-robot-data': erd_share})
+    assert reference.joint_names[:7] == tuple(f'root_joint/{v}' for v in (
+        'trans_x', 'trans_y', 'trans_z', 'rot_x', 'rot_y', 'rot_z', 'rot_w'))
+    probe = Probe(ros, timeout=60.0)
+    legs = reference.joint_names[7:]
+    rng = np.random.default_rng(9)
+    base = dict(zip(reference.joint_names, reference.kinematics.neutral()))
+    for _ in range(5):
+        state = {name: float(rng.uniform(*reference.joint_limits[name])) for name in legs}
+        count = len(probe.pairs)
+        deadline = time.monotonic() + 60.0
+        while time.monotonic() < deadline and len(probe.pairs) == count:
+            probe.joint_states.publish(joint_state(state))   # until the model has loaded
+            ros.spin_until(lambda: len(probe.pairs) > count, 0.3)
+        expected = reference.check(dict(base, **state))
+        assert (probe.contact.last.data, pairs_of(probe.pairs.last)) == (
+            expected.in_collision, tuple(expected.colliding_pairs))
+    # The base named in a joint state moves the robot: lifted 10 m, nothing changes inside.
+    lifted = dict(state, **{'root_joint/trans_z': 10.0})
+    assert probe.send(joint_state(lifted)) == (
+        reference.check(dict(base, **lifted)).in_collision,
+        tuple(reference.check(dict(base, **lifted)).colliding_pairs))
+
+
+def test_load_warnings_reach_the_node_log(ros, erd_share, capfd):
+    """z1's SRDF names a link "base" that this URDF lacks: loaded with the entry skipped, and
+    the warning (file, line, element, fix) is logged by the node, not lost on stderr alone."""
+    robots = os.path.join(erd_share, 'robots', 'z1_description')
+    start_node(ros, [Parameter('urdf_path', value=os.path.join(robots, 'urdf', 'z1.urdf')),
+                     Parameter('srdf_path', value=os.path.join(robots, 'srdf', 'z1.srdf')),
+                     Parameter('package_paths', value=[f'example-robot-data={erd_share}'])])
+    seen = []
+    assert ros.spin_until(lambda: seen.append(capfd.readouterr().err) or
+                          'while loading the robot' in ''.join(seen), 30.0), ''.join(seen)
+    text = ''.join(seen)
+    assert 'WARN' in text and 'base' in text and 'skipped' in text
+
+
+def test_xacro_args_and_mesh_containment_parameters_reach_the_checker():
+    from collision_sensor.node_parameters import settings_from_values
+    settings = settings_from_values({'xacro_args': ['arm_id:=panda', 'hand:=true'],
+                                     'mesh_containment': True})
+    assert settings.xacro_args == {'arm_id': 'panda', 'hand': 'true'}
+    assert settings.checker_config['mesh_containment'] is True
+    with pytest.raises(ConfigError, match='xacro_args.*"arm_id=panda".*name:=value'):
+        settings_from_values({'xacro_args': ['arm_id=panda']})
