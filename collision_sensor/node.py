@@ -2,7 +2,7 @@
 
 The node itself is :class:`collision_sensor.sensor_node.CollisionSensorNode` (also importable
 from here). This module stays light on purpose: the console script imports it before ``main``
-runs, while importing the node pulls in rclpy, numba and the message packages (about a second).
+runs, while importing the node pulls in rclpy, the engine and the message packages (about a second).
 
 How a stop works, in every phase, with exit status 0, no traceback and no core dump:
 
@@ -10,7 +10,7 @@ How a stop works, in every phase, with exit status 0, no traceback and no core d
   raises nothing: an exception thrown from a signal handler lands wherever the main thread
   happens to be, and inside a finaliser or an import lock callback Python prints it as
   "Exception ignored" and swallows it, so the stop would be lost.
-- Start-up (importing rclpy and numba, ``rclpy.init``, loading the robot, building its trees,
+- Start-up (importing rclpy and the engine, ``rclpy.init``, loading the robot, building its trees,
   running the query once) runs on a thread of its own, which nothing can interrupt; the main
   thread only waits for it or for the flag. A stop during start-up ends the process there, with
   ``os._exit(0)`` after flushing the output: nothing has been published, and tearing the

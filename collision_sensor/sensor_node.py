@@ -29,9 +29,8 @@ every verdict; a late subscriber gets the latest ones. Every joint state the nod
 not answer is counted on ``/diagnostics`` by reason (``skipped_*``), and so are those the
 middleware reports lost before the node took them (``lost_total``).
 
-Start-up: the robot is loaded, all its collision trees built and the query run once (a numba
-engine compiles then) before the node subscribes to ``joint_states``; then it logs one line
-starting ``ready:``. With the robot from ``robot_description`` the same happens when the first
+Start-up: the robot is loaded, all its collision trees built and the query run once before
+the node subscribes to ``joint_states``; then it logs one line starting ``ready:``. With the robot from ``robot_description`` the same happens when the first
 description has been built. Names and texts from the network reach logs and ``/diagnostics``
 only through :mod:`collision_sensor.untrusted_text` (escaped, bounded), and no log line is
 written while the node's lock is held.

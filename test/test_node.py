@@ -743,7 +743,7 @@ def wait_until_signals_are_handled(process, timeout=30.0):
 @pytest.mark.parametrize('delay', [0.0, 0.3, 1.0, 2.5], ids=lambda d: f'{d}s')
 def test_signal_while_starting_exits_cleanly(ros, panda_urdf, panda_srdf, erd_share, signum,
                                              delay):
-    # From its first statement the process imports rclpy and numba, loads the Panda, builds
+    # From its first statement the process imports rclpy and the engine, loads the Panda, builds
     # its trees and runs the query once: each delay lands in another phase.
     process = node_process(ros.namespace, urdf=panda_urdf, srdf=panda_srdf, erd_share=erd_share)
     wait_until_signals_are_handled(process)
