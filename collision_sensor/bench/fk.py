@@ -10,8 +10,8 @@ run, so the ratios compare like with like:
 - yourdfpy: ``update_cfg`` then ``get_transform(link, root)`` for every link;
 - pinocchio: ``forwardKinematics`` + ``updateFramePlacements`` (all frames, from Python).
 
-Also reported: the first call of the kernels in this process (a disk-cache load when the cache
-is warm, a compilation when it is cold).
+Also reported: the first call in this process (the engine is compiled at install time, so
+this is the cost of a first call, not of a compilation).
 """
 import argparse
 import time
@@ -96,7 +96,7 @@ def main(argv=None):
 
     print(f'forward kinematics of {model.name}: {len(tree.link_names)} links, '
           f'{len(tree.joint_names)} variables, {n} random configurations')
-    print(f'first kernel call in this process (cache load or compile): {first_call * 1e3:.1f} ms')
+    print(f'first call in this process: {first_call * 1e3:.1f} ms')
     print(f'{"":34s}{"us/config":>12s}{"ours single is":>18s}')
     rows = [('ours, single (Python wrapper)', ours_single),
             ('ours, batch (per config)', ours_batch),

@@ -68,7 +68,7 @@ def _measure(cell, settings, section):
 
     n_pairs = len(checker.checked_pairs)
     ours = times['ours']
-    rows = [['collision_sensor `check`', 'ours (in the kernel)', f'{n_pairs}', us(ours), '1.00x',
+    rows = [['collision_sensor `check`', 'ours (in the engine)', f'{n_pairs}', us(ours), '1.00x',
              '-']]
     if pin is not None:
         sets = pinocchio_answers(pin, pin_qs)

@@ -64,7 +64,7 @@ def run(settings) -> Section:
         + (', free heap trimmed before and after, glibc mmap threshold pinned' if pinned
            else ', not glibc: expect noise') + '); ours minus the robot-only build; '
         '`forest.nbytes()` counts the OBB forest\'s arrays (views into the buffers the '
-        'kernel reads, so the checker holds them once). The smallest '
+        'engine reads, so the checker holds them once). The smallest '
         'size\'s RSS figures are the least precise (page and allocator granularity).')
     section.table(['terrain triangles', 'in contact', 'ours build s', 'fcl build s',
                    'ours query us', 'fcl query us', 'ours / fcl query',
