@@ -10,11 +10,11 @@
 // Detection, 5.1.9 and 5.2.7); when the triangles cross, an edge of one pierces the other
 // (or, coplanar, two edges meet or a vertex lies inside), so 6 point-triangle, 9
 // segment-segment and 6 edge-through-face tests settle every case. A triangle thinner than
-// the contact tolerance (triangle_test.hpp) is its three edges.
+// the contact tolerance (its sine below TRIANGLE_EPS_REL) is its three edges.
 //
 // trees_distance: the smallest triangle distance between two OBB trees (traversal.hpp's
-// layout), found by descending both with a lower bound per node pair (the larger of the
-// spheres' gap and the six face axes' gap, box_pair_gap) and pruning every node pair whose
+// layout), found by descending both with a lower bound per node pair (the boxes' gap along
+// an axis aimed at their nearest points, or along a face axis: projected_gap) and pruning every node pair whose
 // bound is not below the best distance found so far, which starts at the caller's cutoff
 // (max_distance, or the best over the pair's other trees): a pair with nothing nearer than
 // the cutoff costs only the node pairs that prove it. The nearer child pair is visited first.
@@ -31,21 +31,6 @@ namespace collision_sensor {
 namespace distance_detail {
 
 using triangle_detail::clamp01;
-
-// Nearest point y on segment [a, b] to p (a point when a == b); returns |p - y|^2.
-inline double point_segment_closest(const double* p, const double* a, const double* b,
-                                    double* y) {
-    const double d0 = b[0] - a[0], d1 = b[1] - a[1], d2 = b[2] - a[2];
-    const double dd = d0 * d0 + d1 * d1 + d2 * d2;
-    double s = 0.0;
-    if (dd > 0.0)
-        s = clamp01(((p[0] - a[0]) * d0 + (p[1] - a[1]) * d1 + (p[2] - a[2]) * d2) / dd);
-    y[0] = a[0] + s * d0;
-    y[1] = a[1] + s * d1;
-    y[2] = a[2] + s * d2;
-    const double x0 = p[0] - y[0], x1 = p[1] - y[1], x2 = p[2] - y[2];
-    return x0 * x0 + x1 * x1 + x2 * x2;
-}
 
 // Nearest points x on [p, q] and y on [a, b]; returns |x - y|^2. The same parameters as
 // triangle_test.hpp's segment_segment_dist2 (Ericson 5.1.9), with the points kept.
@@ -93,87 +78,78 @@ inline double segment_segment_closest(const double* p, const double* q, const do
     return w0 * w0 + w1 * w1 + w2 * w2;
 }
 
-// Nearest point y of the closed triangle T (plane pl, triangle_test.hpp) to p; returns
-// |p - y|^2. Its foot on the plane when p projects inside T, else the nearest edge point
-// (the nearest point of a convex set outside its prism lies on its boundary).
-inline double point_triangle_closest(const double* p, const Triangle& T,
-                                     const triangle_detail::Plane& pl, double* y) {
-    if (!pl.flat && triangle_detail::inside_prism(T, pl.n0, pl.n1, pl.n2, p[0], p[1], p[2])) {
-        const double k = (pl.n0 * (p[0] - T[0][0]) + pl.n1 * (p[1] - T[0][1]) +
-                          pl.n2 * (p[2] - T[0][2])) / (pl.nn * pl.nn);
-        y[0] = p[0] - k * pl.n0;
-        y[1] = p[1] - k * pl.n1;
-        y[2] = p[2] - k * pl.n2;
-        const double d0 = p[0] - y[0], d1 = p[1] - y[1], d2 = p[2] - y[2];
-        return d0 * d0 + d1 * d1 + d2 * d2;
-    }
-    double z[3];
-    double best = point_segment_closest(p, T[0], T[1], y);
-    for (int k = 1; k < 3; ++k) {
-        const double d = point_segment_closest(p, T[k], T[(k + 1) % 3], z);
-        if (d < best) {
-            best = d;
-            std::memcpy(y, z, sizeof z);
-        }
-    }
-    return best;
+// A triangle's plane for the distance: n = (T1 - T0) x (T2 - T0), nn2 = |n|^2, s[k] =
+// n . (S[k] - T0) for the other triangle S's vertices; flat when T is thinner than the
+// contact tolerance (|n| below TRIANGLE_EPS_REL times its two edges' lengths: a sine), and
+// then only its edges count.
+struct FacePlane {
+    double n[3], nn2, s[3];
+    bool flat;
+};
+
+inline FacePlane face_plane(const Triangle& T, const Triangle& S) {
+    const double a0 = T[1][0] - T[0][0], a1 = T[1][1] - T[0][1], a2 = T[1][2] - T[0][2];
+    const double b0 = T[2][0] - T[0][0], b1 = T[2][1] - T[0][1], b2 = T[2][2] - T[0][2];
+    FacePlane f;
+    f.n[0] = a1 * b2 - a2 * b1;
+    f.n[1] = a2 * b0 - a0 * b2;
+    f.n[2] = a0 * b1 - a1 * b0;
+    f.nn2 = f.n[0] * f.n[0] + f.n[1] * f.n[1] + f.n[2] * f.n[2];
+    const double scale = (a0 * a0 + a1 * a1 + a2 * a2) * (b0 * b0 + b1 * b1 + b2 * b2);
+    f.flat = !(f.nn2 > TRIANGLE_EPS_REL * TRIANGLE_EPS_REL * scale);
+    for (int k = 0; k < 3; ++k)
+        f.s[k] = f.n[0] * (S[k][0] - T[0][0]) + f.n[1] * (S[k][1] - T[0][1]) +
+                 f.n[2] * (S[k][2] - T[0][2]);
+    return f;
 }
 
 // True iff an edge of S passes strictly through T's plane at a point inside T; x is then
 // that point (a point of both triangles).
-inline bool edge_piercing(const Triangle& T, const triangle_detail::Plane& pl, const Triangle& S,
-                          double* x) {
-    double ds[3];
-    for (int k = 0; k < 3; ++k)
-        ds[k] = pl.n0 * (S[k][0] - T[0][0]) + pl.n1 * (S[k][1] - T[0][1]) +
-                pl.n2 * (S[k][2] - T[0][2]);
+inline bool edge_piercing(const Triangle& T, const FacePlane& f, const Triangle& S, double* x) {
     for (int k = 0; k < 3; ++k) {
         const double* a = S[k];
         const double* b = S[(k + 1) % 3];
-        const double da = ds[k], db = ds[(k + 1) % 3];
+        const double da = f.s[k], db = f.s[(k + 1) % 3];
         if ((da > 0.0 && db < 0.0) || (da < 0.0 && db > 0.0)) {
-            const double s = da / (da - db);
-            for (int i = 0; i < 3; ++i) x[i] = a[i] + s * (b[i] - a[i]);
-            if (triangle_detail::inside_prism(T, pl.n0, pl.n1, pl.n2, x[0], x[1], x[2]))
+            const double t = da / (da - db);
+            for (int i = 0; i < 3; ++i) x[i] = a[i] + t * (b[i] - a[i]);
+            if (triangle_detail::inside_prism(T, f.n[0], f.n[1], f.n[2], x[0], x[1], x[2]))
                 return true;
         }
     }
     return false;
 }
 
+// Vertex k of S against T's face: if its squared distance to T's plane is below best and it
+// projects inside T, its foot y is nearer than best: returns the squared distance, else INF.
+// (Outside the prism the nearest point of T is on an edge: the segment tests cover it.)
+inline double vertex_face(const Triangle& T, const FacePlane& f, const double* v, double sk,
+                          double best, double* y) {
+    const double d2 = sk * sk / f.nn2;
+    if (!(d2 < best) || !triangle_detail::inside_prism(T, f.n[0], f.n[1], f.n[2], v[0], v[1], v[2]))
+        return INF;
+    const double k = sk / f.nn2;
+    for (int i = 0; i < 3; ++i) y[i] = v[i] - k * f.n[i];
+    return d2;
+}
+
 }  // namespace distance_detail
 
 // The distance between the closed triangles P and Q, and a nearest pair of points: x on P, y
 // on Q (see the contract above). Only for finite input.
+//
+// Order of the work: an edge piercing the other's face (distance 0, stop); the 9 edge pairs;
+// then a vertex against the other's face only where its plane distance can beat the best so
+// far (a vertex's nearest point on an edge is already an edge pair's).
 inline double triangle_distance(const Triangle& P, const Triangle& Q, double* x, double* y) {
     using namespace distance_detail;
-    using triangle_detail::plane_of;
-    using triangle_detail::Plane;
-    double m = 0.0;
-    for (int i = 0; i < 3; ++i)
-        for (int k = 0; k < 3; ++k) m = std::max({m, std::fabs(P[i][k]), std::fabs(Q[i][k])});
-    const double tol = TRIANGLE_EPS_REL * m;
-    const Plane p = plane_of(P, tol);
-    const Plane q = plane_of(Q, tol);
+    const FacePlane p = face_plane(P, Q);
+    const FacePlane q = face_plane(Q, P);
     if ((!q.flat && edge_piercing(Q, q, P, x)) || (!p.flat && edge_piercing(P, p, Q, x))) {
         std::memcpy(y, x, 3 * sizeof(double));
         return 0.0;
     }
     double best = INF, u[3], v[3];
-    for (int i = 0; i < 3; ++i) {
-        double d = point_triangle_closest(P[i], Q, q, v);
-        if (d < best) {
-            best = d;
-            std::memcpy(x, P[i], sizeof u);
-            std::memcpy(y, v, sizeof v);
-        }
-        d = point_triangle_closest(Q[i], P, p, u);
-        if (d < best) {
-            best = d;
-            std::memcpy(x, u, sizeof u);
-            std::memcpy(y, Q[i], sizeof v);
-        }
-    }
     for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j) {
             const double d =
@@ -182,6 +158,24 @@ inline double triangle_distance(const Triangle& P, const Triangle& Q, double* x,
                 best = d;
                 std::memcpy(x, u, sizeof u);
                 std::memcpy(y, v, sizeof v);
+            }
+        }
+    }
+    for (int i = 0; i < 3; ++i) {
+        if (!q.flat) {
+            const double d = vertex_face(Q, q, P[i], q.s[i], best, v);
+            if (d < best) {
+                best = d;
+                std::memcpy(x, P[i], sizeof u);
+                std::memcpy(y, v, sizeof v);
+            }
+        }
+        if (!p.flat) {
+            const double d = vertex_face(P, p, Q[i], p.s[i], best, u);
+            if (d < best) {
+                best = d;
+                std::memcpy(x, u, sizeof u);
+                std::memcpy(y, Q[i], sizeof v);
             }
         }
     }
@@ -196,9 +190,75 @@ struct NearestPoints {
     bool found;  // false: nothing nearer than the cutoff
 };
 
+// A lower bound of the distance between boxes A (body a) and B (body b at pose P): their gap
+// along the unit vector u between their centres, |d| - sum_k ha_k |a_k . u| - sum_k hb_k
+// |b_k . u| (any unit axis bounds the distance; this one is the sphere bound with each box's
+// own extent along u instead of its radius, so a flat leaf box facing the other box gives
+// nearly the true distance), and, with faces, the larger of that and face_gap.
+CS_ALWAYS_INLINE double centre_axis_gap(const double* A, const double* B, const double* P) {
+    using std::fabs;
+    double d[3];
+    centre_offset(A, B, P, d);
+    const double dn = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (!(dn > 0.0)) return 0.0;
+    const double u0 = d[0] / dn, u1 = d[1] / dn, u2 = d[2] / dn;
+    // u in body b's frame: R_ab' u.
+    const double v0 = P[0] * u0 + P[3] * u1 + P[6] * u2;
+    const double v1 = P[1] * u0 + P[4] * u1 + P[7] * u2;
+    const double v2 = P[2] * u0 + P[5] * u1 + P[8] * u2;
+    const int e = BOX_AXES, h = BOX_HALF;
+    double r = 0.0;
+    for (int k = 0; k < 3; ++k) {  // axis k is column k of the row-major axes
+        r += A[h + k] * fabs(A[e + k] * u0 + A[e + 3 + k] * u1 + A[e + 6 + k] * u2);
+        r += B[h + k] * fabs(B[e + k] * v0 + B[e + 3 + k] * v1 + B[e + 6 + k] * v2);
+    }
+    return dn - r;
+}
+
+// A lower bound of the distance between boxes A and B, B in A's box frame (T: R, t as
+// box_in_frame). The boxes' gap along a unit axis bounds their distance whatever the axis;
+// this one aims at the nearest points: two rounds of alternating projection (the point x of A
+// nearest B's centre, the point y of B nearest x, then x again nearest y and y nearest x;
+// alternating projections between two convex sets converge to a nearest pair), u = y - x.
+// The gap along u is (min over B of u.p) - (max over A of u.p), with each box's support
+// |u . axis_k| h_k; the larger of it and face_gap is returned.
+CS_ALWAYS_INLINE double projected_gap(const double* A, const double* B, const double* T) {
+    using std::fabs;
+    const double* ha = A + BOX_HALF;
+    const double* hb = B + BOX_HALF;
+    const double* R = T;  // column k: B's axis k in A's box frame
+    const double* t = T + 9;
+    auto clamp = [](double v, double h) { return v < -h ? -h : (v > h ? h : v); };
+    double x[3], y[3], z[3];
+    for (int i = 0; i < 3; ++i) x[i] = clamp(t[i], ha[i]);
+    for (int round = 0; round < 2; ++round) {
+        // y: x taken to B's box frame (R' (x - t)), clamped, and back (R z + t).
+        const double w0 = x[0] - t[0], w1 = x[1] - t[1], w2 = x[2] - t[2];
+        for (int k = 0; k < 3; ++k)
+            z[k] = clamp(R[k] * w0 + R[3 + k] * w1 + R[6 + k] * w2, hb[k]);
+        for (int i = 0; i < 3; ++i)
+            y[i] = R[3 * i] * z[0] + R[3 * i + 1] * z[1] + R[3 * i + 2] * z[2] + t[i];
+        if (round == 0)
+            for (int i = 0; i < 3; ++i) x[i] = clamp(y[i], ha[i]);
+    }
+    const double u0 = y[0] - x[0], u1 = y[1] - x[1], u2 = y[2] - x[2];
+    const double uu = u0 * u0 + u1 * u1 + u2 * u2;
+    if (!(uu > 0.0)) return face_gap(A, B, T);
+    const double un = std::sqrt(uu);
+    const double v0 = u0 / un, v1 = u1 / un, v2 = u2 / un;
+    double g = v0 * t[0] + v1 * t[1] + v2 * t[2] -
+               (ha[0] * fabs(v0) + ha[1] * fabs(v1) + ha[2] * fabs(v2));
+    for (int k = 0; k < 3; ++k) g -= hb[k] * fabs(R[k] * v0 + R[3 + k] * v1 + R[6 + k] * v2);
+    return std::max(g, face_gap(A, B, T));
+}
+
 // Lower bound of the distance between node na's box (tree a) and node nb's (tree b at pose P).
 CS_ALWAYS_INLINE double node_gap(const Forest& f, int64_t na, int64_t nb, const double* P) {
-    return box_pair_gap(f.box(na), f.box(nb), P);
+    const double* A = f.box(na);
+    const double* B = f.box(nb);
+    double T[12];
+    box_in_frame(A, B, P, T);
+    return projected_gap(A, B, T);
 }
 
 // The smallest distance between the triangles under node ra (body a) and under node rb (body
