@@ -1,5 +1,6 @@
 // The proximity query: every checked pair's distance and nearest points (distance.hpp).
 #include <cstring>
+#include <vector>
 
 #include "distance.hpp"
 #include "query.hpp"
@@ -47,6 +48,13 @@ int64_t Engine::proximity(const double* q, double max_distance, double* distance
     const int64_t code = query(q, false);
     if (code < 0) return code;
     refresh_all_poses();
+    const int64_t n_nodes = header_[H_I_LAYOUT + LAYOUT_WIDTH * IntSlot::nodes + 2];  // d0
+    if (int64_t(placed_stamp_.size()) != n_nodes) {  // the first call only
+        placed_rows_.assign(PLACED_WIDTH * n_nodes, 0.0);
+        placed_stamp_.assign(n_nodes, -1);
+        placed_tag_ = 0;
+    }
+    PlacedBoxes placed = {placed_rows_.data(), placed_stamp_.data(), placed_tag_};
     double pose[POSE_WIDTH];
     for (int64_t p = 0; p < n_pairs_; ++p) {
         const int64_t a = pair_a_[p], b = pair_b_[p];
@@ -81,7 +89,7 @@ int64_t Engine::proximity(const double* q, double max_distance, double* distance
             for (int64_t ea = body_elem_start_[a]; ea < body_elem_end_[a]; ++ea)
                 for (int64_t eb = body_elem_start_[b]; eb < body_elem_end_[b]; ++eb)
                     trees_distance(roots_[ea], roots_[eb], pose, forest_, stack_, counters_,
-                                   best);
+                                   best, placed);
             if (!best.found) continue;
             if (status_[p] != 0) best.distance = 0.0;
         }
@@ -95,6 +103,7 @@ int64_t Engine::proximity(const double* q, double max_distance, double* distance
                          T[4 * i + 2] * best.y[2] + T[4 * i + 3];
         }
     }
+    placed_tag_ = placed.tag;
     return code;
 }
 

@@ -268,15 +268,55 @@ CS_ALWAYS_INLINE double node_gap(const Forest& f, int64_t na, int64_t nb, const 
     return projected_gap(A, B, T);
 }
 
+// Tree b's boxes placed in body a's frame, each computed once per traversal (a node of tree b
+// meets many of tree a's): rows (N, PLACED_WIDTH), the centre R_ab cb + t_ab, then the axes
+// R_ab Eb (row-major, column k is axis k); a row is current iff stamp[n] == tag.
+constexpr int PLACED_WIDTH = 12;
+struct PlacedBoxes {
+    double* rows;
+    int64_t* stamp;
+    int64_t tag;
+};
+
+// node_gap, with node nb's placement taken from (or put into) placed: box_in_frame's
+// [R, t] = [Ea' (R_ab Eb), Ea' ((R_ab cb + t_ab) - ca)] from its cached factors.
+CS_ALWAYS_INLINE double placed_node_gap(const Forest& f, int64_t na, int64_t nb,
+                                        const double* P, PlacedBoxes& placed) {
+    const double* A = f.box(na);
+    const double* B = f.box(nb);
+    double* row = placed.rows + PLACED_WIDTH * nb;
+    const int e = BOX_AXES;
+    if (placed.stamp[nb] != placed.tag) {
+        placed.stamp[nb] = placed.tag;
+        for (int i = 0; i < 3; ++i) {
+            row[i] = P[3 * i] * B[0] + P[3 * i + 1] * B[1] + P[3 * i + 2] * B[2] + P[9 + i];
+            for (int k = 0; k < 3; ++k)
+                row[3 + 3 * i + k] = P[3 * i] * B[e + k] + P[3 * i + 1] * B[e + 3 + k] +
+                                     P[3 * i + 2] * B[e + 6 + k];
+        }
+    }
+    const double d0 = row[0] - A[0], d1 = row[1] - A[1], d2 = row[2] - A[2];
+    const double* M = row + 3;
+    double T[12];
+    for (int i = 0; i < 3; ++i) {
+        for (int k = 0; k < 3; ++k)
+            T[3 * i + k] = A[e + i] * M[k] + A[e + 3 + i] * M[3 + k] + A[e + 6 + i] * M[6 + k];
+        T[9 + i] = A[e + i] * d0 + A[e + 3 + i] * d1 + A[e + 6 + i] * d2;
+    }
+    return projected_gap(A, B, T);
+}
+
 // The smallest distance between the triangles under node ra (body a) and under node rb (body
 // b at pose P in body a's frame), if it is below best.distance: then best is replaced (points
 // in body a's frame). Stops at the first distance 0 (touching or crossing triangles).
 //
 // stack: (S, 3) int64 work, S >= depth(a) + depth(b) + 2; rows (na, nb, bits of the node
-// pair's lower bound). counters: COUNT_BOX_TESTS (node pairs bounded) and
+// pair's lower bound). placed: work rows for every node of the forest (its tag is advanced). counters: COUNT_BOX_TESTS (node pairs bounded) and
 // COUNT_TRIANGLE_TESTS (triangle pairs measured) grow.
 inline void trees_distance(int64_t ra, int64_t rb, const double* P, const Forest& f,
-                           int64_t* stack, int64_t* counters, NearestPoints& best) {
+                           int64_t* stack, int64_t* counters, NearestPoints& best,
+                           PlacedBoxes& placed) {
+    ++placed.tag;
     int64_t n_boxes = 1, n_triangles = 0;
     auto push = [&](int64_t top, int64_t na, int64_t nb, double lb) {
         int64_t* row = stack + 3 * top;
@@ -285,7 +325,7 @@ inline void trees_distance(int64_t ra, int64_t rb, const double* P, const Forest
         std::memcpy(row + 2, &lb, sizeof lb);
     };
     int64_t top = 0;
-    const double root_gap = node_gap(f, ra, rb, P);
+    const double root_gap = placed_node_gap(f, ra, rb, P, placed);
     if (root_gap < best.distance) push(top++, ra, rb, root_gap);
     Triangle Q;
     double x[3], y[3];
@@ -329,8 +369,8 @@ inline void trees_distance(int64_t ra, int64_t rb, const double* P, const Forest
             c1b = node_b[NODE_LEFT];
             c2b = node_b[NODE_RIGHT];
         }
-        double g1 = node_gap(f, c1a, c1b, P);
-        double g2 = node_gap(f, c2a, c2b, P);
+        double g1 = placed_node_gap(f, c1a, c1b, P, placed);
+        double g2 = placed_node_gap(f, c2a, c2b, P, placed);
         n_boxes += 2;
         if (g1 < g2) {  // the nearer child pair on top: popped first
             std::swap(g1, g2);

@@ -159,6 +159,10 @@ class Engine {
     const double* elem_solid_;
     std::vector<uint8_t> body_solid_;  // 1 where a body has a solid element
     std::vector<int64_t> elem_tris_;   // (E, 2): each tree's triangle range (its leaves')
+    // distance.cpp's work rows (distance.hpp: PlacedBoxes), sized on the first proximity call.
+    std::vector<double> placed_rows_;
+    std::vector<int64_t> placed_stamp_;
+    int64_t placed_tag_ = 0;
     double *q_last_, *q_ref_, *T_world_body_, *body_boxes_, *subtree_boxes_, *clearance_,
         *q_eval_, *reach_, *reach_ext_, *travel_, *front_until_, *front_travel_;
     int64_t *is_scene_, *body_elem_start_, *body_elem_end_, *roots_, *pair_a_, *pair_b_,
