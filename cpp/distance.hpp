@@ -1,6 +1,6 @@
 // Distances with nearest points: triangle / triangle and OBB tree / OBB tree (issue 15).
 //
-// Contract (collision_sensor/distance.py states it in plain Python):
+// Contract (collision_sensor/distance.py states it in plain Python, with proximity's):
 //     triangle_distance(P, Q, x, y) == min |x - y| over x in P, y in Q (closed triangles)
 // with x, y written: a nearest pair of points, x on P and y on Q (x == y, a point of both,
 // when they touch or cross). P, Q: 3 vertices each, in the same frame.

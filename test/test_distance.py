@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from collision_sensor.checker import CollisionChecker, ProximityRecord
-from collision_sensor.compiled import engine
+from collision_sensor.distance import triangle_distance
 from collision_sensor.sampling import random_configurations
 from engine_oracles import FclOracle
 
@@ -65,7 +65,7 @@ def _fcl_triangle_distance(P, Q):
 
 def _point_triangle_distance(x, T):
     """Distance from x to the closed triangle T: our kernel on the degenerate triangle x."""
-    d, _, _ = engine.triangle_distance(np.tile(x, (1, 3, 1)), T[None])
+    d, _, _ = triangle_distance(np.tile(x, (1, 3, 1)), T[None])
     return d[0]
 
 
@@ -86,7 +86,7 @@ def _brute_force_distance(P, Q, samples=60):
 def test_triangle_distance_agrees_with_fcl_and_points_lie_on_the_triangles():
     rng = np.random.default_rng(15)
     P, Q = _random_triangle_pairs(rng, 2000)
-    d, x, y = engine.triangle_distance(P, Q)
+    d, x, y = triangle_distance(P, Q)
     for i in range(len(P)):
         theirs = _fcl_triangle_distance(P[i], Q[i])
         if theirs > 0:  # FCL answers -1 or 0 for crossing triangles
@@ -116,7 +116,7 @@ def test_triangle_distance_agrees_with_fcl_and_points_lie_on_the_triangles():
 ])
 def test_triangle_distance_degenerate_cases(P, Q, expected):
     P, Q = np.array(P, dtype=float), np.array(Q, dtype=float)
-    d, x, y = engine.triangle_distance(P[None], Q[None])
+    d, x, y = triangle_distance(P[None], Q[None])
     assert d[0] == pytest.approx(expected, abs=1e-12)
     assert d[0] <= _brute_force_distance(P, Q) + 1e-12
     assert np.linalg.norm(x[0] - y[0]) == pytest.approx(d[0], abs=1e-12)
@@ -148,7 +148,7 @@ def _body_triangles(checker, name):
 
 def _distance_to_body(checker, x, name):
     tris = _body_triangles(checker, name)
-    d, _, _ = engine.triangle_distance(np.broadcast_to(x, (len(tris), 3, 3)).copy(), tris)
+    d, _, _ = triangle_distance(np.broadcast_to(x, (len(tris), 3, 3)).copy(), tris)
     return float(d.min())
 
 
