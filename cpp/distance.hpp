@@ -141,11 +141,16 @@ inline double vertex_face(const Triangle& T, const FacePlane& f, const double* v
 // Order of the work: an edge piercing the other's face (distance 0, stop); the 9 edge pairs;
 // then a vertex against the other's face only where its plane distance can beat the best so
 // far (a vertex's nearest point on an edge is already an edge pair's).
-inline double triangle_distance(const Triangle& P, const Triangle& Q, double* x, double* y) {
+//
+// apart: the caller knows the triangles apart (boxes around them with a positive gap), so no
+// edge can pierce the other's face and that test is skipped.
+inline double triangle_distance(const Triangle& P, const Triangle& Q, double* x, double* y,
+                                bool apart = false) {
     using namespace distance_detail;
     const FacePlane p = face_plane(P, Q);
     const FacePlane q = face_plane(Q, P);
-    if ((!q.flat && edge_piercing(Q, q, P, x)) || (!p.flat && edge_piercing(P, p, Q, x))) {
+    if (!apart &&
+        ((!q.flat && edge_piercing(Q, q, P, x)) || (!p.flat && edge_piercing(P, p, Q, x)))) {
         std::memcpy(y, x, 3 * sizeof(double));
         return 0.0;
     }
@@ -347,7 +352,8 @@ inline void trees_distance(int64_t ra, int64_t rb, const double* P, const Forest
                 for (int64_t ia = node_a[NODE_FIRST];
                      ia < node_a[NODE_FIRST] + node_a[NODE_COUNT]; ++ia) {
                     ++n_triangles;
-                    const double d = triangle_distance(triangle_at(f.tris, ia), Q, x, y);
+                    const double d =
+                        triangle_distance(triangle_at(f.tris, ia), Q, x, y, lb > 0.0);
                     if (d < best.distance) {
                         best.distance = d;
                         best.found = true;
