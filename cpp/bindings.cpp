@@ -354,8 +354,9 @@ PYBIND11_MODULE(_engine, m) {
                   {
                       py::gil_scoped_release release;
                       for (py::ssize_t i = 0; i < n; ++i)
-                          o[i] = cs::triangle_distance(cs::triangle_at(p, i), cs::triangle_at(r, i),
-                                                       ox + 3 * i, oy + 3 * i);
+                          o[i] = cs::triangle_distance(cs::triangle_at(p, i),
+                                                       cs::triangle_at(r, i), ox + 3 * i,
+                                                       oy + 3 * i);
                   }
                   return py::make_tuple(d, x, y);
               },

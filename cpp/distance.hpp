@@ -14,7 +14,7 @@
 //
 // trees_distance: the smallest triangle distance between two OBB trees (traversal.hpp's
 // layout), found by descending both with a lower bound per node pair (the boxes' gap along
-// an axis aimed at their nearest points, or along a face axis: projected_gap) and pruning every node pair whose
+// an axis aimed at their nearest points: projected_gap) and pruning every node pair whose
 // bound is not below the best distance found so far, which starts at the caller's cutoff
 // (max_distance, or the best over the pair's other trees): a pair with nothing nearer than
 // the cutoff costs only the node pairs that prove it. The nearer child pair is visited first.
@@ -126,7 +126,8 @@ inline bool edge_piercing(const Triangle& T, const FacePlane& f, const Triangle&
 inline double vertex_face(const Triangle& T, const FacePlane& f, const double* v, double sk,
                           double best, double* y) {
     const double d2 = sk * sk / f.nn2;
-    if (!(d2 < best) || !triangle_detail::inside_prism(T, f.n[0], f.n[1], f.n[2], v[0], v[1], v[2]))
+    if (!(d2 < best) ||
+        !triangle_detail::inside_prism(T, f.n[0], f.n[1], f.n[2], v[0], v[1], v[2]))
         return INF;
     const double k = sk / f.nn2;
     for (int i = 0; i < 3; ++i) y[i] = v[i] - k * f.n[i];
@@ -205,39 +206,14 @@ struct NearestPoints {
     bool found;  // false: nothing nearer than the cutoff
 };
 
-// A lower bound of the distance between boxes A (body a) and B (body b at pose P): their gap
-// along the unit vector u between their centres, |d| - sum_k ha_k |a_k . u| - sum_k hb_k
-// |b_k . u| (any unit axis bounds the distance; this one is the sphere bound with each box's
-// own extent along u instead of its radius, so a flat leaf box facing the other box gives
-// nearly the true distance), and, with faces, the larger of that and face_gap.
-CS_ALWAYS_INLINE double centre_axis_gap(const double* A, const double* B, const double* P) {
-    using std::fabs;
-    double d[3];
-    centre_offset(A, B, P, d);
-    const double dn = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    if (!(dn > 0.0)) return 0.0;
-    const double u0 = d[0] / dn, u1 = d[1] / dn, u2 = d[2] / dn;
-    // u in body b's frame: R_ab' u.
-    const double v0 = P[0] * u0 + P[3] * u1 + P[6] * u2;
-    const double v1 = P[1] * u0 + P[4] * u1 + P[7] * u2;
-    const double v2 = P[2] * u0 + P[5] * u1 + P[8] * u2;
-    const int e = BOX_AXES, h = BOX_HALF;
-    double r = 0.0;
-    for (int k = 0; k < 3; ++k) {  // axis k is column k of the row-major axes
-        r += A[h + k] * fabs(A[e + k] * u0 + A[e + 3 + k] * u1 + A[e + 6 + k] * u2);
-        r += B[h + k] * fabs(B[e + k] * v0 + B[e + 3 + k] * v1 + B[e + 6 + k] * v2);
-    }
-    return dn - r;
-}
-
 // A lower bound of the distance between boxes A and B, B in A's box frame (T: R, t as
 // box_in_frame). The boxes' gap along a unit axis bounds their distance whatever the axis;
 // this one aims at the nearest points by alternating projection (x, the point of A nearest
-// B's centre; y, the point of B nearest x; x again, the point of A nearest y; u = y - x: more
-// rounds converge to a nearest pair, but pruned no more node pairs on the Panda and UR5). The gap along u is
-// (min over B of u.p) - (max over A of u.p), with each box's support |u . axis_k| h_k. (The
-// face axes' gap, tried on top of it, pruned almost nothing more.) Boxes whose projection
-// meets (overlapping, or nearly) get face_gap.
+// B's centre; y, the point of B nearest x; x again, the point of A nearest y; u = y - x:
+// more rounds converge to a nearest pair, but pruned no more node pairs on the Panda and
+// UR5). The gap along u is (min over B of u.p) - (max over A of u.p), with each box's support
+// |u . axis_k| h_k. (The face axes' gap, tried on top of it, pruned almost nothing more.)
+// Boxes whose projection meets (overlapping, or nearly) get face_gap.
 CS_ALWAYS_INLINE double projected_gap(const double* A, const double* B, const double* T) {
     using std::fabs;
     const double* ha = A + BOX_HALF;
@@ -264,15 +240,6 @@ CS_ALWAYS_INLINE double projected_gap(const double* A, const double* B, const do
     return g;
 }
 
-// Lower bound of the distance between node na's box (tree a) and node nb's (tree b at pose P).
-CS_ALWAYS_INLINE double node_gap(const Forest& f, int64_t na, int64_t nb, const double* P) {
-    const double* A = f.box(na);
-    const double* B = f.box(nb);
-    double T[12];
-    box_in_frame(A, B, P, T);
-    return projected_gap(A, B, T);
-}
-
 // Tree b's boxes placed in body a's frame, each computed once per traversal (a node of tree b
 // meets many of tree a's): rows (N, PLACED_WIDTH), the centre R_ab cb + t_ab, then the axes
 // R_ab Eb (row-major, column k is axis k); a row is current iff stamp[n] == tag.
@@ -283,7 +250,8 @@ struct PlacedBoxes {
     int64_t tag;
 };
 
-// node_gap, with node nb's placement taken from (or put into) placed: box_in_frame's
+// Lower bound of the distance between node na's box (tree a) and node nb's (tree b at pose
+// P): projected_gap, with nb's placement taken from (or put into) placed: box_in_frame's
 // [R, t] = [Ea' (R_ab Eb), Ea' ((R_ab cb + t_ab) - ca)] from its cached factors.
 CS_ALWAYS_INLINE double placed_node_gap(const Forest& f, int64_t na, int64_t nb,
                                         const double* P, PlacedBoxes& placed) {
@@ -316,8 +284,9 @@ CS_ALWAYS_INLINE double placed_node_gap(const Forest& f, int64_t na, int64_t nb,
 // in body a's frame). Stops at the first distance 0 (touching or crossing triangles).
 //
 // stack: (S, 3) int64 work, S >= depth(a) + depth(b) + 2; rows (na, nb, bits of the node
-// pair's lower bound). placed: work rows for every node of the forest (its tag is advanced). counters: COUNT_BOX_TESTS (node pairs bounded) and
-// COUNT_TRIANGLE_TESTS (triangle pairs measured) grow.
+// pair's lower bound). placed: work rows for every node of the forest (its tag is advanced).
+// counters: COUNT_BOX_TESTS (node pairs bounded) and COUNT_TRIANGLE_TESTS (triangle pairs
+// measured) grow.
 inline void trees_distance(int64_t ra, int64_t rb, const double* P, const Forest& f,
                            int64_t* stack, int64_t* counters, NearestPoints& best,
                            PlacedBoxes& placed) {
