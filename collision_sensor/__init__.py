@@ -7,7 +7,7 @@ from collision_sensor.errors import (
     RobotDescriptionError, SceneError, SequenceError, SrdfError)
 
 __all__ = [
-    'CollisionChecker', 'CheckResult', 'CollisionSensorError', 'ConfigError', 'JointStateError',
+    'CollisionChecker', 'CheckResult', 'ProximityRecord', 'CollisionSensorError', 'ConfigError', 'JointStateError',
     'LoadWarning', 'MeshError', 'RobotDescriptionError', 'SceneError', 'SequenceError',
     'SrdfError',
 ]
@@ -16,7 +16,7 @@ __all__ = [
 def __getattr__(name):
     # The checker loads meshes and the compiled engine; import it on first use, so that light
     # tools stay light.
-    if name in ('CollisionChecker', 'CheckResult'):
+    if name in ('CollisionChecker', 'CheckResult', 'ProximityRecord'):
         from collision_sensor import checker
         return getattr(checker, name)
     raise AttributeError(f'module "collision_sensor" has no attribute "{name}"')

@@ -7,11 +7,16 @@ order; ``--full`` uses ``checker.check`` instead. The robot defaults to the bund
     collision_sensor_check paper_experiment --plot contacts.png
     collision_sensor_check run.mcap --urdf my_robot.urdf --package-path my_robot=~/ws/src/my_robot
 
+With ``--max-distance D`` (default 0.1 m; 0 turns it off) each frame also gets the smallest
+distance between the checked pairs nearer than D (``CollisionChecker.proximity``: 0 in
+collision), in the JSON lines, the summary and under the timeline of ``--plot``.
+
 Exit status: 0 no frame in collision, 1 at least one frame in collision, 2 error (the error is
 one line on stderr: ``collision_sensor_check: error: ...``).
 """
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -28,6 +33,7 @@ from collision_sensor.progress import MODES, ProgressBar
 from collision_sensor.sequences import DEFAULT_TOPIC, JointSequence, read_sequence
 
 PROG = 'collision_sensor_check'
+DEFAULT_MAX_DISTANCE = 0.1
 EXIT_CLEAR, EXIT_COLLISION, EXIT_ERROR = 0, 1, 2
 BUNDLED_SEQUENCES = ('paper_experiment', 'into_drum_clear', 'random')
 
@@ -36,13 +42,20 @@ Pair = Tuple[str, str]
 
 @dataclass(frozen=True)
 class FrameResult:
-    """One frame's answer and how long the check took."""
+    """One frame's answer and how long the check took.
+
+    ``min_distance`` is the smallest distance of a checked pair (0 in collision) when some
+    pair was nearer than the run's max_distance, else None (also when not measured);
+    ``nearest_pair`` is that pair. The distance is measured after ``seconds`` was taken.
+    """
 
     index: int
     time: float
     in_collision: bool
     pairs: Tuple[Pair, ...]
     seconds: float
+    min_distance: Optional[float] = None
+    nearest_pair: Optional[Pair] = None
 
 
 @dataclass(frozen=True)
@@ -57,12 +70,15 @@ class PairSpan:
 
 
 def run_sequence(checker, seq: JointSequence, incremental: bool = True,
-                 progress: Optional[ProgressBar] = None) -> List[FrameResult]:
+                 progress: Optional[ProgressBar] = None,
+                 max_distance: float = 0.0) -> List[FrameResult]:
     """Check every frame of ``seq`` in order.
 
     The first frame is checked once from scratch before timing starts, so the per-frame times
     measure the steady state (not one-off compilation).
     :param seq: columns in ``checker.joint_names`` order.
+    :param max_distance: with a value > 0, each frame's nearest pair closer than this (m) is
+        measured too (``checker.proximity``, outside the timed check).
     """
     check = checker.update if incremental else checker.check
     if len(seq):
@@ -72,9 +88,14 @@ def run_sequence(checker, seq: JointSequence, incremental: bool = True,
         start = time.perf_counter()
         result = check(q)
         elapsed = time.perf_counter() - start
+        nearest, distance = None, None
+        if max_distance > 0:
+            records = checker.proximity(q, max_distance)  # the state is q already: no re-check
+            if records:
+                nearest, distance = (records[0].link_a, records[0].link_b), records[0].distance
         results.append(FrameResult(index, t, bool(result.in_collision),
                                    tuple(tuple(pair) for pair in result.colliding_pairs),
-                                   elapsed))
+                                   elapsed, distance, nearest))
         if progress is not None:
             progress.update(index + 1)
     return results
@@ -107,14 +128,31 @@ def pair_spans(results: Sequence[FrameResult]) -> List[PairSpan]:
 
 
 def json_line(result: FrameResult) -> str:
-    """Return the frame's JSON line: ``{"index", "time", "in_collision", "pairs"}``."""
+    """Return the frame's JSON line: ``{"index", "time", "in_collision", "pairs",
+    "min_distance", "nearest_pair"}`` (the last two null when no pair was within the
+    max distance)."""
     return json.dumps({'index': result.index, 'time': result.time,
                        'in_collision': result.in_collision,
-                       'pairs': [list(pair) for pair in result.pairs]})
+                       'pairs': [list(pair) for pair in result.pairs],
+                       'min_distance': result.min_distance,
+                       'nearest_pair': (list(result.nearest_pair) if result.nearest_pair
+                                        else None)})
+
+
+def distance_summary(results: Sequence[FrameResult], t0: float, max_distance: float) -> str:
+    """Return the summary's distance line: the closest approach while clear, and where."""
+    clear = [r for r in results if not r.in_collision and r.min_distance is not None]
+    if not clear:
+        return f'closest approach while clear: no pair within {max_distance:g} m'
+    r = min(clear, key=lambda r: r.min_distance)
+    a, b = r.nearest_pair
+    return (f'closest approach while clear: {r.min_distance:.6f} m ({a} -- {b}) at '
+            f'{r.time - t0:.3f} s; {len(clear)} clear frames with a pair within '
+            f'{max_distance:g} m')
 
 
 def summary(results: Sequence[FrameResult], seq: JointSequence, checker,
-            incremental: bool = True) -> str:
+            incremental: bool = True, max_distance: float = 0.0) -> str:
     """Return the human summary: frames and time in collision, pairs, check time."""
     n = len(results)
     t0 = float(seq.times[0]) if n else 0.0
@@ -136,6 +174,8 @@ def summary(results: Sequence[FrameResult], seq: JointSequence, checker,
             lines.append(f'  {name:<{width}}  first {s.first - t0:8.3f} s  '
                          f'last {s.last - t0:8.3f} s  {s.frames:5d} frames  '
                          f'{s.duration:7.3f} s')
+    if max_distance > 0:
+        lines.append(distance_summary(results, t0, max_distance))
     if n:
         ms = np.array([r.seconds for r in results]) * 1e3
         mode = 'incremental update' if incremental else 'full check'
@@ -145,8 +185,11 @@ def summary(results: Sequence[FrameResult], seq: JointSequence, checker,
     return '\n'.join(lines)
 
 
-def plot_timeline(results: Sequence[FrameResult], seq: JointSequence, path: str) -> None:
-    """Draw the contact timeline to ``path`` (PNG): one row per pair, bars where in contact."""
+def plot_timeline(results: Sequence[FrameResult], seq: JointSequence, path: str,
+                  max_distance: float = 0.0) -> None:
+    """Draw the contact timeline to ``path`` (PNG): one row per pair, bars where in contact;
+    with ``max_distance`` > 0, below it each frame's minimum distance (gaps where no pair was
+    within ``max_distance``)."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -157,7 +200,11 @@ def plot_timeline(results: Sequence[FrameResult], seq: JointSequence, path: str)
     spans = pair_spans(results)
     rows = ['any pair'] + [f'{a} -- {b}' for a, b in (s.pair for s in spans)]
     height = 1.2 + 0.35 * len(rows)
-    fig, ax = plt.subplots(figsize=(10.0, height))
+    if max_distance > 0:
+        fig, (ax, ax_d) = plt.subplots(2, 1, sharex=True, figsize=(10.0, height + 2.2),
+                                       gridspec_kw={'height_ratios': [height, 2.2]})
+    else:
+        fig, ax = plt.subplots(figsize=(10.0, height))
     try:
         def stretches(flags):
             """Yield (start, width) in seconds of runs of True frames."""
@@ -182,8 +229,16 @@ def plot_timeline(results: Sequence[FrameResult], seq: JointSequence, path: str)
         end = (times[-1] - t0 + durations[-1]) if len(times) else 1.0
         ax.set_xlim(0.0, end if end > 0 else 1.0)
         ax.set_ylim(-0.6, len(rows) - 0.4)
-        ax.set_xlabel('time from the first frame [s]')
         ax.grid(axis='x', alpha=0.3)
+        if max_distance > 0:
+            distance = [math.nan if r.min_distance is None else r.min_distance for r in results]
+            ax_d.plot(times - t0, distance, color='tab:blue', lw=1.2)
+            ax_d.set_ylim(0.0, max_distance * 1.05)
+            ax_d.set_ylabel('min distance [m]')
+            ax_d.grid(alpha=0.3)
+            ax_d.set_xlabel('time from the first frame [s]')
+        else:
+            ax.set_xlabel('time from the first frame [s]')
         title = f'contacts: {os.path.basename(seq.source)}'
         if not spans:
             title += ' (no contact)'
@@ -252,9 +307,14 @@ def build_parser() -> argparse.ArgumentParser:
                         help='JointState topic in a bag (default %(default)s)')
     parser.add_argument('--json', metavar='FILE',
                         help='write one JSON line per frame: {"index", "time", '
-                             '"in_collision", "pairs"}; "-" for stdout (the summary then '
-                             'goes to stderr)')
-    parser.add_argument('--plot', metavar='FILE.png', help='draw the contact timeline')
+                             '"in_collision", "pairs", "min_distance", "nearest_pair"} (the '
+                             'last two null when no pair is within --max-distance); "-" for '
+                             'stdout (the summary then goes to stderr)')
+    parser.add_argument('--plot', metavar='FILE.png',
+                        help='draw the contact timeline (and the minimum distance below it)')
+    parser.add_argument('--max-distance', metavar='M', type=float, default=DEFAULT_MAX_DISTANCE,
+                        help='measure each frame\'s smallest pair distance below M metres '
+                             '(default %(default)s; 0: do not measure)')
     parser.add_argument('--full', action='store_true',
                         help='check every frame from scratch instead of incrementally')
     parser.add_argument('--progress', choices=MODES, default='auto',
@@ -266,6 +326,9 @@ def _run(args) -> int:
     from collision_sensor import CollisionChecker
     from collision_sensor.share import config_path
 
+    if not (args.max_distance >= 0 and math.isfinite(args.max_distance)):
+        raise ConfigError(f'--max-distance {args.max_distance}: expected a finite distance >= 0 '
+                          '(metres; 0: do not measure)')
     package_paths = parse_package_paths(args.package_path)
     if args.urdf is None:
         urdf, srdf = config_path('demo_arm.urdf'), args.srdf or config_path('demo_arm.srdf')
@@ -282,7 +345,8 @@ def _run(args) -> int:
 
     label = os.path.basename(os.path.normpath(seq.source))
     with ProgressBar(len(seq), label=label, mode=args.progress) as progress:
-        results = run_sequence(checker, seq, incremental=not args.full, progress=progress)
+        results = run_sequence(checker, seq, incremental=not args.full, progress=progress,
+                               max_distance=args.max_distance)
 
     to_stdout = args.json == '-'
     if args.json:
@@ -294,8 +358,9 @@ def _run(args) -> int:
             if not to_stdout:
                 stream.close()
     if args.plot:
-        plot_timeline(results, seq, args.plot)
-    print(summary(results, seq, checker, incremental=not args.full),
+        plot_timeline(results, seq, args.plot, max_distance=args.max_distance)
+    print(summary(results, seq, checker, incremental=not args.full,
+                  max_distance=args.max_distance),
           file=sys.stderr if to_stdout else sys.stdout)
     return EXIT_COLLISION if any(r.in_collision for r in results) else EXIT_CLEAR
 

@@ -13,6 +13,8 @@
 
 #include "query.hpp"
 
+#include "distance.hpp"
+
 #include <climits>
 #include <memory>
 #include <string>
@@ -324,6 +326,49 @@ PYBIND11_MODULE(_engine, m) {
           py::arg("P"), py::arg("Q"),
           "True iff the closed triangles P and Q (3, 3: rows the vertices) touch or cross; for "
           "(n, 3, 3) arrays, one answer per row.");
+
+    {  // proximity (distance.hpp, distance.cpp): issue 15
+        py::reinterpret_borrow<py::class_<PyEngine>>(m.attr("Engine"))
+            .def("proximity",
+                 [](PyEngine& self, const Array<double>& q, double max_distance,
+                    Array<double> distance, Array<double> points) {
+                     cs::Engine& engine = *self.engine;
+                     expect_shape("q", q, {engine.n_joints()});
+                     expect_shape("distance", distance, {engine.n_pairs()});
+                     expect_shape("points", points, {engine.n_pairs(), 6});
+                     const double* data = q.data();
+                     double* d = writable("distance", distance);
+                     double* x = writable("points", points);
+                     py::gil_scoped_release release;
+                     std::lock_guard<std::mutex> hold(engine.lock());
+                     return engine.proximity(data, max_distance, d, x);
+                 },
+                 py::arg("q"), py::arg("max_distance"), py::arg("distance").noconvert(),
+                 py::arg("points").noconvert(),
+                 "update(q), then each pair's distance (P,) (inf when not below max_distance, 0 "
+                 "when colliding) and nearest points (P, 6), world frame, written in place; "
+                 "return query()'s code.");
+        m.def("triangle_distance",
+              [](const Array<double>& P, const Array<double>& Q) {
+                  const py::ssize_t n = P.ndim() == 3 ? P.shape(0) : 1;
+                  expect_shape("P", P, {n, 3, 3});
+                  expect_shape("Q", Q, {n, 3, 3});
+                  Array<double> d(n), x({n, py::ssize_t(3)}), y({n, py::ssize_t(3)});
+                  double *o = d.mutable_data(), *ox = x.mutable_data(), *oy = y.mutable_data();
+                  const double *p = P.data(), *r = Q.data();
+                  {
+                      py::gil_scoped_release release;
+                      for (py::ssize_t i = 0; i < n; ++i)
+                          o[i] = cs::triangle_distance(cs::triangle_at(p, i),
+                                                       cs::triangle_at(r, i), ox + 3 * i,
+                                                       oy + 3 * i);
+                  }
+                  return py::make_tuple(d, x, y);
+              },
+              py::arg("P"), py::arg("Q"),
+              "Distances (n,) between the closed triangles P[i] and Q[i] ((n, 3, 3), rows the "
+              "vertices) and nearest points x (n, 3) on P[i], y (n, 3) on Q[i].");
+    }
 
     // ---- end of query engine
 

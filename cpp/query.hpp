@@ -114,6 +114,10 @@ class Engine {
     int64_t batch(const double* Q, int64_t n, bool full, uint8_t* statuses, int64_t* codes);
     // Bring every link pose up to date (incremental calls compute them only on demand).
     void refresh_all_poses();
+    // distance.cpp: query(q, false), then each pair's distance and nearest points (world
+    // frame) into distance (P,) (INF when not below max_distance; 0 when colliding) and points
+    // (P, 6) (on body pair_a, on body pair_b). Returns query()'s code.
+    int64_t proximity(const double* q, double max_distance, double* distance, double* points);
 
     int64_t n_joints() const { return n_joints_; }
     int64_t n_pairs() const { return n_pairs_; }
@@ -141,6 +145,7 @@ class Engine {
     bool boxes_apart(const double* A, const double* B, const double* P) const;
     bool contained(int64_t a, int64_t b, const double* pose) const;
     bool inside_solid(int64_t e, const double* x) const;
+    bool contained_vertex(int64_t a, int64_t b, const double* pose, double* x) const;
     TreesResult trees_of_pair(int64_t p, bool track, double scale, double travel, double margin,
                               int64_t a, int64_t b, const double* pose, int64_t wa, int64_t wb);
 
@@ -154,6 +159,10 @@ class Engine {
     const double* elem_solid_;
     std::vector<uint8_t> body_solid_;  // 1 where a body has a solid element
     std::vector<int64_t> elem_tris_;   // (E, 2): each tree's triangle range (its leaves')
+    // distance.cpp's work rows (distance.hpp: PlacedBoxes), sized on the first proximity call.
+    std::vector<double> placed_rows_;
+    std::vector<int64_t> placed_stamp_;
+    int64_t placed_tag_ = 0;
     double *q_last_, *q_ref_, *T_world_body_, *body_boxes_, *subtree_boxes_, *clearance_,
         *q_eval_, *reach_, *reach_ext_, *travel_, *front_until_, *front_travel_;
     int64_t *is_scene_, *body_elem_start_, *body_elem_end_, *roots_, *pair_a_, *pair_b_,

@@ -71,3 +71,14 @@ def test_growth_fits_tell_log_from_linear():
     assert log['residual'] < 1e-9 and log['first'] == pytest.approx(log['last'])
     linear = growth_fits(n, [1e-3 * x for x in n])
     assert linear['k'] == pytest.approx(1.0) and linear['last'] > linear['first']
+
+
+def test_proximity_scenario_measures_both_robots_against_fcl():
+    from collision_sensor.bench import scenario_proximity
+    from collision_sensor.bench.scenario_settings import Settings
+    section = scenario_proximity.run(Settings.for_run(quick=True, seed=3))
+    rows = [line for line in section.lines if line.startswith('| panda') or
+            line.startswith('| ur5')]
+    assert len(rows) == 2
+    assert all(line.rstrip(' |').endswith('30/30') for line in rows), rows  # min distances
+    assert len(section.verdicts) == 4 and all(v.passed is not None for v in section.verdicts)

@@ -84,7 +84,8 @@ def test_paper_experiment_exits_1_with_json_lines_summary_and_plot(capsys, tmp_p
     expected = oracle_answers['paper_experiment']
     lines = [json.loads(line) for line in json_path.read_text().splitlines()]
     assert [line['index'] for line in lines] == list(range(len(expected)))
-    assert all(set(line) == {'index', 'time', 'in_collision', 'pairs'} for line in lines)
+    assert all(set(line) == {'index', 'time', 'in_collision', 'pairs', 'min_distance',
+                             'nearest_pair'} for line in lines)
     assert [tuple(map(tuple, line['pairs'])) for line in lines] == expected
     assert [line['in_collision'] for line in lines] == [bool(p) for p in expected]
     colliding = sum(bool(p) for p in expected)
@@ -93,6 +94,8 @@ def test_paper_experiment_exits_1_with_json_lines_summary_and_plot(capsys, tmp_p
     assert 'check time per frame (incremental update)' in out
     assert out.rstrip().endswith('result: COLLISION')
     assert plot_path.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    assert all(line['min_distance'] == 0.0 for line in lines if line['in_collision'])
+    assert 'closest approach while clear: ' in out
 
 
 def test_into_drum_clear_exits_0(capsys):
@@ -111,6 +114,47 @@ def test_bag_input_gives_the_csv_answers(capsys, tmp_path, oracle_answers):
     assert [tuple(map(tuple, line['pairs'])) for line in lines] == \
         oracle_answers['paper_experiment']
     assert 'result: COLLISION' in err     # the summary moves to stderr
+
+
+def _fcl_min_distance(oracle, q):
+    """The smallest distance over the oracle's pairs (None if any collides)."""
+    import fcl
+    objects = oracle._objects(q, lambda body, i, bvh, mesh: (bvh, np.eye(4)))
+    if oracle._hits(objects, oracle.pairs):
+        return None
+    return min(fcl.distance(x, y, fcl.DistanceRequest(), fcl.DistanceResult())
+               for a, b in oracle.pairs for x in objects[a] for y in objects[b])
+
+
+def test_min_distance_per_frame_agrees_with_fcl(capsys, oracle):
+    seq = read_sequence(os.path.join(SEQUENCES, 'into_drum_clear.csv'),
+                        joint_names=oracle.joint_names)
+    status, out, err = _run(capsys, ['into_drum_clear', '--json', '-', '--max-distance', '0.2',
+                                     '--progress', 'never'])
+    assert status == 0, err
+    lines = [json.loads(line) for line in out.splitlines()]
+    near = 0
+    for line, q in list(zip(lines, seq.positions))[::8]:
+        theirs = _fcl_min_distance(oracle, q)
+        if theirs < 0.2 - 1e-6:
+            near += 1
+            assert line['min_distance'] == pytest.approx(theirs, abs=1e-6), line
+            assert tuple(line['nearest_pair']) in oracle.pairs
+        elif theirs > 0.2 + 1e-6:
+            assert line['min_distance'] is None and line['nearest_pair'] is None
+    assert near > 0
+    assert 'closest approach while clear: ' in err and ' m (' in err
+
+
+def test_max_distance_zero_measures_nothing_and_a_negative_one_is_refused(capsys, tmp_path):
+    plot = tmp_path / 'plain.png'
+    status, out, err = _run(capsys, ['random', '--max-distance', '0', '--json', '-',
+                                     '--plot', str(plot), '--progress', 'never'])
+    assert status in (0, 1), err
+    assert all(json.loads(line)['min_distance'] is None for line in out.splitlines())
+    assert 'closest approach' not in err
+    status, _, err = _run(capsys, ['random', '--max-distance', '-1', '--progress', 'never'])
+    assert status == 2 and '--max-distance -1.0: expected a finite distance >= 0' in err
 
 
 def test_help_documents_the_exit_status(capsys):
@@ -162,6 +206,19 @@ def test_pair_spans_give_first_last_frames_and_duration():
     assert (spans[ab].first, spans[ab].last, spans[ab].frames) == (0.1, 0.5, 3)
     assert spans[ab].duration == pytest.approx(0.1 + 0.1 + 0.2)   # last frame: previous gap
     assert (spans[ac].first, spans[ac].last, spans[ac].frames) == (0.2, 0.2, 1)
+
+
+def test_plot_with_distances_draws_gaps_where_none_was_near(tmp_path):
+    seq = JointSequence(('a',), np.array([0.0, 1.0, 2.0]), np.zeros((3, 1)), 'near.csv')
+    frames = [offline_check.FrameResult(0, 0.0, False, (), 0.001, 0.05, ('a', 'b')),
+              offline_check.FrameResult(1, 1.0, False, (), 0.001),
+              offline_check.FrameResult(2, 2.0, True, (('a', 'b'),), 0.001, 0.0, ('a', 'b'))]
+    path = tmp_path / 'near.png'
+    offline_check.plot_timeline(frames, seq, str(path), max_distance=0.1)
+    assert path.read_bytes()[:4] == b'\x89PNG'
+    line = offline_check.distance_summary(frames, 0.0, 0.1)
+    assert line == ('closest approach while clear: 0.050000 m (a -- b) at 0.000 s; 1 clear '
+                    'frames with a pair within 0.1 m')
 
 
 def test_plot_without_contacts_still_draws(tmp_path):
