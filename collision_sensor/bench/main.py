@@ -14,7 +14,8 @@ times of scenario 1. Peers are optional: a missing one is reported as missing.
    (demo arm into the washer); 4. scale (Panda against 10k, 100k and 1M-triangle meshes);
    5. the parts (box tests, expansion rules, bounding-volume fits, the cost of a call);
    6. heavy contact (a tool mesh among clutter, against python-fcl); 7. large meshes and
-   many pairs (example-robot-data robots of 50k triangles and more, against pinocchio+coal).
+   many pairs (example-robot-data robots of 50k triangles and more, against pinocchio+coal);
+   8. proximity (distances and nearest points against python-fcl and pinocchio+coal).
 """
 import argparse
 import datetime
@@ -29,7 +30,7 @@ from typing import List, Optional, Sequence
 from collision_sensor.bench.scenario_report import Section
 from collision_sensor.bench.scenario_settings import Settings
 
-SCENARIOS = (1, 2, 3, 4, 5, 6, 7)
+SCENARIOS = (1, 2, 3, 4, 5, 6, 7, 8)
 PEERS = (('pinocchio', 'pin'), ('coal', 'coal'), ('python-fcl', 'python-fcl'))
 
 
@@ -37,7 +38,7 @@ def run_scenarios(numbers: Sequence[int], settings: Settings, log=None) -> List[
     """Run the scenarios ``numbers`` in order; return their sections."""
     from collision_sensor.bench import (
         scenario_cells, scenario_contact, scenario_large, scenario_paper, scenario_parts,
-        scenario_random, scenario_scale, scenario_streams)
+        scenario_proximity, scenario_random, scenario_scale, scenario_streams)
     log = log or (lambda message: None)
     sections = []
     with tempfile.TemporaryDirectory(prefix='collision_sensor_bench_') as workdir:
@@ -61,8 +62,10 @@ def run_scenarios(numbers: Sequence[int], settings: Settings, log=None) -> List[
                 section = scenario_parts.run(settings)
             elif number == 6:
                 section = scenario_contact.run(settings, workdir)
-            else:
+            elif number == 7:
                 section = scenario_large.run(settings)
+            else:
+                section = scenario_proximity.run(settings)
             section.plot['seconds'] = time.perf_counter() - start
             log(f'scenario {number} done in {section.plot["seconds"]:.0f} s')
             sections.append(section)
