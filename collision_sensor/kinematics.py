@@ -128,11 +128,7 @@ class KinematicTree:
         q = np.asarray(q, dtype=np.float64)
         if q.shape != self.lower.shape:
             raise JointStateError(self._shape_message(q.shape, '(J,)'))
-        T_world_link = np.empty(self.T_parent_joint.shape)
-        forward_kinematics_kernel(q, self.parent, self.joint_type, self.T_parent_joint,
-                                  self.axis, self.q_index, self.multiplier, self.offset,
-                                  T_world_link)
-        return T_world_link
+        return self._forward(q)
 
     def forward_kinematics_batch(self, Q) -> np.ndarray:
         """Return the pose of every link for many configurations.
@@ -144,11 +140,25 @@ class KinematicTree:
         Q = np.ascontiguousarray(Q, dtype=np.float64)
         if Q.ndim != 2 or Q.shape[1] != self.lower.shape[0]:
             raise JointStateError(self._shape_message(Q.shape, '(n, J)'))
-        T_out = np.empty((Q.shape[0],) + self.T_parent_joint.shape)
-        forward_kinematics_batch_kernel(Q, self.parent, self.joint_type, self.T_parent_joint,
-                                        self.axis, self.q_index, self.multiplier, self.offset,
-                                        T_out)
-        return T_out
+        if len(Q) == 0:
+            return np.empty((0,) + self.T_parent_joint.shape)
+        return self._forward(Q)
+
+    def _forward(self, q: np.ndarray) -> np.ndarray:
+        compiled = self.__dict__.get('_compiled')
+        if compiled is None:  # the arrays checked and held by the engine, once
+            compiled = engine.Kinematics(self.parent, self.joint_type, self.T_parent_joint,
+                                         self.axis, self.q_index, self.multiplier, self.offset,
+                                         len(self.joint_names))
+            object.__setattr__(self, '_compiled', compiled)
+        try:
+            return compiled.forward(np.ascontiguousarray(q))
+        except ValueError as error:
+            variable = int(str(error).split()[1])
+            raise JointStateError(
+                f'joint variable "{self.joint_names[variable]}": a value the kinematics cannot '
+                f'honour ({error}: not finite, a translation beyond 1e6 m or a zero '
+                'quaternion); send a usable value') from None
 
     def _shape_message(self, shape, expected):
         return (f'joint values of shape {shape}, expected {expected} with J = '

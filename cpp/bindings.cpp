@@ -137,6 +137,52 @@ cs::KinematicTree kinematic_tree(const Array<int64_t>& parent, const Array<int64
             q_index.data(), multiplier.data(), offset.data()};
 }
 
+// A kinematic tree whose arrays are checked and held once, for Python callers of FK.
+struct PyKinematics {
+    Array<int64_t> parent, joint_type, q_index;
+    Array<double> T_parent_joint, axis, multiplier, offset;
+    py::ssize_t n_joints;
+    cs::KinematicTree kin;
+
+    PyKinematics(Array<int64_t> parent_, Array<int64_t> joint_type_,
+                 Array<double> T_parent_joint_, Array<double> axis_, Array<int64_t> q_index_,
+                 Array<double> multiplier_, Array<double> offset_, py::ssize_t n_joints_)
+        : parent(std::move(parent_)), joint_type(std::move(joint_type_)),
+          q_index(std::move(q_index_)), T_parent_joint(std::move(T_parent_joint_)),
+          axis(std::move(axis_)), multiplier(std::move(multiplier_)),
+          offset(std::move(offset_)), n_joints(n_joints_),
+          kin(kinematic_tree(parent, joint_type, T_parent_joint, axis, q_index, multiplier,
+                             offset, n_joints_)) {}
+
+    // Every link's pose for q (J,) as a new (L, 4, 4) array, or for Q (n, J) as (n, L, 4, 4).
+    // A value the engine cannot honour raises ValueError naming its index ("variable j").
+    py::array forward(const Array<double>& q) {
+        if (q.ndim() < 1 || q.ndim() > 2 || q.shape(q.ndim() - 1) != n_joints)
+            throw py::value_error("q: expected (J,) or (n, J) values, J = " +
+                                  std::to_string(n_joints));
+        const py::ssize_t n = q.ndim() == 2 ? q.shape(0) : 1;
+        const py::ssize_t L = kin.n_links;
+        const double* Q = q.data();
+        for (py::ssize_t k = 0; k < n; ++k) {
+            const int64_t bad = cs::unusable_variable(kin, Q + n_joints * k, n_joints);
+            if (bad >= 0)
+                throw py::value_error("variable " + std::to_string(bad) + " of row " +
+                                      std::to_string(k));
+        }
+        Array<double> out = q.ndim() == 2 ? Array<double>({n, L, py::ssize_t(4), py::ssize_t(4)})
+                                          : Array<double>({L, py::ssize_t(4), py::ssize_t(4)});
+        double* T = out.mutable_data();
+        if (n == 1) {
+            cs::forward_kinematics(kin, Q, T);
+        } else {
+            py::gil_scoped_release release;
+            for (py::ssize_t k = 0; k < n; ++k)
+                cs::forward_kinematics(kin, Q + n_joints * k, T + 16 * L * k);
+        }
+        return std::move(out);
+    }
+};
+
 // One box pair as the box tests take it: ha, hb (3,), R (3, 3), t (3,).
 struct BoxPair {
     const double *ha, *hb, *R, *t;
@@ -221,6 +267,17 @@ PYBIND11_MODULE(_engine, m) {
              "query() on each row of Q; statuses (n, P) uint8 and codes (n,) written; return n, "
              "or -1 - (J i + j) when row i's value j is not usable (nothing changed then).")
         .def("poses", &PyEngine::poses, "Bring every link pose up to date.");
+
+    py::class_<PyKinematics>(m, "Kinematics",
+                             "A kinematic tree's arrays (kinematics.py: KinematicTree), checked "
+                             "once; forward(q) gives every link's pose.")
+        .def(py::init<Array<int64_t>, Array<int64_t>, Array<double>, Array<double>,
+                      Array<int64_t>, Array<double>, Array<double>, py::ssize_t>(),
+             py::arg("parent"), py::arg("joint_type"), py::arg("T_parent_joint"),
+             py::arg("axis"), py::arg("q_index"), py::arg("multiplier"), py::arg("offset"),
+             py::arg("n_joints"))
+        .def("forward", &PyKinematics::forward, py::arg("q"),
+             "Every link's pose: (L, 4, 4) for q (J,), (n, L, 4, 4) for q (n, J).");
 
     m.def("forward_kinematics",
           [](const Array<double>& q, const Array<int64_t>& parent,
