@@ -97,6 +97,7 @@ setup(
             'ros-jazzy-common-interfaces',
         ],
         'test': [
+            'pybind11>=2.11',  # the packaging tests build wheels and colcon installs themselves
             'pytest>=7',
             'python-fcl>=0.7',
             'pin>=3.0',
