@@ -269,7 +269,7 @@ def run_fuzz(messages: int, seed: int = 1, rate: float = 500.0, policy: str = 'r
     """Start the node, send the stream, compare every verdict; return the report."""
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
-    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import JointState
 
@@ -329,7 +329,12 @@ def run_fuzz(messages: int, seed: int = 1, rate: float = 500.0, policy: str = 'r
         probe.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics,
                                   QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
         executor.add_node(probe)
-        spinner = threading.Thread(target=executor.spin, daemon=True)
+        def spin():
+            try:
+                executor.spin()
+            except ExternalShutdownException:  # the run is over: the context was shut down
+                pass
+        spinner = threading.Thread(target=spin, daemon=True)
         spinner.start()
 
         def sample_rss():
