@@ -41,10 +41,21 @@ and ``main`` exits with status 1. Once running, nothing a message carries stops 
 joint states are rejected with a throttled warning, a bad ``robot_description`` is rejected with
 an error and the current model stays, and engine errors are logged.
 
-Threads: joint states are taken and checked on a thread of the node's own
-(:class:`_SubscriptionThread`, for speed), robot descriptions are built on a loader thread
-(:class:`_ModelLoader`, so checking goes on meanwhile), and everything else runs on the
-executor's thread; one lock keeps the model, the merged state and the counters consistent.
+Threads: the executor (:func:`make_executor`: rclpy's ``EventsExecutor`` where available)
+takes joint states and hands each to the checking thread (:class:`_NewestFirstWorker`), which
+merges, checks and publishes; robot descriptions are built on a loader thread
+(:class:`_ModelLoader`, so checking goes on meanwhile); everything else runs on the
+executor's thread. One lock keeps the model, the merged state and the counters consistent.
+Only rclpy's public API is used.
+
+Input QoS: ``joint_states_qos: sensor_data`` (best effort, keep last 5, rclpy's
+``qos_profile_sensor_data``) for drivers that publish best effort: under overload the
+middleware drops the oldest samples, and what it reports lost is counted as ``lost_total``.
+``reliable`` (keep all) for recorded replay and for publishers that must not lose a state:
+the publisher is slowed down by flow control rather than losing messages. Either way, once
+more than :data:`MAX_BACKLOG` states wait for the checking thread, it answers only the newest
+and counts the rest as ``skipped_superseded``: the node stays current instead of answering
+states that are already old.
 """
 import collections
 import math
@@ -99,6 +110,7 @@ VERDICT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=VERDICT_DEPTH,
 MAX_ROBOT_DESCRIPTION_BYTES = 16 * 1024 * 1024
 
 DIAGNOSTICS_PERIOD = 1.0    # s, as diagnostic_updater
+MODEL_POLL_PERIOD = 0.05    # s between looks for a finished robot_description build
 WARNING_PERIOD = 1.0        # s between two warnings of one kind
 MARKER_PERIOD = 0.1         # s between marker updates while the colliding set stays the same
 MARKER_COLOR = ColorRGBA(r=1.0, g=0.0, b=0.0, a=0.6)
@@ -145,8 +157,8 @@ class _ModelLoader:
     """Build checkers from ``robot_description`` texts on a worker thread.
 
     Joint states keep being checked with the current model meanwhile; each finished build (a
-    checker, or the error) is queued and ``notify`` is called, from the worker thread, so that
-    the node installs it on the executor's thread. Texts that arrive during a build wait; only the newest
+    checker, or the error) is queued and ``notify`` is called, from the worker thread; the
+    node installs it on the executor's thread. Texts that arrive during a build wait; only the newest
     waiting one is built.
     """
 
@@ -379,8 +391,10 @@ class CollisionSensorNode(Node):
         if settings.urdf_path:
             self._subscribe_joint_states()
         else:
-            self._model_guard = self.create_guard_condition(self._on_model_loaded)
-            self._loader = _ModelLoader(self._build, self._model_guard.trigger)
+            # Finished builds are installed from a timer on the executor's thread; not from a
+            # guard condition, which rclpy's EventsExecutor (7.1.5) refuses.
+            self._loader = _ModelLoader(self._build, lambda: None)
+            self.create_timer(MODEL_POLL_PERIOD, self._on_model_loaded)
             self.create_subscription(String, 'robot_description', self._on_robot_description,
                                      LATCHED_QOS)
             self.get_logger().info('waiting for the robot on robot_description')
@@ -443,7 +457,7 @@ class CollisionSensorNode(Node):
                                       limit_tolerance=settings.joint_limit_tolerance,
                                       max_unknown_names=settings.max_unknown_joints)
         for name, value in _base_variables(checker).items():
-            merger.positions.setdefault(name, value)  # not waited for: see _base_variables
+            merger.set_default(name, value)  # not waited for: see _base_variables
         out_of_limits = {name: rest for name, *rest
                          in joints_out_of_limits(merger.positions, limits)}
         summary = (f'{len(checker.joint_names)} joints, {len(checker.link_names)} links with '
@@ -628,7 +642,10 @@ class CollisionSensorNode(Node):
         period, totals, merger = self._period, self._totals, self._merger
         started = time.perf_counter()
         try:
-            result = self._checker.update(merger.positions)
+            # Every joint known: the array in checker.joint_names order, the engine's fast path;
+            # otherwise the dict (joints not heard yet keep the checker's value).
+            result = self._checker.update(merger.array if merger.complete
+                                          else merger.positions)
         except JointStateError as error:
             # The engine refuses a value it cannot honour (a slider beyond its range, a zero
             # quaternion): the message is rejected after all, the state stays as it was, the
