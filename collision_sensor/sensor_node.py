@@ -158,8 +158,8 @@ class _ModelLoader:
 
     Joint states keep being checked with the current model meanwhile; each finished build (a
     checker, or the error) is queued and ``notify`` is called, from the worker thread; the
-    node installs it on the executor's thread. Texts that arrive during a build wait; only the newest
-    waiting one is built.
+    node installs it on the executor's thread. Texts that arrive during a build wait; only the
+    newest waiting one is built.
     """
 
     def __init__(self, build: Callable[[bytes], object], notify: Callable[[], None]):

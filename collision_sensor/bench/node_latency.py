@@ -1,8 +1,9 @@
 """Drive the node with joint states at fixed rates from another process; measure drops,
 latency and the node's memory.
 
-Run ``python -m collision_sensor.bench.node_latency --rate 1000,2000,5000 --duration 30``, or
-``--soak`` for ten minutes at the first rate (1 kHz) in one-minute windows. The node runs as
+Run ``python -m collision_sensor.bench.node_latency`` (1, 2, 3 and 5 kHz, 30 s each: ``--rate
+1000,2000,3000,5000 --duration 30``), or ``--soak`` for ten minutes at the first rate (1 kHz)
+in one-minute windows. The node runs as
 a user runs it: a separate process started from its console script ``collision_sensor_node``
 with a params file (the Panda of example-robot-data, ``joint_states_qos: reliable``). This
 process publishes ``sensor_msgs/JointState`` over reliable QoS from its main thread, each
@@ -270,7 +271,7 @@ def _soak(driver, rate: float, duration: float, window: float, pid: int) -> None
 def main(argv=None) -> int:
     """Run the benchmark; print the figures."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    parser.add_argument('--rate', default='1000,2000,5000',
+    parser.add_argument('--rate', default='1000,2000,3000,5000',
                         help='comma-separated rates (Hz), one run each; --soak: the first')
     parser.add_argument('--duration', type=float, default=None,
                         help='s of each run (default 30; --soak: 600)')
