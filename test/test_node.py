@@ -938,3 +938,20 @@ def test_xacro_args_and_mesh_containment_parameters_reach_the_checker():
     assert settings.checker_config['mesh_containment'] is True
     with pytest.raises(ConfigError, match='xacro_args.*"arm_id=panda".*name:=value'):
         settings_from_values({'xacro_args': ['arm_id=panda']})
+
+
+def test_console_script_survives_a_name_that_is_not_utf8(ros, panda_urdf, panda_srdf, erd_share,
+                                                         poses):
+    """The console script's executor (EventsExecutor) takes a joint state whose name is not
+    UTF-8 (raw CDR from the wire): the node keeps answering and exits cleanly."""
+    from rclpy.serialization import serialize_message
+    process = node_process(ros.namespace, urdf=panda_urdf, srdf=panda_srdf, erd_share=erd_share)
+    try:
+        probe = Probe(ros, timeout=60.0)
+        raw = serialize_message(JointState(name=['zzzzzz'], position=[0.0]))
+        probe.joint_states.publish(raw.replace(b'zzzzzz', b'\xff\xfe\xfd\xfc\xfb\xfa'))
+        assert probe.send(joint_state(poses['free']), timeout=10.0) == (False, ())
+        assert process.poll() is None
+    finally:
+        status, output, _ = stop(process, signal.SIGINT)
+    assert_clean_exit(status, output)
