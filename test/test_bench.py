@@ -82,3 +82,20 @@ def test_proximity_scenario_measures_both_robots_against_fcl():
     assert len(rows) == 2
     assert all(line.rstrip(' |').endswith('30/30') for line in rows), rows  # min distances
     assert len(section.verdicts) == 4 and all(v.passed is not None for v in section.verdicts)
+
+
+@pytest.mark.parametrize('args, line', [
+    (['--rate', '200,400', '--duration', '1'], 'highest rate without drops:'),
+    (['--soak', '--rate', '200', '--duration', '2', '--window', '1'], 'soak total: 2 s at 200 Hz'),
+], ids=['rates', 'soak'])
+def test_node_latency_drives_the_console_script_from_another_process(args, line):
+    """The node as a process of its own; the figures printed, the node's counters read back."""
+    pytest.importorskip('rclpy')
+    import os
+    import subprocess
+    run = subprocess.run([sys.executable, '-m', 'collision_sensor.bench.node_latency', *args],
+                         capture_output=True, text=True, timeout=300, env=dict(os.environ))
+    out = run.stdout + run.stderr
+    assert run.returncode == 0, out
+    assert line in run.stdout and 'node RSS' in run.stdout, out
+    assert 'node counters: received_total' in run.stdout and 'exited with' not in out, out

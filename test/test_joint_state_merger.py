@@ -233,3 +233,29 @@ def test_reasons_escape_names_that_could_forge_log_lines():
     outcome = merger.merge([f'x{i}\r' for i in range(1000)], [math.nan] * 1000)
     assert '\r' not in outcome.reason and len(outcome.reason) < 800
     assert '(+995 more)' in outcome.reason
+
+
+def test_array_follows_positions_through_every_change():
+    """``array`` (the checker's fast path) equals ``positions`` in joint order after any seeded
+    sequence of accepted, rejected, clamped and undone messages; NaN for joints not heard."""
+    import numpy as np
+
+    def agrees(merger):
+        expected = [merger.positions.get(name, math.nan) for name in merger.joint_names]
+        assert merger.array.dtype == np.float64 and merger.array.flags['C_CONTIGUOUS']
+        np.testing.assert_array_equal(merger.array, expected)
+
+    rng = random.Random(17)
+    merger = JointStateMerger(JOINTS, limits={'j1': (-1.0, 1.0)}, limit_policy='clamp')
+    agrees(merger)
+    for _ in range(2000):
+        names = rng.sample(JOINTS + ('other',), rng.randint(0, 5) % 5)
+        values = [rng.choice([rng.uniform(-2, 2), math.nan, 5.0]) for _ in names]
+        outcome = merger.merge(names, values)
+        agrees(merger)
+        if outcome.accepted and rng.random() < 0.3:
+            merger.undo(outcome)
+            agrees(merger)
+    merger.set_default('j2', 7.0)
+    agrees(merger)
+    agrees(merger.carry_over(JOINTS[::-1]))

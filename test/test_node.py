@@ -331,6 +331,89 @@ def test_partial_states_from_two_publishers_merge(ros, panda, panda_urdf, panda_
     assert verdicts == {False, True}    # the sequence went through both
 
 
+def test_overload_checks_the_newest_state_and_counts_the_rest(ros, panda, panda_urdf,
+                                                             panda_srdf, erd_share, frames,
+                                                             expected):
+    """A backlog beyond MAX_BACKLOG: every message merged, only the newest answered, the
+    others counted as skipped_superseded; a gripper-only message among them still counts."""
+    node = start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share))
+    probe = Probe(ros)
+    names = ARM + GRIPPER
+    free = next(k for k, (hit, _) in enumerate(expected) if not hit)
+    probe.send(joint_state(frames[free], stamp=stamp_of(free), names=names))
+    count = len(probe.pairs)
+    batch = [joint_state(frames[k], stamp=stamp_of(k), names=names) for k in range(5)]
+    batch.append(joint_state({GRIPPER[0]: 0.0123}, stamp=stamp_of(5)))
+    batch.append(joint_state(frames[6][:7], stamp=stamp_of(6), names=ARM))
+    node._on_joint_states(batch, True)    # what the checking thread does with a long backlog
+    ros.spin_for(0.3)
+    assert len(probe.pairs) == count + 1 and len(probe.contact) == count + 1
+    reference = panda.check(dict(zip(names, list(frames[6][:7]) + [0.0123])))
+    assert probe.pairs.last.header.stamp == stamp_of(6)
+    assert pairs_of(probe.pairs.last) == tuple(reference.colliding_pairs)
+    assert probe.contact.last.data == reference.in_collision
+    _, values = probe.next_diagnostics(lambda values: values['verdicts_total'] == '2')
+    assert values['skipped_superseded'] == '6' and values['skipped_total'] == '6'
+    assert values['received_total'] == '8'
+
+
+def test_overload_whose_newest_message_is_rejected_answers_the_newest_accepted(
+        ros, panda, panda_urdf, panda_srdf, erd_share, frames):
+    node = start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share))
+    probe = Probe(ros)
+    names = ARM + GRIPPER
+    bad = joint_state(frames[2], stamp=stamp_of(2), names=names)
+    bad.position[0] = math.nan
+    batch = [joint_state(frames[k], stamp=stamp_of(k), names=names) for k in range(2)] + [bad]
+    node._on_joint_states(batch, True)
+    assert ros.spin_until(lambda: len(probe.pairs) == 1)
+    ros.spin_for(0.2)
+    assert len(probe.pairs) == 1 and probe.pairs.last.header.stamp == stamp_of(1)
+    reference = panda.check(dict(zip(names, frames[1])))
+    assert pairs_of(probe.pairs.last) == tuple(reference.colliding_pairs)
+    _, values = probe.next_diagnostics(lambda values: values['verdicts_total'] == '1')
+    assert values['skipped_superseded'] == '1' and values['skipped_rejected'] == '1'
+
+
+def test_checking_thread_answers_each_message_unless_the_backlog_is_long():
+    from collision_sensor.sensor_node import MAX_BACKLOG, _NewestFirstWorker
+    import threading
+    calls, entered, release = [], threading.Event(), threading.Event()
+
+    def handle(batch, newest_only):
+        calls.append((list(batch), newest_only))
+        entered.set()
+        release.wait(5.0)
+
+    worker = _NewestFirstWorker(handle, 'test worker')
+    try:
+        worker.put('first')
+        assert entered.wait(5.0)
+        for k in range(MAX_BACKLOG + 1):      # arrive while the first is being checked
+            worker.put(k)
+        release.set()
+        deadline = time.monotonic() + 5.0
+        while len(calls) < 2 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        worker.put('alone')
+        while len(calls) < 3 and time.monotonic() < deadline:
+            time.sleep(0.01)
+    finally:
+        release.set()
+        worker.stop()
+    assert calls == [(['first'], False), (list(range(MAX_BACKLOG + 1)), True),
+                     (['alone'], False)]
+
+
+def test_node_uses_only_public_rclpy():
+    """No private rclpy layer (``_rclpy``, ``take_message``): it changes between releases."""
+    import inspect
+    from collision_sensor import sensor_node
+    source = inspect.getsource(sensor_node)
+    assert 'rclpy.impl' not in source and 'take_message' not in source
+    assert '_rclpy' not in source
+
+
 def test_require_all_joints_off_checks_partial_states(ros, panda, panda_urdf, panda_srdf,
                                                       erd_share, poses):
     start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
@@ -488,9 +571,12 @@ class _FlakyChecker:
         return getattr(self._checker, name)
 
     def update(self, positions):
-        if positions.get('panda_joint1') == self.MARK:
+        # A mapping, or (the node's fast path) an array in joint_names order.
+        value = (positions.get('panda_joint1') if hasattr(positions, 'get')
+                 else positions[self._checker.joint_names.index('panda_joint1')])
+        if value == self.MARK:
             raise RuntimeError('engine fault injected by the test')
-        if positions.get('panda_joint1') == -self.MARK:
+        if value == -self.MARK:
             raise ConfigError('engine error injected by the test')
         return self._checker.update(positions)
 
@@ -855,3 +941,20 @@ def test_xacro_args_and_mesh_containment_parameters_reach_the_checker():
     assert settings.checker_config['mesh_containment'] is True
     with pytest.raises(ConfigError, match='xacro_args.*"arm_id=panda".*name:=value'):
         settings_from_values({'xacro_args': ['arm_id=panda']})
+
+
+def test_console_script_survives_a_name_that_is_not_utf8(ros, panda_urdf, panda_srdf, erd_share,
+                                                         poses):
+    """The console script's executor (EventsExecutor) takes a joint state whose name is not
+    UTF-8 (raw CDR from the wire): the node keeps answering and exits cleanly."""
+    from rclpy.serialization import serialize_message
+    process = node_process(ros.namespace, urdf=panda_urdf, srdf=panda_srdf, erd_share=erd_share)
+    try:
+        probe = Probe(ros, timeout=60.0)
+        raw = serialize_message(JointState(name=['zzzzzz'], position=[0.0]))
+        probe.joint_states.publish(raw.replace(b'zzzzzz', b'\xff\xfe\xfd\xfc\xfb\xfa'))
+        assert probe.send(joint_state(poses['free']), timeout=10.0) == (False, ())
+        assert process.poll() is None
+    finally:
+        status, output, _ = stop(process, signal.SIGINT)
+    assert_clean_exit(status, output)

@@ -1,20 +1,27 @@
-"""Drive the node with joint states at a fixed rate and measure drops and latency.
+"""Drive the node with joint states at fixed rates from another process; measure drops,
+latency and the node's memory.
 
-Run ``python -m collision_sensor.bench.node_latency --rate 1000 --duration 30``. The node runs
-as a user runs it: a separate process started from its console script with a params file
-(the Panda of example-robot-data, ``joint_states_qos: reliable``). This process publishes
-``sensor_msgs/JointState`` over reliable QoS from a pacing thread, each stamped with the wall
-clock at publication, and receives the node's ``colliding_pairs`` (published right after
-``contact``, and carrying the joint state's stamp), so for every message:
+Run ``python -m collision_sensor.bench.node_latency`` (1, 2, 3 and 5 kHz, 30 s each: ``--rate
+1000,2000,3000,5000 --duration 30``), or ``--soak`` for ten minutes at the first rate (1 kHz)
+in one-minute windows. The node runs as
+a user runs it: a separate process started from its console script ``collision_sensor_node``
+with a params file (the Panda of example-robot-data, ``joint_states_qos: reliable``). This
+process publishes ``sensor_msgs/JointState`` over reliable QoS from its main thread, each
+stamped with the wall clock at publication, and receives the node's ``colliding_pairs``
+(published right after ``contact``, carrying the joint state's stamp) on an executor thread
+of its own, so for every message:
 
-- dropped: published joint states whose stamp never came back;
-- latency: wall clock at reception minus the stamp (publish -> verdict received, both
-  processes on this machine's clock), reported as p50 / p99 / max;
-- wrong: verdicts that differ from ``CollisionChecker.check`` on the same configuration here.
+- dropped: published joint states whose stamp never came back (lost, or skipped by the node
+  under overload: its ``/diagnostics`` counters are printed at the end);
+- latency: wall clock when the verdict reaches this process's callback minus the stamp
+  (publish -> verdict received, both processes on this machine's clock), p50 / p99 / max;
+- wrong: verdicts that differ from ``CollisionChecker.check`` on the same configuration here;
+- the node's RSS (``/proc/<pid>/status``) after the warm-up and at the end.
 
-After the main run, a few short runs find the highest rate sustained without a drop: the
-``--steps`` rates upwards until one drops, or, if the main run dropped, 75, 50 and 25 % of it. This is a benchmark, not a test: it asserts nothing. DDS stays in shared memory
-(``FASTDDS_BUILTIN_TRANSPORTS=SHM``) in ``ROS_DOMAIN_ID`` (a random one if unset).
+The highest rate of those tried that had no drop is reported. ``--executor`` sets
+``COLLISION_SENSOR_EXECUTOR`` for the node (see :func:`collision_sensor.sensor_node.make_executor`)
+to compare executors. This is a benchmark, not a test: it asserts nothing. DDS stays in
+shared memory (``FASTDDS_BUILTIN_TRANSPORTS=SHM``) in ``ROS_DOMAIN_ID`` (a random one if unset).
 """
 import argparse
 import os
@@ -27,6 +34,7 @@ import tempfile
 import threading
 import time
 import uuid
+from typing import Optional
 
 import numpy as np
 
@@ -56,36 +64,40 @@ def _write_params(directory: str, robot) -> str:
 
 
 class Driver:
-    """The bench's side of the DDS link: a pacing publisher and a verdict recorder."""
+    """The bench's side of the DDS link, in this process: a pacing publisher and a verdict
+    recorder on rclpy's public API (the recorder spun by an executor on a thread of its own)."""
 
     def __init__(self, namespace: str, joint_names, configurations, expected):
         import rclpy
         from diagnostic_msgs.msg import DiagnosticArray
-        from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
         from rclpy.node import Node
         from rclpy.parameter import Parameter
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
         from sensor_msgs.msg import JointState
 
+        from collision_sensor.sensor_node import make_executor
+
         self.context = rclpy.Context()
         rclpy.init(args=[], context=self.context)
-        # A lean node: no parameter or type-description services in its wait set.
+        # A lean node: no parameter or type-description services to serve.
         self.node = Node('node_latency_driver', namespace=namespace, context=self.context,
                          start_parameter_services=False, enable_rosout=False,
                          parameter_overrides=[Parameter('start_type_description_service',
                                                         value=False)])
-        # No executor: the receive loop waits on the one subscription itself (as the node does
-        # with its input), so this side stays cheap and does not perturb the measurement.
-        self._wait_set = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, self.context.handle)
         # Deep histories on both sides: the bench must not be the one that drops.
         self.publisher = self.node.create_publisher(
             JointState, 'joint_states',
             QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE))
         self.subscription = self.node.create_subscription(
-            DiagnosticArray, 'colliding_pairs', lambda msg: None,
+            DiagnosticArray, 'colliding_pairs', self._on_verdict,
             QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE))
+        self.node_status = {}   # the node's last /diagnostics values
+        self._status_name = f'{namespace.strip("/")}/collision_sensor: collision sensor'
+        self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
+                                      QoSProfile(depth=100,
+                                                 reliability=ReliabilityPolicy.RELIABLE))
         self.namespace = namespace
         self.joint_names = list(joint_names)
         self.configurations = [list(map(float, q)) for q in configurations]
@@ -93,29 +105,38 @@ class Driver:
         self._msg_type = JointState
         self.received = []      # (receive wall ns, stamp ns, pair names "a:b")
         self.sent = {}          # stamp ns -> configuration index
+        self.published_total = 0
+        self._executor = make_executor(self.context)
+        self._executor.add_node(self.node)
+        self._spinner = threading.Thread(target=self._spin, name='driver executor', daemon=True)
+        self._spinner.start()
 
-    def receive(self, timeout: float) -> None:
-        """Wait up to ``timeout`` s for verdicts and record every one that is waiting."""
-        subscription, wait_set = self.subscription, self._wait_set
-        with subscription.handle:
-            wait_set.clear_entities()
-            wait_set.add_subscription(subscription.handle)
-            wait_set.wait(int(timeout * 1e9))
-            while True:
-                taken = subscription.handle.take_message(subscription.msg_type, False)
-                if taken is None:
-                    break
-                stamp = taken[0].header.stamp
-                self.received.append((time.time_ns(),
-                                      stamp.sec * 1_000_000_000 + stamp.nanosec,
-                                      tuple(status.name for status in taken[0].status)))
+    def _spin(self):
+        from rclpy.executors import ExternalShutdownException
+        try:
+            while self.context.ok():
+                self._executor.spin_once(timeout_sec=0.1)
+        except ExternalShutdownException:
+            pass
+
+    def _on_verdict(self, msg):
+        # Time first: the latency ends when the verdict reaches this process's callback.
+        now = time.time_ns()
+        stamp = msg.header.stamp
+        self.received.append((now, stamp.sec * 1_000_000_000 + stamp.nanosec,
+                              tuple(status.name for status in msg.status)))
+
+    def _on_diagnostics(self, msg):
+        for status in msg.status:
+            if status.name == self._status_name:
+                self.node_status = {kv.key: kv.value for kv in status.values}
 
     def spin_until(self, condition, timeout: float) -> bool:
         deadline = time.monotonic() + timeout
         while not condition():
             if time.monotonic() > deadline:
                 return False
-            self.receive(0.05)
+            time.sleep(0.01)
         return True
 
     def wait_for_node(self, timeout: float) -> bool:
@@ -125,49 +146,43 @@ class Driver:
             and self.publisher.get_subscription_count() > 0
             and self.node.count_publishers(f'{self.namespace}/colliding_pairs') > 0, timeout)
 
-    def _message(self, index: int, stamp_ns: int):
-        msg = self._msg_type()
-        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
-        msg.name = self.joint_names
-        msg.position = self.configurations[index % len(self.configurations)]
-        return msg
-
     def run(self, rate: float, duration: float, first_index: int = 0) -> dict:
-        """Publish at ``rate`` for ``duration`` seconds while spinning; return the figures."""
-        self.received.clear()
-        self.sent.clear()
+        """Publish at ``rate`` for ``duration`` seconds; return the figures."""
+        self.received = []
+        self.sent = {}
         count = int(round(rate * duration))
         period_ns = int(1e9 / rate)
-        late = [0]
-
-        def publish_all():
-            start = time.monotonic_ns() + 20_000_000
-            for i in range(count):
-                target = start + i * period_ns
-                delay = target - time.monotonic_ns()
-                if delay > 0:
-                    time.sleep(delay / 1e9)
-                elif delay < -period_ns:
-                    late[0] += 1
-                stamp = time.time_ns()
-                index = first_index + i
-                self.sent[stamp] = index % len(self.configurations)
-                self.publisher.publish(self._message(index, stamp))
-
-        publisher = threading.Thread(target=publish_all, name='pacer')
+        late = 0
+        # One message, reused: only its stamp and positions change.
+        msg = self._msg_type()
+        msg.name = self.joint_names
+        configurations, n = self.configurations, len(self.configurations)
+        stamp = msg.header.stamp
         began = time.monotonic()
-        publisher.start()
-        while publisher.is_alive():
-            self.receive(0.01)
+        start = time.monotonic_ns() + 20_000_000
+        for i in range(count):
+            target = start + i * period_ns
+            delay = target - time.monotonic_ns()
+            if delay > 0:
+                time.sleep(delay / 1e9)
+            elif delay < -period_ns:
+                late += 1
+            index = (first_index + i) % n
+            msg.position = configurations[index]
+            now = time.time_ns()
+            stamp.sec, stamp.nanosec = divmod(now, 1_000_000_000)
+            self.sent[now] = index
+            self.publisher.publish(msg)
         publish_seconds = time.monotonic() - began
+        self.published_total += count
         # Stragglers: up to 2 s after the last publication.
         self.spin_until(lambda: len(self.received) >= count, 2.0)
-        return self._figures(rate, count, publish_seconds, late[0])
+        return self._figures(rate, count, publish_seconds, late)
 
     def _figures(self, rate, count, publish_seconds, late):
         latencies, wrong = [], 0
         seen = set()
-        for received_ns, stamp_ns, names in self.received:
+        for received_ns, stamp_ns, names in list(self.received):
             index = self.sent.get(stamp_ns)
             if index is None:   # a verdict for a message of an earlier run
                 continue
@@ -180,7 +195,7 @@ class Driver:
             'rate_hz': rate, 'published': count,
             'achieved_publish_rate_hz': count / publish_seconds,
             'late_publications': late, 'received': len(seen),
-            'dropped': count - len(seen), 'wrong': wrong,
+            'dropped': count - len(seen), 'wrong': wrong, 'latencies_ms': latencies,
             'p50_ms': float(np.percentile(latencies, 50)),
             'p99_ms': float(np.percentile(latencies, 99)),
             'max_ms': float(np.max(latencies)),
@@ -188,8 +203,22 @@ class Driver:
 
     def close(self):
         import rclpy
-        self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
+        self._spinner.join(2.0)
+        self._executor.shutdown()
+        self.node.destroy_node()
+
+
+def rss_kib(pid: int) -> Optional[int]:
+    """Return a process's resident set size (KiB) from ``/proc``, or None."""
+    try:
+        with open(f'/proc/{pid}/status') as status:
+            for line in status:
+                if line.startswith('VmRSS:'):
+                    return int(line.split()[1])
+    except OSError:
+        return None
+    return None
 
 
 def _configurations(checker, count: int, seed: int):
@@ -204,34 +233,70 @@ def _configurations(checker, count: int, seed: int):
     return configurations, expected
 
 
-def _print_figures(label: str, figures: dict):
-    print(f'{label:>10}: rate {figures["rate_hz"]:7.0f} Hz (published at '
+def _print_figures(label: str, figures: dict, rss: Optional[int] = None):
+    memory = f'  node RSS {rss / 1024:6.1f} MiB' if rss is not None else ''
+    print(f'{label:>10}: rate {figures["rate_hz"]:5.0f} Hz (published at '
           f'{figures["achieved_publish_rate_hz"]:7.1f} Hz, {figures["late_publications"]} late)'
           f'  sent {figures["published"]:6d}  dropped {figures["dropped"]:5d}'
-          f'  wrong {figures["wrong"]:3d}  latency p50 {figures["p50_ms"]:7.3f} ms'
-          f'  p99 {figures["p99_ms"]:7.3f} ms  max {figures["max_ms"]:8.3f} ms', flush=True)
+          f'  wrong {figures["wrong"]:3d}  latency p50 {figures["p50_ms"]:6.3f} ms'
+          f'  p99 {figures["p99_ms"]:6.3f} ms  max {figures["max_ms"]:7.3f} ms{memory}',
+          flush=True)
+
+
+def _soak(driver, rate: float, duration: float, window: float, pid: int) -> None:
+    """Run ``duration`` s at ``rate`` in windows of ``window`` s; print each and the total."""
+    rss_start = rss_kib(pid)
+    print(f'soak: {duration:g} s at {rate:g} Hz in windows of {window:g} s; node RSS at start '
+          f'{rss_start / 1024:.1f} MiB', flush=True)
+    latencies, sent, dropped, wrong, index, elapsed = [], 0, 0, 0, 200, 0.0
+    while elapsed < duration - 1e-9:
+        length = min(window, duration - elapsed)
+        figures = driver.run(rate, length, first_index=index)
+        elapsed += length
+        index += figures['published']
+        sent += figures['published']
+        dropped += figures['dropped']
+        wrong += figures['wrong']
+        latencies.append(figures['latencies_ms'])
+        _print_figures(f'{elapsed:6.0f} s', figures, rss_kib(pid))
+    rss_end = rss_kib(pid)
+    every = np.concatenate(latencies)
+    print(f'soak total: {duration:g} s at {rate:g} Hz  sent {sent}  dropped {dropped}  wrong '
+          f'{wrong}  latency p50 {np.nanpercentile(every, 50):.3f} ms  p99 '
+          f'{np.nanpercentile(every, 99):.3f} ms  max {np.nanmax(every):.3f} ms  node RSS '
+          f'{rss_start / 1024:.1f} -> {rss_end / 1024:.1f} MiB '
+          f'({100.0 * (rss_end - rss_start) / rss_start:+.1f} %)', flush=True)
 
 
 def main(argv=None) -> int:
     """Run the benchmark; print the figures."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    parser.add_argument('--rate', type=float, default=1000.0, help='Hz of the main run')
-    parser.add_argument('--duration', type=float, default=30.0, help='s of the main run')
-    parser.add_argument('--steps', default='2000,3000,5000,8000',
-                        help='comma-separated rates (Hz) of the search for the highest rate '
-                             'without drops; empty: skip')
-    parser.add_argument('--step-duration', type=float, default=5.0, help='s of each step')
+    parser.add_argument('--rate', default='1000,2000,3000,5000',
+                        help='comma-separated rates (Hz), one run each; --soak: the first')
+    parser.add_argument('--duration', type=float, default=None,
+                        help='s of each run (default 30; --soak: 600)')
+    parser.add_argument('--soak', action='store_true',
+                        help='one long run at the first rate, reported per --window')
+    parser.add_argument('--window', type=float, default=60.0, help='s per soak report line')
+    parser.add_argument('--executor', default=None,
+                        help='the node\'s executor: events (default), single or multi')
     parser.add_argument('--robot', default='panda', help='example robot: panda or ur5')
     parser.add_argument('--seed', type=int, default=1)
     args = parser.parse_args(argv)
+    rates = [float(rate) for rate in args.rate.split(',') if rate.strip()]
+    duration = args.duration if args.duration is not None else (600.0 if args.soak else 30.0)
 
     from collision_sensor import CollisionChecker
     from collision_sensor.example_robots import example_robot
 
     robot = example_robot(args.robot)
+    environment = dict(os.environ)
+    if args.executor:
+        environment['COLLISION_SENSOR_EXECUTOR'] = args.executor
     print(f'node_latency: robot {robot.name}, ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}, '
           f'FASTDDS_BUILTIN_TRANSPORTS={os.environ["FASTDDS_BUILTIN_TRANSPORTS"]}, '
-          f'{os.cpu_count()} cores', flush=True)
+          f'{os.cpu_count()} cores, node executor '
+          f'{environment.get("COLLISION_SENSOR_EXECUTOR", "default (events)")}', flush=True)
     checker = CollisionChecker.from_urdf(robot.urdf, srdf=robot.srdf,
                                          package_paths=robot.package_paths)
     configurations, expected = _configurations(checker, N_CONFIGURATIONS, args.seed)
@@ -243,34 +308,35 @@ def main(argv=None) -> int:
     command = _node_command(_write_params(directory, robot), namespace)
     log_path = os.path.join(directory, 'node.log')
     log = open(log_path, 'w')
-    node = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT)
+    node = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=environment)
     driver = None
     try:
         driver = Driver(namespace, checker.joint_names, configurations, expected)
         if not driver.wait_for_node(120.0):
             print(f'the node did not come up; its log: {log_path}', file=sys.stderr)
             return 1
-        # Warm-up: the node's first checks load (or, with a cold cache, compile) its kernels.
         warm = driver.run(100.0, 2.0)
-        driver.spin_until(lambda: len(driver.received) >= warm['published'], 120.0)
-        _print_figures('warm-up', warm)
-        main_run = driver.run(args.rate, args.duration, first_index=200)
-        _print_figures('main', main_run)
-        best = main_run['rate_hz'] if main_run['dropped'] == 0 else None
-        steps = [float(step) for step in args.steps.split(',') if step.strip()]
-        if best is None:     # search downwards instead
-            steps = [args.rate * fraction for fraction in (0.75, 0.5, 0.25)]
+        driver.spin_until(lambda: len(driver.received) >= warm['published'], 10.0)
+        _print_figures('warm-up', warm, rss_kib(node.pid))
+        if args.soak:
+            _soak(driver, rates[0], duration, args.window, node.pid)
         else:
-            steps = sorted(rate for rate in steps if rate > best)
-        for rate in steps:
-            figures = driver.run(rate, args.step_duration)
-            _print_figures('step', figures)
-            if figures['dropped'] == 0:
-                best = max(best or 0.0, rate)
-            if (figures['dropped'] == 0) != (main_run['dropped'] == 0):
-                break   # upwards: the first rate that drops; downwards: the first that does not
-        print(f'highest rate sustained without drops: '
-              f'{"none of the rates tried" if best is None else f"{best:.0f} Hz"}', flush=True)
+            best = None
+            for rate in rates:
+                figures = driver.run(rate, duration, first_index=200)
+                _print_figures(f'{duration:g} s', figures, rss_kib(node.pid))
+                if figures['dropped'] == 0:
+                    best = max(best or 0.0, rate)
+            print('highest rate without drops: '
+                  f'{"none of the rates tried" if best is None else f"{best:.0f} Hz"} '
+                  f'(tried {", ".join(f"{rate:g}" for rate in rates)} Hz)', flush=True)
+        # The node's counters once they include every message sent (diagnostics: 1 Hz).
+        driver.spin_until(lambda: int(driver.node_status.get('received_total', -1))
+                          >= driver.published_total, 3.0)
+        d = driver.node_status
+        print('node counters: ' + ', '.join(f'{key} {d.get(key, "?")}' for key in (
+            'received_total', 'verdicts_total', 'skipped_superseded', 'skipped_total',
+            'lost_total', 'check_time_mean_ms')), flush=True)
         return 0
     finally:
         if driver is not None:
