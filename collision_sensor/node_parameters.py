@@ -99,6 +99,12 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
                   'QoS of the joint_states subscription: "sensor_data" (best effort, depth 5) '
                   'or "reliable" (reliable, keep all: every message is checked)',
                   ' | '.join(JOINT_STATES_QOS)),
+    ParameterSpec('overload_policy', 'newest',
+                  'when more joint states wait than the node can check at once: "newest" '
+                  'checks only the newest and counts the rest (skipped_superseded), staying '
+                  'current; "every" checks every one in order however far behind (a recorded '
+                  'path replayed as fast as possible, one verdict per frame)',
+                  'newest | every'),
     ParameterSpec('publish_markers', False,
                   'publish the boxes of colliding links on ~/markers '
                   '(visualization_msgs/MarkerArray)'),
@@ -139,6 +145,7 @@ class NodeSettings:
     joint_limit_tolerance: float = DEFAULT_LIMIT_TOLERANCE
     max_unknown_joints: int = MAX_UNKNOWN_NAMES
     xacro_args: Dict[str, str] = field(default_factory=dict)
+    overload_policy: str = 'newest'
 
 
 def default_values() -> Dict[str, Any]:
@@ -246,6 +253,7 @@ def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
         package_paths=parse_package_paths(merged['package_paths'], 'parameter package_paths'),
         scene_path=_existing_file(merged, 'scene_path'),
         xacro_args=_parse_xacro_args(merged['xacro_args']),
+        overload_policy=_choice(merged, 'overload_policy', ('newest', 'every')),
         checker_config=checker_config,
         require_all_joints=bool(merged['require_all_joints']),
         stale_timeout=_non_negative(merged, 'stale_timeout'),

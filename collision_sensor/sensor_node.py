@@ -229,8 +229,10 @@ class _NewestFirstWorker:
 
     _STOP = object()
 
-    def __init__(self, handle: Callable[[list, bool], None], name: str):
+    def __init__(self, handle: Callable[[list, bool], None], name: str,
+                 max_backlog: Optional[int] = MAX_BACKLOG):
         self._handle = handle
+        self._max_backlog = max_backlog     # None: answer every state, however many wait
         self._queue = queue.SimpleQueue()
         self.put = self._queue.put      # the subscription's callback
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
@@ -247,7 +249,8 @@ class _NewestFirstWorker:
                 pass
             if any(item is stop for item in batch):
                 return
-            self._handle(batch, len(batch) > MAX_BACKLOG)
+            limit = self._max_backlog
+            self._handle(batch, limit is not None and len(batch) > limit)
 
     def stop(self) -> None:
         """Stop the thread and wait for it (the messages being checked are finished first)."""
@@ -408,7 +411,9 @@ class CollisionSensorNode(Node):
         # executor take joint states while the diagnostics timer or a model install runs.
         # Middleware-reported losses are counted, and a publisher that can never be heard is
         # named.
-        self._worker = _NewestFirstWorker(self._on_joint_states, 'joint_states checker')
+        self._worker = _NewestFirstWorker(
+            self._on_joint_states, 'joint_states checker',
+            None if settings.overload_policy == 'every' else MAX_BACKLOG)
         joint_states = self.create_subscription(
             JointState, 'joint_states', self._worker.put, qos,
             callback_group=MutuallyExclusiveCallbackGroup(),
