@@ -30,50 +30,17 @@ namespace collision_sensor {
 
 namespace distance_detail {
 
-using triangle_detail::clamp01;
 
-// Nearest points x on [p, q] and y on [a, b]; returns |x - y|^2. The same parameters as
-// triangle_test.hpp's segment_segment_dist2 (Ericson 5.1.9), with the points kept.
+// Nearest points x on [p, q] and y on [a, b]; returns |x - y|^2 (triangle_test.hpp's
+// parameters, with the points kept).
 inline double segment_segment_closest(const double* p, const double* q, const double* a,
                                       const double* b, double* x, double* y) {
-    const double d10 = q[0] - p[0], d11 = q[1] - p[1], d12 = q[2] - p[2];
-    const double d20 = b[0] - a[0], d21 = b[1] - a[1], d22 = b[2] - a[2];
-    const double r0 = p[0] - a[0], r1 = p[1] - a[1], r2 = p[2] - a[2];
-    const double aa = d10 * d10 + d11 * d11 + d12 * d12;
-    const double ee = d20 * d20 + d21 * d21 + d22 * d22;
-    const double f = d20 * r0 + d21 * r1 + d22 * r2;
     double s, t;
-    if (aa == 0.0 && ee == 0.0) {
-        s = 0.0;
-        t = 0.0;
-    } else if (aa == 0.0) {
-        s = 0.0;
-        t = clamp01(f / ee);
-    } else {
-        const double c = d10 * r0 + d11 * r1 + d12 * r2;
-        if (ee == 0.0) {
-            s = clamp01(-c / aa);
-            t = 0.0;
-        } else {
-            const double bb = d10 * d20 + d11 * d21 + d12 * d22;
-            const double denom = aa * ee - bb * bb;
-            s = denom > 0.0 ? clamp01((bb * f - c * ee) / denom) : 0.0;
-            t = (bb * s + f) / ee;
-            if (t < 0.0) {
-                t = 0.0;
-                s = clamp01(-c / aa);
-            } else if (t > 1.0) {
-                t = 1.0;
-                s = clamp01((bb - c) / aa);
-            }
-        }
+    triangle_detail::segment_segment_params(p, q, a, b, s, t);
+    for (int k = 0; k < 3; ++k) {
+        x[k] = p[k] + s * (q[k] - p[k]);
+        y[k] = a[k] + t * (b[k] - a[k]);
     }
-    x[0] = p[0] + s * d10;
-    x[1] = p[1] + s * d11;
-    x[2] = p[2] + s * d12;
-    y[0] = a[0] + t * d20;
-    y[1] = a[1] + t * d21;
-    y[2] = a[2] + t * d22;
     const double w0 = x[0] - y[0], w1 = x[1] - y[1], w2 = x[2] - y[2];
     return w0 * w0 + w1 * w1 + w2 * w2;
 }

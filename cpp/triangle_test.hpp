@@ -45,18 +45,18 @@ inline double point_segment_dist2(double p0, double p1, double p2, const double*
     return x0 * x0 + x1 * x1 + x2 * x2;
 }
 
-// Squared distance between segments [p, q] and [a, b]; either may be a point. Ericson,
-// Real-Time Collision Detection, 5.1.9: closest point of the lines, clamped to the segments,
-// re-clamped once. Parallel segments (denominator 0) start from s = 0, which is exact.
-inline double segment_segment_dist2(const double* p, const double* q, const double* a,
-                                    const double* b) {
+// Parameters of the nearest points of segments [p, q] and [a, b] (either may be a point):
+// p + s (q - p) and a + t (b - a), s and t in [0, 1]. Ericson, Real-Time Collision Detection,
+// 5.1.9: closest point of the lines, clamped to the segments, re-clamped once. Parallel
+// segments (denominator 0) start from s = 0, which is exact.
+CS_ALWAYS_INLINE void segment_segment_params(const double* p, const double* q, const double* a,
+                                             const double* b, double& s, double& t) {
     const double d10 = q[0] - p[0], d11 = q[1] - p[1], d12 = q[2] - p[2];
     const double d20 = b[0] - a[0], d21 = b[1] - a[1], d22 = b[2] - a[2];
     const double r0 = p[0] - a[0], r1 = p[1] - a[1], r2 = p[2] - a[2];
     const double aa = d10 * d10 + d11 * d11 + d12 * d12;
     const double ee = d20 * d20 + d21 * d21 + d22 * d22;
     const double f = d20 * r0 + d21 * r1 + d22 * r2;
-    double s, t;
     if (aa == 0.0 && ee == 0.0) {
         s = 0.0;
         t = 0.0;
@@ -82,9 +82,16 @@ inline double segment_segment_dist2(const double* p, const double* q, const doub
             }
         }
     }
-    const double x0 = r0 + s * d10 - t * d20;
-    const double x1 = r1 + s * d11 - t * d21;
-    const double x2 = r2 + s * d12 - t * d22;
+}
+
+// Squared distance between segments [p, q] and [a, b]; either may be a point.
+inline double segment_segment_dist2(const double* p, const double* q, const double* a,
+                                    const double* b) {
+    double s, t;
+    segment_segment_params(p, q, a, b, s, t);
+    const double x0 = (p[0] - a[0]) + s * (q[0] - p[0]) - t * (b[0] - a[0]);
+    const double x1 = (p[1] - a[1]) + s * (q[1] - p[1]) - t * (b[1] - a[1]);
+    const double x2 = (p[2] - a[2]) + s * (q[2] - p[2]) - t * (b[2] - a[2]);
     return x0 * x0 + x1 * x1 + x2 * x2;
 }
 
