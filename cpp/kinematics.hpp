@@ -109,26 +109,18 @@ CS_ALWAYS_INLINE void set_link_pose(const KinematicTree& kin, int64_t i, const d
     if (kind != JOINT_FIXED) {
         const double value = kin.multiplier[i] * q[kin.q_index[i]] + kin.offset[i];
         const double x = kin.axis[3 * i], y = kin.axis[3 * i + 1], z = kin.axis[3 * i + 2];
+        // The joint's rotation R (revolute, planar, floating), applied once below: M.R <- J.R R.
+        double r00 = 1.0, r01 = 0.0, r02 = 0.0, r10 = 0.0, r11 = 1.0, r12 = 0.0, r20 = 0.0,
+               r21 = 0.0, r22 = 1.0;
+        bool rotates = true;
         if (kind == JOINT_REVOLUTE) {
-            // Rodrigues: R = c I + s [a]x + (1 - c) a a'; then M.R <- J.R R.
+            // Rodrigues: R = c I + s [a]x + (1 - c) a a'.
             const double c = std::cos(value);
             const double s = std::sin(value);
             const double v = 1.0 - c;
-            const double r00 = c + v * x * x, r01 = v * x * y - s * z, r02 = v * x * z + s * y;
-            const double r10 = v * x * y + s * z, r11 = c + v * y * y, r12 = v * y * z - s * x;
-            const double r20 = v * x * z - s * y, r21 = v * y * z + s * x, r22 = c + v * z * z;
-            const double a00 = m00 * r00 + m01 * r10 + m02 * r20;
-            const double a01 = m00 * r01 + m01 * r11 + m02 * r21;
-            const double a02 = m00 * r02 + m01 * r12 + m02 * r22;
-            const double a10 = m10 * r00 + m11 * r10 + m12 * r20;
-            const double a11 = m10 * r01 + m11 * r11 + m12 * r21;
-            const double a12 = m10 * r02 + m11 * r12 + m12 * r22;
-            const double a20 = m20 * r00 + m21 * r10 + m22 * r20;
-            const double a21 = m20 * r01 + m21 * r11 + m22 * r21;
-            const double a22 = m20 * r02 + m21 * r12 + m22 * r22;
-            m00 = a00; m01 = a01; m02 = a02;
-            m10 = a10; m11 = a11; m12 = a12;
-            m20 = a20; m21 = a21; m22 = a22;
+            r00 = c + v * x * x; r01 = v * x * y - s * z; r02 = v * x * z + s * y;
+            r10 = v * x * y + s * z; r11 = c + v * y * y; r12 = v * y * z - s * x;
+            r20 = v * x * z - s * y; r21 = v * y * z + s * x; r22 = c + v * z * z;
         } else if (kind == JOINT_PLANAR || kind == JOINT_FLOATING) {
             // M = [Rm, tm]: t <- t + J.R tm, then J.R <- J.R Rm (translate, then rotate).
             const double* v = q + kin.q_index[i];
@@ -136,7 +128,6 @@ CS_ALWAYS_INLINE void set_link_pose(const KinematicTree& kin, int64_t i, const d
             t0 += m00 * v[0] + m01 * v[1] + m02 * tz;
             t1 += m10 * v[0] + m11 * v[1] + m12 * tz;
             t2 += m20 * v[0] + m21 * v[1] + m22 * tz;
-            double r00, r01, r02, r10, r11, r12, r20, r21, r22;
             if (kind == JOINT_PLANAR) {
                 const double c = std::cos(v[2]), s = std::sin(v[2]);
                 r00 = c; r01 = -s; r02 = 0.0;
@@ -155,6 +146,14 @@ CS_ALWAYS_INLINE void set_link_pose(const KinematicTree& kin, int64_t i, const d
                 r10 = xy + wz; r11 = 1.0 - xx - zz; r12 = yz - wx;
                 r20 = xz - wy; r21 = yz + wx; r22 = 1.0 - xx - yy;
             }
+        } else {
+            // Prismatic: the child frame slides by value axis, in the joint frame.
+            t0 += value * (m00 * x + m01 * y + m02 * z);
+            t1 += value * (m10 * x + m11 * y + m12 * z);
+            t2 += value * (m20 * x + m21 * y + m22 * z);
+            rotates = false;
+        }
+        if (rotates) {
             const double a00 = m00 * r00 + m01 * r10 + m02 * r20;
             const double a01 = m00 * r01 + m01 * r11 + m02 * r21;
             const double a02 = m00 * r02 + m01 * r12 + m02 * r22;
@@ -167,11 +166,6 @@ CS_ALWAYS_INLINE void set_link_pose(const KinematicTree& kin, int64_t i, const d
             m00 = a00; m01 = a01; m02 = a02;
             m10 = a10; m11 = a11; m12 = a12;
             m20 = a20; m21 = a21; m22 = a22;
-        } else {
-            // Prismatic: the child frame slides by value axis, in the joint frame.
-            t0 += value * (m00 * x + m01 * y + m02 * z);
-            t1 += value * (m10 * x + m11 * y + m12 * z);
-            t2 += value * (m20 * x + m21 * y + m22 * z);
         }
     }
     double* T = T_world_link + 16 * i;
