@@ -178,7 +178,7 @@ class CollisionChecker:
         pair_a, pair_b = [], []
         for a, b in self.checked_pairs:
             ia, ib = body_index[a], body_index[b]
-            if ia >= n_links:  # the kernel expects the scene body second
+            if ia >= n_links:  # the engine expects the scene body second
                 ia, ib = ib, ia
             pair_a.append(ia)
             pair_b.append(ib)
@@ -231,7 +231,7 @@ class CollisionChecker:
         seeds = max([front_rows] + [int(elements[a] * elements[b])
                                     for a, b in zip(self._pair_a, self._pair_b)])
         f = forest
-        # Everything the kernel reads or keeps, in two flat buffers (see array_pack): static
+        # Everything the engine reads or keeps, in two flat buffers (see array_pack): static
         # model data and the carried state (q_ref, poses, statuses) alike.
         scalars = np.zeros(engine.N_SCALARS)
         scalars[engine.S_TOLERANCE] = self.config.motion_tolerance
@@ -263,7 +263,7 @@ class CollisionChecker:
             front_state=np.zeros((n_pairs, 2)))
         self._F, self._F_layout, float_views = self._pack(np.float64, engine.FLOAT_SLOTS, floats)
         self._I, self._I_layout, int_views = self._pack(np.int64, engine.INT_SLOTS, ints)
-        # The forest is only a view of the kernel's tables: nothing is held twice (scenario 4).
+        # The forest is only a view of the engine's tables: nothing is held twice (scenario 4).
         self.forest = forest_view(float_views['boxes'], int_views['nodes'],
                                   float_views['volume'], float_views['gain'],
                                   float_views['tris'], int_views['roots'], forest.depth)
@@ -275,7 +275,7 @@ class CollisionChecker:
         self._T_world_body = float_views['T_world_body']
         self._status = int_views['status']
         self.counters = int_views['counters']  # work done, see traversal.COUNT_* (benchmarks)
-        # The joint vector of the last call; the kernel writes it (read-only for Python).
+        # The joint vector of the last call; the engine writes it (read-only for Python).
         self._q = float_views['q_last']
         self._result = CheckResult(False, (), 0)
         self._results: Dict[bytes, Tuple[Pair, ...]] = {}
@@ -316,7 +316,7 @@ class CollisionChecker:
     @staticmethod
     def _pack(dtype, slots, arrays):
         pack = ArrayPack(dtype)
-        for name in slots:  # the order the kernel's slot constants expect
+        for name in slots:  # the order of the engine's slots (cpp/query.hpp)
             pack.add(name, arrays[name])
         return pack.pack()
 
@@ -452,11 +452,12 @@ class CollisionChecker:
     def _merged(self, positions: Positions) -> np.ndarray:
         """Return the current joint vector with ``positions`` applied.
 
-        Finiteness is checked by the kernel, before it changes anything.
+        Finiteness (and what else the engine cannot honour) is checked by the engine, before it
+        changes anything.
         """
         if (isinstance(positions, np.ndarray) and positions.shape == self._q.shape
                 and positions.dtype == np.float64):
-            return np.ascontiguousarray(positions)  # the kernel copies it before keeping it
+            return np.ascontiguousarray(positions)  # the engine copies it before keeping it
         q = self._q.copy()
         if isinstance(positions, Mapping):
             unknown = [name for name in positions
@@ -596,7 +597,7 @@ class CollisionChecker:
         return statuses
 
     def _batch(self, configurations, full: bool) -> Tuple[np.ndarray, np.ndarray]:
-        """Run the rows through the kernel; return (n, P) bool statuses and (n,) codes."""
+        """Run the rows through the engine; return (n, P) bool statuses and (n,) codes."""
         Q = np.ascontiguousarray(configurations, dtype=np.float64)
         if Q.ndim != 2 or Q.shape[1] != len(self.joint_names):
             raise JointStateError(f'expected configurations of shape (n, {len(self.joint_names)})'
