@@ -1,8 +1,8 @@
 """Install collision_sensor as an ament_python package (colcon) or a plain pip package.
 
 The engine is C++17 (``cpp/``), compiled here into one extension module,
-``collision_sensor._engine``, with pybind11: under ``pip install``, ``make`` and ``colcon build``
-alike. pybind11 because it builds from a plain setup.py (``Pybind11Extension``), which colcon's
+``collision_sensor.engine._engine``, with pybind11: under ``pip install``, ``make`` and
+``colcon build`` alike. pybind11 because it builds from a plain setup.py (``Pybind11Extension``), which colcon's
 ament_python runs as it is; nanobind wants CMake.
 """
 import hashlib
@@ -64,7 +64,7 @@ class BuildEngine(build_ext):
 
 
 ENGINE = Pybind11Extension(
-    'collision_sensor._engine', ENGINE_SOURCES, include_dirs=['cpp'], cxx_std=17,
+    'collision_sensor.engine._engine', ENGINE_SOURCES, include_dirs=['cpp'], cxx_std=17,
     depends=ENGINE_HEADERS,
     define_macros=[('COLLISION_SENSOR_SOURCE_DIGEST',
                     '"%s"' % source_digest(sorted(ENGINE_SOURCES + ENGINE_HEADERS)))],
@@ -90,6 +90,7 @@ setup(
         'scipy>=1.10',
         'rosbags>=0.10',
         'matplotlib>=3.6',
+        'tqdm>=4.60',
     ],
     extras_require={
         'ros': [
@@ -115,12 +116,12 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'collision_sensor_node = collision_sensor.node:main',
-            'collision_sensor_play = collision_sensor.player:main',
-            'collision_sensor_check = collision_sensor.offline_check:main',
-            'collision_sensor_bench = collision_sensor.bench.main:main',
-            'collision_sensor_acm = collision_sensor.acm:main',
-            'collision_sensor_demo = collision_sensor.demo:main',
+            'collision_sensor_node = collision_sensor.ros.node:main',
+            'collision_sensor_play = collision_sensor.ros.player:main',
+            'collision_sensor_check = collision_sensor.tools.offline_check:main',
+            'collision_sensor_bench = collision_sensor.tools.bench.main:main',
+            'collision_sensor_acm = collision_sensor.tools.acm:main',
+            'collision_sensor_demo = collision_sensor.ros.demo:main',
         ],
     },
 )

@@ -1,13 +1,14 @@
 """collision_sensor: a virtual collision sensor for robots.
 
-Importing this package never imports rclpy; the ROS node lives in ``collision_sensor.node``.
+Importing this package never imports rclpy; the ROS node lives in ``collision_sensor.ros.node``.
 """
 from collision_sensor.errors import (
     CollisionSensorError, ConfigError, JointStateError, LoadWarning, MeshError,
     RobotDescriptionError, SceneError, SequenceError, SrdfError)
 
 __all__ = [
-    'CollisionChecker', 'CheckResult', 'ProximityRecord', 'CollisionSensorError', 'ConfigError', 'JointStateError',
+    'CollisionChecker', 'CheckResult', 'ProximityRecord', 'CollisionSensorError', 'ConfigError',
+    'JointStateError',
     'LoadWarning', 'MeshError', 'RobotDescriptionError', 'SceneError', 'SequenceError',
     'SrdfError',
 ]
@@ -17,6 +18,6 @@ def __getattr__(name):
     # The checker loads meshes and the compiled engine; import it on first use, so that light
     # tools stay light.
     if name in ('CollisionChecker', 'CheckResult', 'ProximityRecord'):
-        from collision_sensor import checker
+        from collision_sensor.engine import checker
         return getattr(checker, name)
     raise AttributeError(f'module "collision_sensor" has no attribute "{name}"')

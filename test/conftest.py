@@ -1,8 +1,34 @@
 """Shared fixtures: the real robots of example-robot-data, and a DDS setup that stays local."""
+import glob
+import importlib.machinery
 import os
 import random
+import sys
 
 import pytest
+
+SOURCE_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _test_the_installed_package():
+    """Under ``colcon test``, import collision_sensor from the install space, not the source.
+
+    colcon runs ``python -m pytest`` in the package's source directory, which puts that
+    directory first on ``sys.path``; its ``collision_sensor`` has no compiled engine (colcon
+    builds the extension into ``build/`` and installs it), while the installed copy, on
+    ``PYTHONPATH`` from the workspace's setup files, has. Drop the source directory then. With
+    ``make test`` (an editable install, the engine built in the source tree) nothing changes.
+    """
+    if glob.glob(os.path.join(SOURCE_ROOT, 'collision_sensor', 'engine', '_engine*')):
+        return
+    elsewhere = [entry for entry in sys.path
+                 if os.path.abspath(entry or os.curdir) != SOURCE_ROOT]
+    if importlib.machinery.PathFinder.find_spec('collision_sensor', elsewhere) is not None:
+        sys.path[:] = elsewhere
+    # else: not installed anywhere; importing the source tree says how to build the engine
+
+
+_test_the_installed_package()
 
 # DDS traffic of the integration tests stays in shared memory on this machine, in a domain of
 # this run's own; .ci/run and the Makefile set both, this covers a bare `pytest`.
@@ -13,7 +39,7 @@ os.environ.setdefault('ROS_DOMAIN_ID', str(random.SystemRandom().randint(1, 100)
 @pytest.fixture(scope='session')
 def erd_share():
     """Directory ``.../share/example-robot-data`` (holds ``robots/``)."""
-    from collision_sensor.example_robots import example_robot_data_dir
+    from collision_sensor.model.example_robots import example_robot_data_dir
     return example_robot_data_dir()
 
 

@@ -71,7 +71,7 @@ class FclOracle:
 
     @staticmethod
     def _primitive(solid):
-        from collision_sensor.mesh_loading import SOLID_BOX, SOLID_SPHERE
+        from collision_sensor.model.mesh_loading import SOLID_BOX, SOLID_SPHERE
         h = solid.size
         if solid.kind == SOLID_BOX:
             return fcl.Box(2 * h[0], 2 * h[1], 2 * h[2])
@@ -113,7 +113,7 @@ class FclOracle:
 
     def pin_configuration(self, positions):
         """pinocchio q from our joint vector (mimic joints get their derived value)."""
-        from collision_sensor.robot_model import resolve_mimics
+        from collision_sensor.model.robot_model import resolve_mimics
         q = pin.neutral(self.pin_model)
         values = dict(zip(self.checker.joint_names, positions))
         for name, (source, multiplier, offset) in resolve_mimics(

@@ -107,10 +107,10 @@ def reliable(depth: int = 10, latched: bool = False) -> QoSProfile:
 
 
 class PlayerThread:
-    """``collision_sensor.player.main(argv)`` in a thread, with an rclpy Context of its own."""
+    """``collision_sensor.ros.player.main(argv)`` in a thread, with an rclpy Context of its own."""
 
     def __init__(self, argv):
-        from collision_sensor import player
+        from collision_sensor.ros import player
         self.context = rclpy.Context()
         self.status = None
         self.thread = threading.Thread(

@@ -27,16 +27,17 @@ SHIPPED = ('package.xml', 'setup.py', 'setup.cfg', 'pyproject.toml', 'MANIFEST.i
            'collision_sensor', 'cpp', 'config', 'meshes', 'LICENSE', 'README.md')
 CONSOLE_SCRIPTS = ('collision_sensor_node', 'collision_sensor_play', 'collision_sensor_check',
                    'collision_sensor_bench', 'collision_sensor_acm', 'collision_sensor_demo')
-ROS_FREE_MODULES = ('collision_sensor', 'collision_sensor.checker', 'collision_sensor.sequences',
-                    'collision_sensor.acm', 'collision_sensor.offline_check',
-                    'collision_sensor.demo',
+ROS_FREE_MODULES = ('collision_sensor', 'collision_sensor.engine.checker',
+                    'collision_sensor.model.sequences',
+                    'collision_sensor.tools.acm', 'collision_sensor.tools.offline_check',
+                    'collision_sensor.ros.demo',
                     # The console script's module installs its signal handlers before it
                     # imports ROS or the engine (see its docstring): it must stay light.
-                    'collision_sensor.node')
+                    'collision_sensor.ros.node')
 AMENT_MARKER = 'share/ament_index/resource_index/packages/' + PACKAGE
 PY = f'python{sys.version_info.major}.{sys.version_info.minor}'
 # Prints where the package and its data were found; run from outside the checkout.
-WHERE = ('import collision_sensor, collision_sensor.share as s\n'
+WHERE = ('import collision_sensor, collision_sensor.model.share as s\n'
          'print(collision_sensor.__file__)\n'
          'print(s.share_directory())\n')
 TIMEOUT = 240
@@ -117,7 +118,7 @@ def test_import_loads_no_ros(module):
 
 def test_import_probe_sees_ros_when_it_is_loaded():
     # The control: the node does import rclpy and message packages, and the probe says so.
-    loaded = ros_modules_loaded_by('collision_sensor.sensor_node')
+    loaded = ros_modules_loaded_by('collision_sensor.ros.sensor_node')
     assert 'rclpy' in loaded
     assert 'sensor_msgs' in loaded
 
@@ -283,7 +284,7 @@ def test_colcon_install_has_what_ros2_run_and_the_ament_index_need(colcon_instal
         assert os.path.isfile(os.path.join(share, path)), path
     assert os.path.isfile(os.path.join(colcon_install, AMENT_MARKER))
     assert os.path.isfile(os.path.join(colcon_install, 'lib', PY, 'site-packages', PACKAGE,
-                                       'share.py'))
+                                       'model', 'share.py'))
 
 
 def test_colcon_install_finds_its_data_through_the_ament_index(colcon_install, tmp_path):

@@ -1,0 +1,124 @@
+"""Settings of the collision checker, validated once, in one place.
+
+===================== ========== ============================================================
+key                   default    meaning
+===================== ========== ============================================================
+allowed_collisions    ()         extra pairs never checked, strings ``"link_a:link_b"``
+ignore_adjacent       True       never check a link against its nearest ancestor with geometry
+motion_tolerance      0.0        a joint counts as moved when it changed by more than this
+                                 (rad or m) since the state the carried statuses describe;
+                                 0 is exact: any change re-checks the affected pairs
+box_test              'sat'      box-box test: 'sat' (15 separating axes) or 'paper' (sec. 5);
+                                 both give the same answers, the default is the faster one
+                                 as measured by ``collision_sensor_bench``
+expansion             'larger'   node expansion rule (sec. 4.1): 'same', 'alternate',
+                                 'larger', 'promising'; answers equal, default by measurement
+obb_fit               'pca'      box fit: 'pca' (vertex covariance, the paper's Wu method),
+                                 'hull_pca' (area-weighted convex hull), 'min_volume'
+leaf_size             1          most triangles per tree leaf (1: a leaf box is as
+                                 tight as its triangle; measured fastest on Panda and UR5)
+primitive_sections    32         tessellation of URDF/scene cylinders and spheres
+mesh_containment      False      also treat closed (watertight, consistently wound) meshes
+                                 as solid: anything wholly inside one collides with it, as
+                                 with primitives, which are always solid (README, "Contact
+                                 rule"); costs a ray test over the mesh's triangles per
+                                 element pair whose spheres overlap and surfaces do not meet
+===================== ========== ============================================================
+"""
+from dataclasses import dataclass, fields, replace
+from typing import Any, Mapping, Optional, Tuple
+
+from collision_sensor.engine.bounding_volumes import OBB_HULL_PCA, OBB_MIN_VOLUME, OBB_PCA
+from collision_sensor.engine.box_test import BOX_TEST_PAPER, BOX_TEST_SAT
+from collision_sensor.engine.traversal import EXPANSION_RULES
+from collision_sensor.errors import ConfigError
+
+BOX_TESTS = {'paper': BOX_TEST_PAPER, 'sat': BOX_TEST_SAT}
+OBB_FITS = {'pca': OBB_PCA, 'hull_pca': OBB_HULL_PCA, 'min_volume': OBB_MIN_VOLUME}
+
+
+@dataclass(frozen=True)
+class CheckerConfig:
+    """Validated checker settings; build with :meth:`from_mapping`."""
+
+    allowed_collisions: Tuple[str, ...] = ()
+    ignore_adjacent: bool = True
+    motion_tolerance: float = 0.0
+    box_test: str = 'sat'
+    expansion: str = 'larger'
+    obb_fit: str = 'pca'
+    leaf_size: int = 1
+    primitive_sections: int = 32
+    mesh_containment: bool = False
+
+    @classmethod
+    def from_mapping(cls, config: Optional[Mapping[str, Any]] = None) -> 'CheckerConfig':
+        """Return settings from a mapping (or a CheckerConfig, or None for the defaults).
+
+        :raises ConfigError: on unknown keys or bad values, naming them and the valid choices.
+        """
+        if config is None:
+            return cls()
+        if isinstance(config, CheckerConfig):
+            return config
+        if not isinstance(config, Mapping):
+            raise ConfigError(f'config must be a mapping of settings, got {type(config).__name__}')
+        valid = {f.name for f in fields(cls)}
+        unknown = sorted(set(config) - valid)
+        if unknown:
+            raise ConfigError(f'unknown setting(s) {", ".join(unknown)}; valid settings: '
+                              f'{", ".join(sorted(valid))}')
+        return replace(cls(), **_converted(config))
+
+    @property
+    def box_test_code(self) -> int:
+        return BOX_TESTS[self.box_test]
+
+    @property
+    def expansion_code(self) -> int:
+        return EXPANSION_RULES[self.expansion]
+
+    @property
+    def obb_fit_code(self) -> int:
+        return OBB_FITS[self.obb_fit]
+
+
+def _choice(key, value, choices):
+    if value not in choices:
+        raise ConfigError(f'setting {key}: "{value}" is not one of {", ".join(sorted(choices))}')
+    return value
+
+
+def _converted(config):
+    out = {}
+    for key, value in config.items():
+        if key == 'allowed_collisions':
+            if isinstance(value, str) or not all(isinstance(v, str) for v in value):
+                raise ConfigError('setting allowed_collisions: expected a list of strings '
+                                  '"link_a:link_b"')
+            out[key] = tuple(value)
+        elif key in ('ignore_adjacent', 'mesh_containment'):
+            if not isinstance(value, bool):
+                raise ConfigError(f'setting {key}: expected true or false, got {value!r}')
+            out[key] = value
+        elif key == 'motion_tolerance':
+            try:
+                tolerance = float(value)
+            except (TypeError, ValueError):
+                tolerance = float('nan')
+            if not tolerance >= 0.0 or tolerance == float('inf'):
+                raise ConfigError(f'setting motion_tolerance: expected a finite number >= 0 '
+                                  f'(rad or m), got {value!r}')
+            out[key] = tolerance
+        elif key == 'box_test':
+            out[key] = _choice(key, value, BOX_TESTS)
+        elif key == 'expansion':
+            out[key] = _choice(key, value, EXPANSION_RULES)
+        elif key == 'obb_fit':
+            out[key] = _choice(key, value, OBB_FITS)
+        elif key in ('leaf_size', 'primitive_sections'):
+            minimum = 1 if key == 'leaf_size' else 3
+            if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+                raise ConfigError(f'setting {key}: expected an integer >= {minimum}, got {value!r}')
+            out[key] = value
+    return out

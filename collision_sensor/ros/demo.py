@@ -1,0 +1,576 @@
+"""``collision_sensor_demo`` (``make demo``): the collision sensor at work on the demo cell.
+
+With no arguments it
+
+1. starts ``collision_sensor_node`` as a process of its own on the bundled demo cell (the arm,
+   its SRDF and the washer scene; ``joint_states_qos: reliable``), in the namespace
+   ``/collision_sensor_demo``, and waits until it is ready: its ``ready:`` log line (the robot
+   loaded, its trees built, the query run once) and its joint_states subscription matched.
+   However long that takes (a large robot's trees, a busy machine) the demo waits, saying so every :data:`PROGRESS_PERIOD` seconds, as long as the
+   node process lives; it fails, with the node's output above, only if the node exits, or
+   after ``--timeout`` seconds when one is given;
+2. plays the paper's experiment (``config/sequences/paper_experiment.csv``) into it with the
+   player's :class:`~collision_sensor.ros.player.SequencePlayer`, at the recorded timing, header
+   stamps set to the recorded times;
+3. prints a line whenever the set of colliding pairs the node reports on ``colliding_pairs``
+   changes (the time, the pairs entering ``+`` and leaving ``-``), and at the end a summary:
+   frames, frames in collision, each pair's first and last time, and the node's own check time
+   from ``/diagnostics``.
+
+Lossless and in order: frame i + 1 is published only after the node's verdict on frame i has
+arrived (the verdict topics are depth 1, so a faster publisher could make a listener miss
+verdicts); when the recorded timing is slower than that, the timing wins. Every verdict is
+matched to its frame by its header stamp.
+
+DDS stays on this machine and out of the way: ``FASTDDS_BUILTIN_TRANSPORTS=SHM`` and a random
+``ROS_DOMAIN_ID`` (1-100) unless they are set (the Makefile sets 42). The node inherits both.
+
+Exit status: 0 done, 1 the node failed (did not come up, died, gave no verdict), 2 bad
+arguments or sequence, 130 interrupted. ``--describe-panda`` keeps the first demo: the Panda's
+kinematic tree, collision elements and a few link poses (needs example-robot-data).
+"""
+import argparse
+import os
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from collision_sensor.errors import CollisionSensorError
+
+PROG = 'collision_sensor_demo'
+DEFAULT_SEQUENCE = 'paper_experiment'
+NAMESPACE = '/collision_sensor_demo'
+NODE_NAME = 'collision_sensor'          # the node's default name
+START_TIMEOUT = None    # s for the node to be ready; None: as long as the node process lives
+PROGRESS_PERIOD = 15.0  # s between "still starting" lines while the node starts
+READY_MARK = 'ready: checking '   # the node's one line once it subscribes to joint_states
+VERDICT_TIMEOUT = 60.0  # s for one verdict (generous: a busy machine, a large robot)
+DIAGNOSTICS_WAIT = 3.0  # s to wait at the end for the last /diagnostics period
+STOP_TIMEOUT = 10.0     # s for the node to exit on SIGINT before it is killed
+_POLL = 0.05            # s between checks while waiting
+
+Pair = Tuple[str, str]
+
+
+class DemoError(CollisionSensorError):
+    """The demo could not run: the node did not come up, died, or gave no verdict."""
+
+
+# -- the environment --------------------------------------------------------------------------
+
+def set_ros_environment(environ=os.environ) -> List[str]:
+    """Keep DDS local: SHM transport, and a random domain unless one is set.
+
+    Changes ``environ`` in place (the node process inherits it) and returns what was chosen
+    here, in words.
+    """
+    notes = []
+    if not environ.get('FASTDDS_BUILTIN_TRANSPORTS'):
+        environ['FASTDDS_BUILTIN_TRANSPORTS'] = 'SHM'
+        notes.append('the SHM transport')
+    if not environ.get('ROS_DOMAIN_ID'):
+        environ['ROS_DOMAIN_ID'] = str(random.SystemRandom().randint(1, 100))
+        notes.append('a random ROS_DOMAIN_ID')
+    return notes
+
+
+def node_executable() -> str:
+    """Return the ``collision_sensor_node`` console script next to this Python, or on PATH.
+
+    :raises DemoError: if neither has it (the package is not installed).
+    """
+    beside = os.path.join(os.path.dirname(sys.executable), 'collision_sensor_node')
+    if os.access(beside, os.X_OK):
+        return beside
+    found = shutil.which('collision_sensor_node')
+    if found is None:
+        raise DemoError('collision_sensor_node not found next to the Python executable or on '
+                        'PATH; install the package: pip install -e ".[ros]" (or make demo)')
+    return found
+
+
+def demo_cell_parameters() -> Dict[str, str]:
+    """Return the node parameters that load the bundled demo cell, with reliable input."""
+    from collision_sensor.model.share import config_path
+    return {'urdf_path': config_path('demo_arm.urdf'),
+            'srdf_path': config_path('demo_arm.srdf'),
+            'scene_path': config_path('demo_scene.yaml'),
+            'joint_states_qos': 'reliable'}
+
+
+# -- the node process -------------------------------------------------------------------------
+
+class NodeProcess:
+    """``collision_sensor_node`` in a process of its own; its log lines are echoed, prefixed.
+
+    :param parameters: ``{name: value}`` given as ``-p name:=value``.
+    :param namespace: the node's namespace.
+    :param echo: where the node's lines go (``None``: kept in :attr:`lines` only).
+    """
+
+    def __init__(self, parameters: Dict[str, str], namespace: str, echo=sys.stdout):
+        command = [node_executable(), '--ros-args', '-r', f'__ns:={namespace}']
+        for name, value in parameters.items():
+            command += ['-p', f'{name}:={value}']
+        env = dict(os.environ)
+        env.setdefault('RCUTILS_CONSOLE_OUTPUT_FORMAT', '[{severity}] {message}')
+        env.setdefault('PYTHONUNBUFFERED', '1')
+        self.lines: List[str] = []
+        self.ready = threading.Event()
+        self._echo = echo
+        self.process = subprocess.Popen(command, stdout=subprocess.PIPE,
+                                        stderr=subprocess.STDOUT, text=True, env=env)
+        self._reader = threading.Thread(target=self._read, name='node output', daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        for line in self.process.stdout:
+            line = line.rstrip('\n')
+            self.lines.append(line)
+            if READY_MARK in line:
+                self.ready.set()
+            if self._echo is not None:
+                print(f'  node | {line}', file=self._echo, flush=True)
+
+    def exited(self) -> Optional[int]:
+        """Return the exit status if the process has ended, else None."""
+        return self.process.poll()
+
+    def stop(self) -> int:
+        """Stop the node with SIGINT (as Ctrl-C would), killing it if it hangs; return status.
+
+        What the node prints from here on is kept in :attr:`lines` but not echoed.
+        """
+        self._echo = None
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGINT)
+            try:
+                self.process.wait(STOP_TIMEOUT)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+        self._reader.join(2.0)
+        return self.process.returncode
+
+
+# -- what the node reports --------------------------------------------------------------------
+
+@dataclass
+class CheckTime:
+    """The node's check times summed over /diagnostics periods."""
+
+    checks: int = 0
+    total_ms: float = 0.0
+    max_ms: float = 0.0
+
+    def add(self, values: Dict[str, str]) -> None:
+        checks = int(values.get('checks', '0') or 0)
+        if checks:
+            self.checks += checks
+            self.total_ms += checks * float(values.get('check_time_mean_ms', '0') or 0.0)
+            self.max_ms = max(self.max_ms, float(values.get('check_time_max_ms', '0') or 0.0))
+
+
+@dataclass
+class Verdicts:
+    """Verdicts and check times received by the listener, shared with the main thread."""
+
+    status_name: str
+    pairs: List[Tuple[int, Tuple[Pair, ...]]] = field(default_factory=list)
+    check_time: CheckTime = field(default_factory=CheckTime)
+    condition: threading.Condition = field(default_factory=threading.Condition)
+
+    def on_colliding_pairs(self, msg) -> None:
+        stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        pairs = tuple(tuple(status.name.split(':', 1)) for status in msg.status)
+        with self.condition:
+            self.pairs.append((stamp_ns, pairs))
+            self.condition.notify_all()
+
+    def on_diagnostics(self, msg) -> None:
+        for status in msg.status:
+            if status.name == self.status_name:
+                with self.condition:
+                    self.check_time.add({kv.key: kv.value for kv in status.values})
+                    self.condition.notify_all()
+
+    def wait(self, predicate, timeout: float) -> bool:
+        """Wait until ``predicate()`` holds (under the lock); False after ``timeout`` s."""
+        with self.condition:
+            return self.condition.wait_for(predicate, timeout)
+
+
+def pairs_text(pairs: Sequence[Pair]) -> str:
+    return ', '.join(f'{a} -- {b}' for a, b in pairs)
+
+
+def change_lines(t: float, before: Sequence[Pair], after: Sequence[Pair]) -> List[str]:
+    """Return the lines for a change of the colliding set at time ``t`` (s): one per pair."""
+    entering = [pair for pair in after if pair not in before]
+    leaving = [pair for pair in before if pair not in after]
+    if not before and after:
+        state = 'CONTACT'
+    elif before and not after:
+        state = 'clear'
+    else:
+        state = ''
+    lines = []
+    for sign, pair in [('+', p) for p in entering] + [('-', p) for p in leaving]:
+        lines.append(f'  {t:7.3f} s  {state:<8} {sign} {pair[0]} -- {pair[1]}')
+        state = ''
+    return lines
+
+
+# -- the run ----------------------------------------------------------------------------------
+
+def summary_lines(seq, verdicts: Sequence[Tuple[Pair, ...]], played: float,
+                  check_time: CheckTime) -> List[str]:
+    """Return the summary: frames, frames in collision, each pair's span, the node's check time.
+
+    :param verdicts: the colliding pairs the node reported, one tuple per frame of ``seq``.
+    :param played: seconds the playing took.
+    """
+    from collision_sensor.tools.offline_check import FrameResult, pair_spans
+
+    n = len(seq)
+    t0 = float(seq.times[0]) if n else 0.0
+    results = [FrameResult(i, float(seq.times[i]), bool(pairs), tuple(pairs), 0.0)
+               for i, pairs in enumerate(verdicts)]
+    colliding = sum(r.in_collision for r in results)
+    lines = [f'summary of {seq.source}',
+             f'  frames:              {n} played in {played:.2f} s, {len(results)} verdicts',
+             f'  frames in collision: {colliding} of {n}'
+             + (f' ({100.0 * colliding / n:.1f} %)' if n else '')]
+    spans = pair_spans(results)
+    if spans:
+        width = max(len(f'{a} -- {b}') for a, b in (s.pair for s in spans))
+        lines.append('  pairs in contact (times from the first frame):')
+        for s in spans:
+            name = f'{s.pair[0]} -- {s.pair[1]}'
+            lines.append(f'    {name:<{width}}  first {s.first - t0:7.3f} s  '
+                         f'last {s.last - t0:7.3f} s  {s.frames:4d} frames')
+    else:
+        lines.append('  pairs in contact:    none')
+    if check_time.checks:
+        lines.append(f'  node check time (/diagnostics): mean '
+                     f'{check_time.total_ms / check_time.checks:.3f} ms, max '
+                     f'{check_time.max_ms:.3f} ms over {check_time.checks} checks')
+    else:
+        lines.append('  node check time: no /diagnostics report received')
+    lines.append('  result: ' + ('COLLISION' if colliding else 'clear'))
+    return lines
+
+
+
+def wait_until_ready(node, publisher, pairs_sub, timeout: Optional[float], say,
+                     progress_period: float = PROGRESS_PERIOD) -> float:
+    """Wait until the node is ready and matched both ways; return the seconds it took.
+
+    Ready: the node logged its ``ready:`` line (it subscribes to joint_states only after the
+    robot is loaded, its trees built and the query run once), ``publisher`` (joint_states) has
+    a subscriber and ``pairs_sub`` (colliding_pairs) a publisher.
+
+    :param node: the :class:`NodeProcess`.
+    :param timeout: seconds, or ``None`` to wait as long as the node process lives.
+    :param say: prints one line.
+    :raises DemoError: the node exited first, or ``timeout`` passed.
+    """
+    started = time.monotonic()
+    next_progress = started + progress_period
+    while not (node.ready.is_set() and publisher.get_subscription_count() >= 1
+               and pairs_sub.get_publisher_count() >= 1):
+        status = node.exited()
+        if status is not None:
+            raise DemoError(f'collision_sensor_node exited with status {status} before it was '
+                            'ready (its output is above)')
+        now = time.monotonic()
+        if timeout is not None and now - started > timeout:
+            raise DemoError(f'collision_sensor_node did not subscribe to '
+                            f'{publisher.topic_name} within {timeout:g} s (--timeout); it is '
+                            'still starting: wait longer, or leave --timeout out to wait as '
+                            'long as it runs')
+        if now >= next_progress:
+            next_progress += progress_period
+            say(f'still waiting for collision_sensor_node to be ready ({now - started:.0f} s; '
+                'the first start compiles the engine, which takes a minute or more on a busy '
+                'machine) ...')
+        time.sleep(_POLL)
+    return time.monotonic() - started
+
+
+def _stamp_ns(seconds: float) -> int:
+    # as player._stamp_from_seconds rounds it
+    return int(round(seconds * 1e9))
+
+
+def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast: bool = False,
+             start_timeout: float = START_TIMEOUT, verdict_timeout: float = VERDICT_TIMEOUT,
+             out=sys.stdout) -> int:
+    """Start the node, play ``seq`` into it, print contacts and the summary; return 0.
+
+    :param seq: the :class:`~collision_sensor.model.sequences.JointSequence` to play.
+    :param rate: frames per second instead of the recorded timing.
+    :param fast: no timing: each frame as soon as the previous verdict is in.
+    :raises DemoError: the node did not come up, died or gave no verdict in time.
+    """
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    from collision_sensor.ros.player import SequencePlayer, frame_offsets
+
+    def say(text=''):
+        print(text, file=out, flush=True)
+
+    n = len(seq)
+    t0 = float(seq.times[0]) if n else 0.0
+    verdicts = Verdicts(status_name=f'{namespace.strip("/")}/{NODE_NAME}: collision sensor'
+                        if namespace.strip('/') else f'{NODE_NAME}: collision sensor')
+    every_verdict = QoSProfile(history=HistoryPolicy.KEEP_ALL,
+                               reliability=ReliabilityPolicy.RELIABLE,
+                               durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    diagnostics_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                                 reliability=ReliabilityPolicy.RELIABLE)
+
+    say(f'starting collision_sensor_node on the demo cell (namespace {namespace}) ...')
+    node = NodeProcess(demo_cell_parameters(), namespace, echo=out)
+    context = rclpy.Context()
+    rclpy.init(args=['--ros-args', '-r', f'__ns:={namespace}'], context=context)
+    executor = SingleThreadedExecutor(context=context)
+    player = listener = spinner = None
+    try:
+        listener = rclpy.create_node('collision_sensor_demo', context=context)
+        pairs_sub = listener.create_subscription(DiagnosticArray, 'colliding_pairs',
+                                                 verdicts.on_colliding_pairs, every_verdict)
+        listener.create_subscription(DiagnosticArray, '/diagnostics', verdicts.on_diagnostics,
+                                     diagnostics_qos)
+        executor.add_node(listener)
+
+        def spin():
+            try:
+                executor.spin()
+            except ExternalShutdownException:
+                pass
+        spinner = threading.Thread(target=spin, name='demo executor', daemon=True)
+        spinner.start()
+        player = SequencePlayer(seq, context=context, stamp='recorded')
+
+        started = time.monotonic()
+        wait_until_ready(node, player.publisher, pairs_sub, start_timeout, say)
+        timing = ('as fast as the node answers' if fast else f'{rate:g} frames/s' if rate
+                  else 'recorded timing')
+        say(f'node up after {time.monotonic() - started:.1f} s; playing '
+            f'{os.path.basename(seq.source)} ({n} frames, {seq.duration:.2f} s, {timing})')
+        say()
+        say('     time  state    change of the colliding pairs (as the node reports them)')
+
+        offsets = frame_offsets(seq.times, rate)
+        start = time.monotonic()
+        previous: Tuple[Pair, ...] = ()
+        for index in range(n):
+            if not fast:
+                player.sleep_until(start + offsets[index])
+            player.publish_frame(index)
+            if not verdicts.wait(lambda: len(verdicts.pairs) > index, verdict_timeout):
+                status = node.exited()
+                reason = (f'exited with status {status}' if status is not None
+                          else f'gave no verdict within {verdict_timeout:g} s')
+                raise DemoError(f'collision_sensor_node {reason} on frame {index} '
+                                f'(t = {seq.times[index] - t0:.3f} s) of {seq.source}')
+            stamp_ns, pairs = verdicts.pairs[index]
+            if stamp_ns != _stamp_ns(float(seq.times[index])):
+                raise DemoError(f'verdict {index} answers the frame stamped {stamp_ns * 1e-9:.9f}'
+                                f' s, expected {seq.times[index]:.9f} s: verdicts out of order')
+            if pairs != previous:
+                for line in change_lines(float(seq.times[index]) - t0, previous, pairs):
+                    say(line)
+                previous = pairs
+        played = time.monotonic() - start
+        # The check times of the last frames are in the next /diagnostics period.
+        verdicts.wait(lambda: verdicts.check_time.checks >= n, DIAGNOSTICS_WAIT)
+
+        say()
+        for line in summary_lines(seq, [pairs for _, pairs in verdicts.pairs[:n]], played,
+                                  verdicts.check_time):
+            say(line)
+        return 0
+    finally:
+        if player is not None:
+            player.destroy()
+        rclpy.try_shutdown(context=context)
+        if spinner is not None:
+            spinner.join(2.0)
+        executor.shutdown()
+        if listener is not None:
+            listener.destroy_node()
+        status = node.stop()
+        if status not in (0, None, -signal.SIGINT):
+            print(f'{PROG}: collision_sensor_node exited with status {status}', file=out)
+
+
+# -- the command line -------------------------------------------------------------------------
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the command-line parser."""
+    parser = argparse.ArgumentParser(
+        prog=PROG,
+        description='Start collision_sensor_node on the bundled demo cell, play a recorded '
+                    'sequence into it and print the contacts it reports.',
+        epilog='DDS: FASTDDS_BUILTIN_TRANSPORTS=SHM and a random ROS_DOMAIN_ID unless set. '
+               'Exit status: 0 done, 1 the node failed, 2 bad arguments, 130 interrupted.')
+    parser.add_argument('--sequence', default=DEFAULT_SEQUENCE, metavar='NAME|PATH',
+                        help='a bundled sequence (paper_experiment, into_drum_clear, random) '
+                             'or a CSV file or bag of the demo arm (default %(default)s)')
+    timing = parser.add_mutually_exclusive_group()
+    timing.add_argument('--rate', type=float, metavar='HZ',
+                        help='publish at a fixed rate instead of the recorded timing')
+    timing.add_argument('--as-fast-as-possible', action='store_true',
+                        help='publish each frame as soon as the verdict on the last one is in')
+    parser.add_argument('--namespace', default=NAMESPACE,
+                        help='namespace of the node and the demo (default %(default)s)')
+    parser.add_argument('--timeout', type=float, default=START_TIMEOUT, metavar='S',
+                        help='seconds for the node to be ready (default: as long as the node '
+                             'process runs)')
+    parser.add_argument('--describe-panda', action='store_true',
+                        help='instead: print the Panda of example-robot-data as the robot '
+                             'model layer reads it (tree, collision elements, poses)')
+    return parser
+
+
+def _error(message: str, status: int) -> int:
+    print(f'{PROG}: error: {" ".join(str(message).split())}', file=sys.stderr)
+    return status
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """Run the demo; return the exit status (0 done, 1 node failure, 2 bad input, 130 Ctrl-C)."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exit_request:
+        return exit_request.code if isinstance(exit_request.code, int) else 2
+    if args.describe_panda:
+        return describe_panda()
+    if args.rate is not None and not args.rate > 0.0:
+        return _error(f'--rate {args.rate}: must be a positive number of frames per second', 2)
+
+    from collision_sensor.model.sequences import read_sequence
+    from collision_sensor.tools.offline_check import bundled_sequence_path
+    try:
+        seq = read_sequence(bundled_sequence_path(args.sequence))
+    except CollisionSensorError as err:
+        return _error(str(err), 2)
+    if len(seq) == 0:
+        return _error(f'{seq.source}: no frames', 2)
+
+    chosen = set_ros_environment()
+    print(f'DDS: ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}, '
+          f'FASTDDS_BUILTIN_TRANSPORTS={os.environ["FASTDDS_BUILTIN_TRANSPORTS"]}'
+          + (f' (set here: {", ".join(chosen)})' if chosen else ''), flush=True)
+    try:
+        return run_demo(seq, namespace=args.namespace, rate=args.rate,
+                        fast=args.as_fast_as_possible, start_timeout=args.timeout)
+    except DemoError as err:
+        return _error(str(err), 1)
+    except KeyboardInterrupt:
+        print(f'{PROG}: interrupted', file=sys.stderr)
+        return 130
+
+
+# -- the Panda overview (--describe-panda) ----------------------------------------------------
+
+_SHOWN_LINKS = ('panda_link4', 'panda_link7', 'panda_hand', 'panda_hand_tcp',
+                'panda_leftfinger')
+
+
+def describe_panda() -> int:
+    """Load the Panda and print its tree, collision elements and a few link poses.
+
+    :return: the exit status: 0 on success, 2 when example-robot-data is missing, 1 on a
+        description error.
+    """
+    from collision_sensor.engine.kinematics import build_kinematic_tree
+    from collision_sensor.model.example_robots import example_robot
+    from collision_sensor.model.robot_model import load_urdf
+    from collision_sensor.model.srdf import load_srdf_for_model
+
+    try:
+        panda = example_robot('panda')
+    except CollisionSensorError as exc:  # example-robot-data is not installed
+        print(f'{PROG}: {exc} (or `pip install -e ".[test]"`)', file=sys.stderr)
+        return 2
+    try:
+        model = load_urdf(panda.urdf, panda.package_paths)
+        tree = build_kinematic_tree(model)
+        srdf = load_srdf_for_model(panda.srdf, model)
+    except CollisionSensorError as exc:
+        print(f'{PROG}: {exc}', file=sys.stderr)
+        return 1
+
+    print(f'robot "{model.name}" from {model.source}')
+    print(f'{len(model.links)} links, {len(model.joints)} joints, '
+          f'{len(tree.joint_names)} variables: {", ".join(tree.joint_names)}')
+    print('\nkinematic tree:')
+    _print_tree(model)
+
+    print('\ncollision elements (one sub-group each):')
+    for link in model.links:
+        elements = [element for element in model.elements if element.link == link]
+        if not elements:
+            print(f'  {link}: none')
+        for element in elements:
+            print(f'  {link} [{element.index}] {element.name}: {element.source}, '
+                  f'{len(element.faces)} triangles, {len(element.vertices)} vertices')
+    total = sum(len(element.faces) for element in model.elements)
+    print(f'  {len(model.elements)} elements, {total} triangles in all')
+
+    state = srdf.group_states['default']
+    q = np.array([state['joints'].get(name, 0.0) for name in tree.joint_names])
+    T_world_link = tree.forward_kinematics(q)
+    print(f'\nlink poses at SRDF group_state "default" (group "{state["group"]}"), in the '
+          f'frame of "{model.root_link}":')
+    print('  q = ' + ', '.join(f'{name}={value:g}' for name, value in zip(tree.joint_names, q)))
+    np.set_printoptions(precision=4, suppress=True)
+    for link in _SHOWN_LINKS:
+        T = T_world_link[tree.link_names.index(link)]
+        print(f'  {link}: position {T[:3, 3]}, z axis {T[:3, 2]}')
+    print(f'\n{len(srdf.disabled_pairs)} link pairs disabled by the SRDF')
+    return 0
+
+
+def _print_tree(model):
+    children = {}
+    for joint in model.joints:
+        children.setdefault(joint.parent, []).append(joint)
+
+    def show(link, depth):
+        for joint in children.get(link, []):
+            indent = '  ' * (depth + 1)
+            print(f'{indent}{joint.child}  <- {joint.name} ({joint.type}{_limits(joint)})')
+            show(joint.child, depth + 1)
+
+    print(f'  {model.root_link}')
+    show(model.root_link, 1)
+
+
+def _limits(joint):
+    text = ''
+    if joint.type in ('revolute', 'prismatic'):
+        text = f' [{joint.lower:g}, {joint.upper:g}]'
+    if joint.mimic is not None:
+        text += (f', mimics {joint.mimic.joint} x{joint.mimic.multiplier:g} '
+                 f'{joint.mimic.offset:+g}')
+    return text
+
+
+if __name__ == '__main__':
+    sys.exit(main())

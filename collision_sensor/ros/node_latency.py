@@ -1,0 +1,358 @@
+"""Drive the node with joint states at fixed rates from another process; measure drops,
+latency and the node's memory.
+
+Run ``python -m collision_sensor.ros.node_latency`` (1, 2, 3 and 5 kHz, 30 s each: ``--rate
+1000,2000,3000,5000 --duration 30``), or ``--soak`` for ten minutes at the first rate (1 kHz)
+in one-minute windows. The node runs as
+a user runs it: a separate process started from its console script ``collision_sensor_node``
+with a params file (the Panda of example-robot-data, ``joint_states_qos: reliable``). This
+process publishes ``sensor_msgs/JointState`` over reliable QoS from its main thread, each
+stamped with the wall clock at publication, and receives the node's ``colliding_pairs``
+(published right after ``contact``, carrying the joint state's stamp) on an executor thread
+of its own, so for every message:
+
+- dropped: published joint states whose stamp never came back (lost, or skipped by the node
+  under overload: its ``/diagnostics`` counters are printed at the end);
+- latency: wall clock when the verdict reaches this process's callback minus the stamp
+  (publish -> verdict received, both processes on this machine's clock), p50 / p99 / max;
+- wrong: verdicts that differ from ``CollisionChecker.check`` on the same configuration here;
+- the node's RSS (``/proc/<pid>/status``) after the warm-up and at the end.
+
+The highest rate of those tried that had no drop is reported. ``--executor`` sets
+``COLLISION_SENSOR_EXECUTOR`` for the node (see :func:`collision_sensor.ros.sensor_node.make_executor`)
+to compare executors. This is a benchmark, not a test: it asserts nothing. DDS stays in
+shared memory (``FASTDDS_BUILTIN_TRANSPORTS=SHM``) in ``ROS_DOMAIN_ID`` (a random one if unset).
+"""
+import argparse
+import os
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import uuid
+from typing import Optional
+
+import numpy as np
+
+os.environ.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'SHM')
+os.environ.setdefault('ROS_DOMAIN_ID', str(random.SystemRandom().randint(1, 100)))
+
+N_CONFIGURATIONS = 1000     # distinct configurations, cycled through by every run
+
+
+def _node_command(params_file: str, namespace: str):
+    script = os.path.join(os.path.dirname(sys.executable), 'collision_sensor_node')
+    program = [script] if os.path.exists(script) else [sys.executable, '-m',
+                                                       'collision_sensor.ros.node']
+    return program + ['--ros-args', '--params-file', params_file, '-r', f'__ns:={namespace}',
+                      '--log-level', 'warn']
+
+
+def _write_params(directory: str, robot) -> str:
+    import yaml
+    values = {'urdf_path': robot.urdf, 'srdf_path': robot.srdf,
+              'package_paths': [f'{name}={path}' for name, path in robot.package_paths.items()],
+              'joint_states_qos': 'reliable', 'stale_timeout': 0.0}
+    path = os.path.join(directory, 'node_latency.yaml')
+    with open(path, 'w') as stream:
+        yaml.safe_dump({'/**': {'ros__parameters': values}}, stream)
+    return path
+
+
+class Driver:
+    """The bench's side of the DDS link, in this process: a pacing publisher and a verdict
+    recorder on rclpy's public API (the recorder spun by an executor on a thread of its own)."""
+
+    def __init__(self, namespace: str, joint_names, configurations, expected):
+        import rclpy
+        from diagnostic_msgs.msg import DiagnosticArray
+        from rclpy.node import Node
+        from rclpy.parameter import Parameter
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from sensor_msgs.msg import JointState
+
+        from collision_sensor.ros.sensor_node import make_executor
+
+        self.context = rclpy.Context()
+        rclpy.init(args=[], context=self.context)
+        # A lean node: no parameter or type-description services to serve.
+        self.node = Node('node_latency_driver', namespace=namespace, context=self.context,
+                         start_parameter_services=False, enable_rosout=False,
+                         parameter_overrides=[Parameter('start_type_description_service',
+                                                        value=False)])
+        # Deep histories on both sides: the bench must not be the one that drops.
+        self.publisher = self.node.create_publisher(
+            JointState, 'joint_states',
+            QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.VOLATILE))
+        self.subscription = self.node.create_subscription(
+            DiagnosticArray, 'colliding_pairs', self._on_verdict,
+            QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.VOLATILE))
+        self.node_status = {}   # the node's last /diagnostics values
+        self._status_name = f'{namespace.strip("/")}/collision_sensor: collision sensor'
+        self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
+                                      QoSProfile(depth=100,
+                                                 reliability=ReliabilityPolicy.RELIABLE))
+        self.namespace = namespace
+        self.joint_names = list(joint_names)
+        self.configurations = [list(map(float, q)) for q in configurations]
+        self.expected = expected
+        self._msg_type = JointState
+        self.received = []      # (receive wall ns, stamp ns, pair names "a:b")
+        self.sent = {}          # stamp ns -> configuration index
+        self.published_total = 0
+        self._executor = make_executor(self.context)
+        self._executor.add_node(self.node)
+        self._spinner = threading.Thread(target=self._spin, name='driver executor', daemon=True)
+        self._spinner.start()
+
+    def _spin(self):
+        from rclpy.executors import ExternalShutdownException
+        try:
+            while self.context.ok():
+                self._executor.spin_once(timeout_sec=0.1)
+        except ExternalShutdownException:
+            pass
+
+    def _on_verdict(self, msg):
+        # Time first: the latency ends when the verdict reaches this process's callback.
+        now = time.time_ns()
+        stamp = msg.header.stamp
+        self.received.append((now, stamp.sec * 1_000_000_000 + stamp.nanosec,
+                              tuple(status.name for status in msg.status)))
+
+    def _on_diagnostics(self, msg):
+        for status in msg.status:
+            if status.name == self._status_name:
+                self.node_status = {kv.key: kv.value for kv in status.values}
+
+    def spin_until(self, condition, timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        while not condition():
+            if time.monotonic() > deadline:
+                return False
+            time.sleep(0.01)
+        return True
+
+    def wait_for_node(self, timeout: float) -> bool:
+        topic = f'{self.namespace}/joint_states'
+        return self.spin_until(
+            lambda: self.node.count_subscribers(topic) > 0
+            and self.publisher.get_subscription_count() > 0
+            and self.node.count_publishers(f'{self.namespace}/colliding_pairs') > 0, timeout)
+
+    def run(self, rate: float, duration: float, first_index: int = 0) -> dict:
+        """Publish at ``rate`` for ``duration`` seconds; return the figures."""
+        self.received = []
+        self.sent = {}
+        count = int(round(rate * duration))
+        period_ns = int(1e9 / rate)
+        late = 0
+        # One message, reused: only its stamp and positions change.
+        msg = self._msg_type()
+        msg.name = self.joint_names
+        configurations, n = self.configurations, len(self.configurations)
+        stamp = msg.header.stamp
+        began = time.monotonic()
+        start = time.monotonic_ns() + 20_000_000
+        for i in range(count):
+            target = start + i * period_ns
+            delay = target - time.monotonic_ns()
+            if delay > 0:
+                time.sleep(delay / 1e9)
+            elif delay < -period_ns:
+                late += 1
+            index = (first_index + i) % n
+            msg.position = configurations[index]
+            now = time.time_ns()
+            stamp.sec, stamp.nanosec = divmod(now, 1_000_000_000)
+            self.sent[now] = index
+            self.publisher.publish(msg)
+        publish_seconds = time.monotonic() - began
+        self.published_total += count
+        # Stragglers: up to 2 s after the last publication.
+        self.spin_until(lambda: len(self.received) >= count, 2.0)
+        return self._figures(rate, count, publish_seconds, late)
+
+    def _figures(self, rate, count, publish_seconds, late):
+        latencies, wrong = [], 0
+        seen = set()
+        for received_ns, stamp_ns, names in list(self.received):
+            index = self.sent.get(stamp_ns)
+            if index is None:   # a verdict for a message of an earlier run
+                continue
+            seen.add(stamp_ns)
+            latencies.append((received_ns - stamp_ns) / 1e6)
+            if names != self.expected[index]:
+                wrong += 1
+        latencies = np.array(latencies) if latencies else np.array([np.nan])
+        return {
+            'rate_hz': rate, 'published': count,
+            'achieved_publish_rate_hz': count / publish_seconds,
+            'late_publications': late, 'received': len(seen),
+            'dropped': count - len(seen), 'wrong': wrong, 'latencies_ms': latencies,
+            'p50_ms': float(np.percentile(latencies, 50)),
+            'p99_ms': float(np.percentile(latencies, 99)),
+            'max_ms': float(np.max(latencies)),
+        }
+
+    def close(self):
+        import rclpy
+        rclpy.try_shutdown(context=self.context)
+        self._spinner.join(2.0)
+        self._executor.shutdown()
+        self.node.destroy_node()
+
+
+def rss_kib(pid: int) -> Optional[int]:
+    """Return a process's resident set size (KiB) from ``/proc``, or None."""
+    try:
+        with open(f'/proc/{pid}/status') as status:
+            for line in status:
+                if line.startswith('VmRSS:'):
+                    return int(line.split()[1])
+    except OSError:
+        return None
+    return None
+
+
+def _configurations(checker, count: int, seed: int):
+    """Return (count, J) seeded random configurations within limits and their colliding pairs."""
+    rng = np.random.default_rng(seed)
+    names = checker.joint_names
+    lower = np.array([checker.joint_limits[name][0] for name in names])
+    upper = np.array([checker.joint_limits[name][1] for name in names])
+    configurations = rng.uniform(lower, upper, size=(count, len(names)))
+    expected = [tuple(f'{a}:{b}' for a, b in checker.check(dict(zip(names, q))).colliding_pairs)
+                for q in configurations]
+    return configurations, expected
+
+
+def _print_figures(label: str, figures: dict, rss: Optional[int] = None):
+    memory = f'  node RSS {rss / 1024:6.1f} MiB' if rss is not None else ''
+    print(f'{label:>10}: rate {figures["rate_hz"]:5.0f} Hz (published at '
+          f'{figures["achieved_publish_rate_hz"]:7.1f} Hz, {figures["late_publications"]} late)'
+          f'  sent {figures["published"]:6d}  dropped {figures["dropped"]:5d}'
+          f'  wrong {figures["wrong"]:3d}  latency p50 {figures["p50_ms"]:6.3f} ms'
+          f'  p99 {figures["p99_ms"]:6.3f} ms  max {figures["max_ms"]:7.3f} ms{memory}',
+          flush=True)
+
+
+def _soak(driver, rate: float, duration: float, window: float, pid: int) -> None:
+    """Run ``duration`` s at ``rate`` in windows of ``window`` s; print each and the total."""
+    rss_start = rss_kib(pid)
+    print(f'soak: {duration:g} s at {rate:g} Hz in windows of {window:g} s; node RSS at start '
+          f'{rss_start / 1024:.1f} MiB', flush=True)
+    latencies, sent, dropped, wrong, index, elapsed = [], 0, 0, 0, 200, 0.0
+    while elapsed < duration - 1e-9:
+        length = min(window, duration - elapsed)
+        figures = driver.run(rate, length, first_index=index)
+        elapsed += length
+        index += figures['published']
+        sent += figures['published']
+        dropped += figures['dropped']
+        wrong += figures['wrong']
+        latencies.append(figures['latencies_ms'])
+        _print_figures(f'{elapsed:6.0f} s', figures, rss_kib(pid))
+    rss_end = rss_kib(pid)
+    every = np.concatenate(latencies)
+    print(f'soak total: {duration:g} s at {rate:g} Hz  sent {sent}  dropped {dropped}  wrong '
+          f'{wrong}  latency p50 {np.nanpercentile(every, 50):.3f} ms  p99 '
+          f'{np.nanpercentile(every, 99):.3f} ms  max {np.nanmax(every):.3f} ms  node RSS '
+          f'{rss_start / 1024:.1f} -> {rss_end / 1024:.1f} MiB '
+          f'({100.0 * (rss_end - rss_start) / rss_start:+.1f} %)', flush=True)
+
+
+def main(argv=None) -> int:
+    """Run the benchmark; print the figures."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--rate', default='1000,2000,3000,5000',
+                        help='comma-separated rates (Hz), one run each; --soak: the first')
+    parser.add_argument('--duration', type=float, default=None,
+                        help='s of each run (default 30; --soak: 600)')
+    parser.add_argument('--soak', action='store_true',
+                        help='one long run at the first rate, reported per --window')
+    parser.add_argument('--window', type=float, default=60.0, help='s per soak report line')
+    parser.add_argument('--executor', default=None,
+                        help='the node\'s executor: events (default), single or multi')
+    parser.add_argument('--robot', default='panda', help='example robot: panda or ur5')
+    parser.add_argument('--seed', type=int, default=1)
+    args = parser.parse_args(argv)
+    rates = [float(rate) for rate in args.rate.split(',') if rate.strip()]
+    duration = args.duration if args.duration is not None else (600.0 if args.soak else 30.0)
+
+    from collision_sensor import CollisionChecker
+    from collision_sensor.model.example_robots import example_robot
+
+    robot = example_robot(args.robot)
+    environment = dict(os.environ)
+    if args.executor:
+        environment['COLLISION_SENSOR_EXECUTOR'] = args.executor
+    print(f'node_latency: robot {robot.name}, ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}, '
+          f'FASTDDS_BUILTIN_TRANSPORTS={os.environ["FASTDDS_BUILTIN_TRANSPORTS"]}, '
+          f'{os.cpu_count()} cores, node executor '
+          f'{environment.get("COLLISION_SENSOR_EXECUTOR", "default (events)")}', flush=True)
+    checker = CollisionChecker.from_urdf(robot.urdf, srdf=robot.srdf,
+                                         package_paths=robot.package_paths)
+    configurations, expected = _configurations(checker, N_CONFIGURATIONS, args.seed)
+    colliding = sum(1 for pairs in expected if pairs)
+    print(f'{N_CONFIGURATIONS} random configurations, {colliding} colliding', flush=True)
+
+    directory = tempfile.mkdtemp(prefix='node_latency_')
+    namespace = f'/node_latency_{uuid.uuid4().hex[:8]}'
+    command = _node_command(_write_params(directory, robot), namespace)
+    log_path = os.path.join(directory, 'node.log')
+    log = open(log_path, 'w')
+    node = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=environment)
+    driver = None
+    try:
+        driver = Driver(namespace, checker.joint_names, configurations, expected)
+        if not driver.wait_for_node(120.0):
+            print(f'the node did not come up; its log: {log_path}', file=sys.stderr)
+            return 1
+        warm = driver.run(100.0, 2.0)
+        driver.spin_until(lambda: len(driver.received) >= warm['published'], 10.0)
+        _print_figures('warm-up', warm, rss_kib(node.pid))
+        if args.soak:
+            _soak(driver, rates[0], duration, args.window, node.pid)
+        else:
+            best = None
+            for rate in rates:
+                figures = driver.run(rate, duration, first_index=200)
+                _print_figures(f'{duration:g} s', figures, rss_kib(node.pid))
+                if figures['dropped'] == 0:
+                    best = max(best or 0.0, rate)
+            print('highest rate without drops: '
+                  f'{"none of the rates tried" if best is None else f"{best:.0f} Hz"} '
+                  f'(tried {", ".join(f"{rate:g}" for rate in rates)} Hz)', flush=True)
+        # The node's counters once they include every message sent (diagnostics: 1 Hz).
+        driver.spin_until(lambda: int(driver.node_status.get('received_total', -1))
+                          >= driver.published_total, 3.0)
+        d = driver.node_status
+        print('node counters: ' + ', '.join(f'{key} {d.get(key, "?")}' for key in (
+            'received_total', 'verdicts_total', 'skipped_superseded', 'skipped_total',
+            'lost_total', 'check_time_mean_ms')), flush=True)
+        return 0
+    finally:
+        if driver is not None:
+            driver.close()
+        node.send_signal(signal.SIGINT)
+        try:
+            node.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            node.kill()
+            node.wait()
+        log.close()
+        if node.returncode not in (0, -signal.SIGINT):
+            print(f'node exited with {node.returncode}; log kept in {log_path}', file=sys.stderr)
+        else:
+            shutil.rmtree(directory, ignore_errors=True)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,218 @@
+"""collision_sensor_bench: this package against pinocchio+coal and python-fcl, in one run.
+
+``collision_sensor_bench [--quick] [--scenario N ...] [--seed S] [--markdown FILE]
+[--plot FILE.png]``
+
+Every scenario measures our checker and the peers on the same meshes and configurations in
+the same process, so the ratios hold on this machine whatever its speed. The markdown
+(printed, and written with ``--markdown``) is what the README's performance section shows;
+``--plot`` draws query time against triangle count (scenario 4) and the per-configuration
+times of scenario 1. Peers are optional: a missing one is reported as missing.
+
+1. random configurations (Panda, UR5, demo arm in its scene) against pinocchio+coal and
+   python-fcl; 2. coherent streams, ``update`` against ``check``; 3. the paper's experiment
+   (demo arm into the washer); 4. scale (Panda against 10k, 100k and 1M-triangle meshes);
+   5. the parts (box tests, expansion rules, bounding-volume fits, the cost of a call);
+   6. heavy contact (a tool mesh among clutter, against python-fcl); 7. large meshes and
+   many pairs (example-robot-data robots of 50k triangles and more, against pinocchio+coal);
+   8. proximity (distances and nearest points against python-fcl and pinocchio+coal).
+"""
+import argparse
+import datetime
+import importlib.metadata
+import os
+import platform
+import sys
+import tempfile
+import time
+from typing import List, Optional, Sequence
+
+from collision_sensor.tools.bench.scenario_report import Section
+from collision_sensor.tools.bench.scenario_settings import Settings
+
+SCENARIOS = (1, 2, 3, 4, 5, 6, 7, 8)
+PEERS = (('pinocchio', 'pin'), ('coal', 'coal'), ('python-fcl', 'python-fcl'))
+
+
+def run_scenarios(numbers: Sequence[int], settings: Settings, log=None) -> List[Section]:
+    """Run the scenarios ``numbers`` in order; return their sections."""
+    from collision_sensor.tools.bench import (
+        scenario_cells, scenario_contact, scenario_large, scenario_paper, scenario_parts,
+        scenario_proximity, scenario_random, scenario_scale, scenario_streams)
+    log = log or (lambda message: None)
+    sections = []
+    with tempfile.TemporaryDirectory(prefix='collision_sensor_bench_') as workdir:
+        cells = None
+        for number in numbers:
+            log(f'scenario {number} ...')
+            start = time.perf_counter()
+            if number in (1, 2) and cells is None:
+                cells = [scenario_cells.robot_cell('panda'), scenario_cells.robot_cell('ur5'),
+                         scenario_cells.demo_arm_cell(workdir)]
+            if number == 1:
+                section = scenario_random.run(settings, cells)
+            elif number == 2:
+                section = scenario_streams.run(settings, cells)
+            elif number == 3:
+                section = scenario_paper.run(
+                    settings, scenario_cells.demo_arm_cell(workdir, washer_only=True))
+            elif number == 4:
+                section = scenario_scale.run(settings)
+            elif number == 5:
+                section = scenario_parts.run(settings)
+            elif number == 6:
+                section = scenario_contact.run(settings, workdir)
+            elif number == 7:
+                section = scenario_large.run(settings)
+            else:
+                section = scenario_proximity.run(settings)
+            section.plot['seconds'] = time.perf_counter() - start
+            log(f'scenario {number} done in {section.plot["seconds"]:.0f} s')
+            sections.append(section)
+    return sections
+
+
+def _version(distribution: str) -> str:
+    try:
+        return importlib.metadata.version(distribution)
+    except importlib.metadata.PackageNotFoundError:
+        return 'not installed'
+
+
+def _cpu() -> str:
+    try:
+        with open('/proc/cpuinfo') as stream:
+            for line in stream:
+                if line.startswith('model name'):
+                    return line.split(':', 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or 'unknown CPU'
+
+
+def header(settings: Settings, numbers: Sequence[int]) -> List[str]:
+    """Return the report's opening lines: machine, versions, run settings."""
+    from collision_sensor.engine.compiled import engine
+    import numpy
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:
+        cores = os.cpu_count()
+    peers = ', '.join(f'{label} {_version(dist)}' for label, dist in PEERS)
+    when = datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')
+    return [
+        '## Performance (collision_sensor_bench)', '',
+        f'Run {when} on {_cpu()} ({cores} cores available, shared); Python '
+        f'{platform.python_version()}, numpy {numpy.__version__}, engine C++ '
+        f'{engine.COMPILER}; '
+        f'peers: {peers}. Settings: {"--quick, " if settings.quick else ""}seed '
+        f'{settings.seed}, scenarios {", ".join(map(str, numbers))}. Every figure is measured '
+        'in this run; ratios are ours / peer (below 1: we are faster).',
+    ]
+
+
+def summary(sections: Sequence[Section]) -> List[str]:
+    """Return the table of every target with its verdict."""
+    lines = ['', '### Targets', '', '| target | measured | verdict |', '|---|---|---|']
+    verdicts = [v for s in sections for v in s.verdicts]
+    for v in verdicts:
+        lines.append(f'| {v.target} | {v.measured} | **{v.word}** |')
+    if not verdicts:
+        lines.append('| (no scenario with a target was run) | | |')
+    return lines
+
+
+def markdown(settings: Settings, numbers: Sequence[int], sections: Sequence[Section]) -> str:
+    """Return the whole report as markdown."""
+    lines = header(settings, numbers) + summary(sections)
+    for section in sections:
+        lines += ['', f'### {section.title}', ''] + section.lines
+    text = '\n'.join(lines)
+    while '\n\n\n' in text:
+        text = text.replace('\n\n\n', '\n\n')
+    return text.strip() + '\n'
+
+
+def plot(sections: Sequence[Section], path: str) -> None:
+    """Draw scenario 4's query time against triangle count (log x) and scenario 1's bars."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    data = {}
+    for section in sections:
+        data.update(section.plot)
+    panels = [name for name in ('scale', 'random') if data.get(name)]
+    figure, axes = plt.subplots(1, max(1, len(panels)), figsize=(6.0 * max(1, len(panels)), 4.5),
+                                squeeze=False)
+    axes = axes[0]
+    if not panels:
+        axes[0].text(0.5, 0.5, 'no plotted scenario (1 or 4) was run', ha='center',
+                     va='center')
+        axes[0].set_axis_off()
+    for ax, panel in zip(axes, panels):
+        if panel == 'scale':
+            points = data['scale']
+            n = [p['triangles'] for p in points]
+            ax.plot(n, [p['ours_query'] for p in points], 'o-', label='collision_sensor (ours)')
+            if all(p.get('fcl_query') is not None for p in points):
+                ax.plot(n, [p['fcl_query'] for p in points], 's--', label='python-fcl')
+            ax.set_xscale('log')
+            ax.set_ylim(bottom=0)
+            ax.set_xlabel('scene triangles')
+            ax.set_ylabel('us per query (Panda vs terrain)')
+            ax.set_title('Scenario 4: query time against scene size')
+        else:
+            robots = list(data['random'])
+            labels = []
+            for times in data['random'].values():
+                labels += [label for label in times if label not in labels]
+            width = 0.8 / len(labels)
+            for k, label in enumerate(labels):
+                xs = [i + (k - (len(labels) - 1) / 2) * width for i in range(len(robots))]
+                ax.bar(xs, [data['random'][r].get(label, 0.0) for r in robots], width,
+                       label=label)
+            ax.set_xticks(range(len(robots)))
+            ax.set_xticklabels(robots)
+            ax.set_ylabel('us per random configuration')
+            ax.set_title('Scenario 1: full check, random configurations')
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """Run the benchmark; print the markdown and write the requested files."""
+    parser = argparse.ArgumentParser(
+        prog='collision_sensor_bench', description=__doc__.split('\n\n')[0],
+        epilog='Scenarios: ' + __doc__.split('\n\n')[-1].strip().replace('\n  ', ' '))
+    parser.add_argument('--quick', action='store_true',
+                        help='small counts and meshes, for a smoke run (figures are rough)')
+    parser.add_argument('--scenario', type=int, action='append', choices=SCENARIOS,
+                        metavar='N', help='run scenario N (1-5); repeatable; default: all')
+    parser.add_argument('--seed', type=int, default=Settings.seed,
+                        help=f'seed of every random input (default {Settings.seed})')
+    parser.add_argument('--markdown', metavar='FILE', help='also write the table here')
+    parser.add_argument('--plot', metavar='FILE.png', help='write the plot here')
+    args = parser.parse_args(argv)
+    numbers = sorted(set(args.scenario or SCENARIOS))
+    settings = Settings.for_run(args.quick, args.seed)
+
+    def log(message):
+        print(f'[collision_sensor_bench] {message}', file=sys.stderr, flush=True)
+
+    sections = run_scenarios(numbers, settings, log)
+    text = markdown(settings, numbers, sections)
+    print(text)
+    if args.markdown:
+        with open(args.markdown, 'w', encoding='utf-8') as stream:
+            stream.write(text)
+    if args.plot:
+        plot(sections, args.plot)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

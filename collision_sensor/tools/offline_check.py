@@ -1,0 +1,374 @@
+"""``collision_sensor_check``: run the collision checker over a recorded sequence, without ROS.
+
+Every frame goes through ``checker.update`` (the incremental check, sec. 4 of the paper) in
+order; ``--full`` uses ``checker.check`` instead. The robot defaults to the bundled demo cell
+(``config/demo_arm.urdf`` with its SRDF and ``config/demo_scene.yaml``)::
+
+    collision_sensor_check paper_experiment --plot contacts.png
+    collision_sensor_check run.mcap --urdf my_robot.urdf --package-path my_robot=~/ws/src/my_robot
+
+With ``--max-distance D`` (default 0.1 m; 0 turns it off) each frame also gets the smallest
+distance between the checked pairs nearer than D (``CollisionChecker.proximity``: 0 in
+collision), in the JSON lines, the summary and under the timeline of ``--plot``.
+
+Exit status: 0 no frame in collision, 1 at least one frame in collision, 2 error (the error is
+one line on stderr: ``collision_sensor_check: error: ...``).
+"""
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass
+from typing import Dict, List, Optional, Sequence, TextIO, Tuple
+
+import numpy as np
+
+from collision_sensor.errors import ConfigError
+from collision_sensor.model.mesh_loading import parse_package_paths
+from collision_sensor.model.sequences import DEFAULT_TOPIC, JointSequence, read_sequence
+from collision_sensor.model.xacro_expansion import parse_xacro_args
+from collision_sensor.tools.command_line import run_command
+from collision_sensor.tools.progress import MODES, ProgressBar
+
+PROG = 'collision_sensor_check'
+DEFAULT_MAX_DISTANCE = 0.1
+EXIT_CLEAR, EXIT_COLLISION, EXIT_ERROR = 0, 1, 2
+BUNDLED_SEQUENCES = ('paper_experiment', 'into_drum_clear', 'random')
+
+Pair = Tuple[str, str]
+
+
+@dataclass(frozen=True)
+class FrameResult:
+    """One frame's answer and how long the check took.
+
+    ``min_distance`` is the smallest distance of a checked pair (0 in collision) when some
+    pair was nearer than the run's max_distance, else None (also when not measured);
+    ``nearest_pair`` is that pair. The distance is measured after ``seconds`` was taken.
+    """
+
+    index: int
+    time: float
+    in_collision: bool
+    pairs: Tuple[Pair, ...]
+    seconds: float
+    min_distance: Optional[float] = None
+    nearest_pair: Optional[Pair] = None
+
+
+@dataclass(frozen=True)
+class PairSpan:
+    """A pair's contact over a sequence: first and last frame time, frame count, duration."""
+
+    pair: Pair
+    first: float
+    last: float
+    frames: int
+    duration: float
+
+
+def run_sequence(checker, seq: JointSequence, incremental: bool = True,
+                 progress: Optional[ProgressBar] = None,
+                 max_distance: float = 0.0) -> List[FrameResult]:
+    """Check every frame of ``seq`` in order.
+
+    The first frame is checked once from scratch before timing starts, so the per-frame times
+    measure the steady state (not one-off compilation).
+    :param seq: columns in ``checker.joint_names`` order.
+    :param max_distance: with a value > 0, each frame's nearest pair closer than this (m) is
+        measured too (``checker.proximity``, outside the timed check).
+    """
+    check = checker.update if incremental else checker.check
+    if len(seq):
+        checker.check(seq.positions[0])
+    results = []
+    for index, (t, q) in enumerate(zip(seq.times.tolist(), seq.positions)):
+        start = time.perf_counter()
+        result = check(q)
+        elapsed = time.perf_counter() - start
+        nearest, distance = None, None
+        if max_distance > 0:
+            records = checker.proximity(q, max_distance)  # the state is q already: no re-check
+            if records:
+                nearest, distance = (records[0].link_a, records[0].link_b), records[0].distance
+        results.append(FrameResult(index, t, bool(result.in_collision),
+                                   tuple(tuple(pair) for pair in result.colliding_pairs),
+                                   elapsed, distance, nearest))
+        if progress is not None:
+            progress.update(index + 1)
+    return results
+
+
+def frame_durations(times: np.ndarray) -> np.ndarray:
+    """Return how long each frame stands: until the next frame; the last one as the one before.
+
+    :param times: (n,) float seconds, increasing. :return: (n,) float seconds (0 for n = 1).
+    """
+    if len(times) < 2:
+        return np.zeros(len(times))
+    gaps = np.diff(times)
+    return np.append(gaps, gaps[-1])
+
+
+def pair_spans(results: Sequence[FrameResult]) -> List[PairSpan]:
+    """Return each pair ever in contact with its first and last time, sorted by first time."""
+    durations = frame_durations(np.array([r.time for r in results]))
+    seen: Dict[Pair, list] = {}
+    for result, duration in zip(results, durations):
+        for pair in result.pairs:
+            span = seen.setdefault(pair, [result.time, result.time, 0, 0.0])
+            span[1] = result.time
+            span[2] += 1
+            span[3] += duration
+    spans = [PairSpan(pair, first, last, frames, duration)
+             for pair, (first, last, frames, duration) in seen.items()]
+    return sorted(spans, key=lambda s: (s.first, s.pair))
+
+
+def json_line(result: FrameResult) -> str:
+    """Return the frame's JSON line: ``{"index", "time", "in_collision", "pairs",
+    "min_distance", "nearest_pair"}`` (the last two null when no pair was within the
+    max distance)."""
+    return json.dumps({'index': result.index, 'time': result.time,
+                       'in_collision': result.in_collision,
+                       'pairs': [list(pair) for pair in result.pairs],
+                       'min_distance': result.min_distance,
+                       'nearest_pair': (list(result.nearest_pair) if result.nearest_pair
+                                        else None)})
+
+
+def distance_summary(results: Sequence[FrameResult], t0: float, max_distance: float) -> str:
+    """Return the summary's distance line: the closest approach while clear, and where."""
+    clear = [r for r in results if not r.in_collision and r.min_distance is not None]
+    if not clear:
+        return f'closest approach while clear: no pair within {max_distance:g} m'
+    r = min(clear, key=lambda r: r.min_distance)
+    a, b = r.nearest_pair
+    return (f'closest approach while clear: {r.min_distance:.6f} m ({a} -- {b}) at '
+            f'{r.time - t0:.3f} s; {len(clear)} clear frames with a pair within '
+            f'{max_distance:g} m')
+
+
+def summary(results: Sequence[FrameResult], seq: JointSequence, checker,
+            incremental: bool = True, max_distance: float = 0.0) -> str:
+    """Return the human summary: frames and time in collision, pairs, check time."""
+    n = len(results)
+    t0 = float(seq.times[0]) if n else 0.0
+    durations = frame_durations(seq.times)
+    colliding = [r for r in results if r.in_collision]
+    in_contact = float(sum(d for r, d in zip(results, durations) if r.in_collision))
+    lines = [f'sequence:  {seq.source} ({n} frames, {seq.duration:.2f} s)',
+             f'robot:     {len(checker.joint_names)} joints, {len(checker.link_names)} links, '
+             f'{len(checker.checked_pairs)} pairs checked',
+             f'frames in collision: {len(colliding)} of {n}'
+             + (f' ({100.0 * len(colliding) / n:.1f} %)' if n else ''),
+             f'time in collision:   {in_contact:.3f} s of {seq.duration:.3f} s']
+    spans = pair_spans(results)
+    if spans:
+        width = max(len(f'{a} -- {b}') for a, b in (s.pair for s in spans))
+        lines.append('pairs in contact (times from the first frame):')
+        for s in spans:
+            name = f'{s.pair[0]} -- {s.pair[1]}'
+            lines.append(f'  {name:<{width}}  first {s.first - t0:8.3f} s  '
+                         f'last {s.last - t0:8.3f} s  {s.frames:5d} frames  '
+                         f'{s.duration:7.3f} s')
+    if max_distance > 0:
+        lines.append(distance_summary(results, t0, max_distance))
+    if n:
+        ms = np.array([r.seconds for r in results]) * 1e3
+        mode = 'incremental update' if incremental else 'full check'
+        lines.append(f'check time per frame ({mode}): mean {ms.mean():.3f} ms, '
+                     f'median {np.median(ms):.3f} ms, max {ms.max():.3f} ms')
+    lines.append('result: ' + ('COLLISION' if colliding else 'clear'))
+    return '\n'.join(lines)
+
+
+def plot_timeline(results: Sequence[FrameResult], seq: JointSequence, path: str,
+                  max_distance: float = 0.0) -> None:
+    """Draw the contact timeline to ``path`` (PNG): one row per pair, bars where in contact;
+    with ``max_distance`` > 0, below it each frame's minimum distance (gaps where no pair was
+    within ``max_distance``)."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    times = np.array([r.time for r in results])
+    t0 = float(times[0]) if len(times) else 0.0
+    durations = frame_durations(times)
+    spans = pair_spans(results)
+    rows = ['any pair'] + [f'{a} -- {b}' for a, b in (s.pair for s in spans)]
+    height = 1.2 + 0.35 * len(rows)
+    if max_distance > 0:
+        fig, (ax, ax_d) = plt.subplots(2, 1, sharex=True, figsize=(10.0, height + 2.2),
+                                       gridspec_kw={'height_ratios': [height, 2.2]})
+    else:
+        fig, ax = plt.subplots(figsize=(10.0, height))
+    try:
+        def stretches(flags):
+            """Yield (start, width) in seconds of runs of True frames."""
+            index = 0
+            while index < len(flags):
+                if flags[index]:
+                    end = index
+                    while end + 1 < len(flags) and flags[end + 1]:
+                        end += 1
+                    yield times[index] - t0, times[end] - times[index] + durations[end]
+                    index = end + 1
+                else:
+                    index += 1
+        flags = [[r.in_collision for r in results]]
+        flags += [[s.pair in r.pairs for r in results] for s in spans]
+        for row, row_flags in enumerate(flags):
+            y = len(rows) - 1 - row
+            ax.broken_barh(list(stretches(row_flags)), (y - 0.35, 0.7),
+                           facecolors='tab:red' if row == 0 else 'tab:orange')
+        ax.set_yticks(range(len(rows)))
+        ax.set_yticklabels(rows[::-1])
+        end = (times[-1] - t0 + durations[-1]) if len(times) else 1.0
+        ax.set_xlim(0.0, end if end > 0 else 1.0)
+        ax.set_ylim(-0.6, len(rows) - 0.4)
+        ax.grid(axis='x', alpha=0.3)
+        if max_distance > 0:
+            distance = [math.nan if r.min_distance is None else r.min_distance for r in results]
+            ax_d.plot(times - t0, distance, color='tab:blue', lw=1.2)
+            ax_d.set_ylim(0.0, max_distance * 1.05)
+            ax_d.set_ylabel('min distance [m]')
+            ax_d.grid(alpha=0.3)
+            ax_d.set_xlabel('time from the first frame [s]')
+        else:
+            ax.set_xlabel('time from the first frame [s]')
+        title = f'contacts: {os.path.basename(seq.source)}'
+        if not spans:
+            title += ' (no contact)'
+        ax.set_title(title)
+        fig.tight_layout()
+        fig.savefig(path, dpi=100)
+    finally:
+        plt.close(fig)
+
+
+def _load_config(path: Optional[str]):
+    if path is None:
+        return None
+    import yaml
+    try:
+        with open(path, encoding='utf-8') as stream:
+            config = yaml.safe_load(stream)
+    except OSError as err:
+        raise ConfigError(f'--config {path}: cannot read: {err.strerror}') from None
+    except yaml.YAMLError as err:
+        raise ConfigError(f'--config {path}: not valid YAML: {err}') from None
+    if config is None:
+        return {}
+    if not isinstance(config, dict):
+        raise ConfigError(f'--config {path}: expected a mapping of settings, e.g. '
+                          '"motion_tolerance: 0.001"')
+    return config
+
+
+def bundled_sequence_path(value: str) -> str:
+    """Return ``value``, or the bundled sequence it names (``paper_experiment``, ...)."""
+    if os.path.exists(value) or os.sep in value:
+        return value
+    from collision_sensor.model.share import config_path
+    for candidate in (config_path('sequences', value + '.csv'), config_path('sequences', value)):
+        if os.path.exists(candidate):
+            return candidate
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the command-line parser."""
+    parser = argparse.ArgumentParser(
+        prog=PROG,
+        description='Check a recorded joint-state sequence for collisions, frame by frame, '
+                    'with the incremental checker; no ROS needed.',
+        epilog='exit status: 0 no frame in collision, 1 collisions found, 2 error. '
+               f'Bundled sequences: {", ".join(BUNDLED_SEQUENCES)}. '
+               'Without --urdf the robot is the demo cell (demo_arm.urdf, its SRDF, '
+               'demo_scene.yaml); with --urdf, --srdf and --scene default to none.',
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('sequence', metavar='SEQUENCE',
+                        help='CSV file, rosbag2 bag (directory, .mcap or .db3), or the name of '
+                             'a bundled sequence')
+    parser.add_argument('--urdf', help='robot description (default: the demo arm)')
+    parser.add_argument('--srdf', help='SRDF with disable_collisions pairs')
+    parser.add_argument('--package-path', metavar='NAME=DIR', action='append', default=[],
+                        help='directory of a package named in package:// URIs (repeatable)')
+    parser.add_argument('--xacro-arg', metavar='NAME:=VALUE', action='append', default=[],
+                        help='argument of a .xacro robot description (repeatable)')
+    parser.add_argument('--scene', help='scene YAML file (default with the demo arm: the '
+                                        'demo washer)')
+    parser.add_argument('--no-scene', action='store_true', help='check the robot alone')
+    parser.add_argument('--config', metavar='YAML', help='YAML mapping of checker settings')
+    parser.add_argument('--topic', default=DEFAULT_TOPIC,
+                        help='JointState topic in a bag (default %(default)s)')
+    parser.add_argument('--json', metavar='FILE',
+                        help='write one JSON line per frame: {"index", "time", '
+                             '"in_collision", "pairs", "min_distance", "nearest_pair"} (the '
+                             'last two null when no pair is within --max-distance); "-" for '
+                             'stdout (the summary then goes to stderr)')
+    parser.add_argument('--plot', metavar='FILE.png',
+                        help='draw the contact timeline (and the minimum distance below it)')
+    parser.add_argument('--max-distance', metavar='M', type=float, default=DEFAULT_MAX_DISTANCE,
+                        help='measure each frame\'s smallest pair distance below M metres '
+                             '(default %(default)s; 0: do not measure)')
+    parser.add_argument('--full', action='store_true',
+                        help='check every frame from scratch instead of incrementally')
+    parser.add_argument('--progress', choices=MODES, default='auto',
+                        help='progress bar on stderr: auto (on a terminal), always, never')
+    return parser
+
+
+def _run(args) -> int:
+    from collision_sensor import CollisionChecker
+    from collision_sensor.model.share import config_path
+
+    if not (args.max_distance >= 0 and math.isfinite(args.max_distance)):
+        raise ConfigError(f'--max-distance {args.max_distance}: expected a finite distance >= 0 '
+                          '(metres; 0: do not measure)')
+    package_paths = parse_package_paths(args.package_path)
+    if args.urdf is None:
+        urdf, srdf = config_path('demo_arm.urdf'), args.srdf or config_path('demo_arm.srdf')
+        scene = args.scene or config_path('demo_scene.yaml')
+    else:
+        urdf, srdf, scene = args.urdf, args.srdf, args.scene
+    if args.no_scene:
+        scene = None
+    checker = CollisionChecker.from_urdf(urdf, srdf=srdf, package_paths=package_paths or None,
+                                         scene=scene, config=_load_config(args.config),
+                                         xacro_args=parse_xacro_args(args.xacro_arg) or None)
+    seq = read_sequence(bundled_sequence_path(args.sequence), topic=args.topic,
+                        joint_names=checker.joint_names)
+
+    label = os.path.basename(os.path.normpath(seq.source))
+    with ProgressBar(len(seq), label=label, mode=args.progress) as progress:
+        results = run_sequence(checker, seq, incremental=not args.full, progress=progress,
+                               max_distance=args.max_distance)
+
+    to_stdout = args.json == '-'
+    if args.json:
+        stream: TextIO = sys.stdout if to_stdout else open(args.json, 'w', encoding='utf-8')
+        try:
+            for result in results:
+                stream.write(json_line(result) + '\n')
+        finally:
+            if not to_stdout:
+                stream.close()
+    if args.plot:
+        plot_timeline(results, seq, args.plot, max_distance=args.max_distance)
+    print(summary(results, seq, checker, incremental=not args.full,
+                  max_distance=args.max_distance),
+          file=sys.stderr if to_stdout else sys.stdout)
+    return EXIT_COLLISION if any(r.in_collision for r in results) else EXIT_CLEAR
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """Run the tool; return the exit status (0 clear, 1 collisions, 2 error)."""
+    return run_command(PROG, build_parser(), _run, argv)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

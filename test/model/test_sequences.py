@@ -1,0 +1,176 @@
+"""Sequences: CSV and rosbag2 (mcap, sqlite3) round trips, and every bad-input rule."""
+import numpy as np
+import pytest
+
+from collision_sensor.errors import SequenceError
+from collision_sensor.model.sequences import JointSequence, read_sequence, write_sequence
+
+JOINTS = ('shoulder_pan', 'shoulder_lift', 'elbow')
+
+
+@pytest.fixture
+def seq():
+    rng = np.random.default_rng(7)
+    times = np.round(np.arange(40) * 0.02 + 0.5, 6)   # whole nanoseconds: exact in a bag
+    return JointSequence(JOINTS, times, rng.uniform(-3.0, 3.0, (40, 3)), 'seeded')
+
+
+def _csv(tmp_path, text, name='s.csv'):
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+@pytest.mark.parametrize('name, fmt', [('s.csv', None), ('s.mcap', None), ('s.db3', None),
+                                       ('bag_mcap', 'mcap'), ('bag_sqlite', 'sqlite3')])
+def test_round_trip_gives_the_same_sequence(tmp_path, seq, name, fmt):
+    path = tmp_path / name
+    write_sequence(seq, path, fmt=fmt)
+    back = read_sequence(path)
+    assert back.joint_names == seq.joint_names
+    assert np.array_equal(back.times, seq.times)
+    assert np.array_equal(back.positions, seq.positions)   # bit for bit
+
+
+def test_bag_directory_has_metadata_and_storage(tmp_path, seq):
+    write_sequence(seq, tmp_path / 'bag', fmt='mcap')
+    assert sorted(p.name for p in (tmp_path / 'bag').iterdir()) == ['bag.mcap', 'metadata.yaml']
+
+
+def test_joint_names_reorder_columns(tmp_path, seq):
+    write_sequence(seq, tmp_path / 's.csv')
+    back = read_sequence(tmp_path / 's.csv', joint_names=['elbow', 'shoulder_pan',
+                                                           'shoulder_lift'])
+    assert back.joint_names == ('elbow', 'shoulder_pan', 'shoulder_lift')
+    assert np.array_equal(back.positions, seq.positions[:, [2, 0, 1]])
+
+
+def test_csv_comments_and_blank_lines_are_skipped(tmp_path):
+    path = _csv(tmp_path, '# note\n\ntime,a,b\n0.0,1,2\n# mid\n0.5,3,4\n\n')
+    back = read_sequence(path)
+    assert back.joint_names == ('a', 'b')
+    assert back.times.tolist() == [0.0, 0.5]
+    assert back.positions.tolist() == [[1.0, 2.0], [3.0, 4.0]]
+
+
+def _bag_from_messages(path, messages):
+    """Write JointState messages (stamp_ns, names, positions) to an mcap bag directory.
+
+    The bag's log times increase by 1 ms per message whatever the header stamps say.
+    """
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+    store = get_typestore(Stores.ROS2_JAZZY)
+    JS = store.types['sensor_msgs/msg/JointState']
+    Header = store.types['std_msgs/msg/Header']
+    Time = store.types['builtin_interfaces/msg/Time']
+    writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
+    writer.open()
+    connection = writer.add_connection('/joint_states', JS.__msgtype__, typestore=store)
+    empty = np.zeros(0)
+    for index, (stamp, names, positions) in enumerate(messages):
+        msg = JS(header=Header(stamp=Time(sec=stamp // 10**9, nanosec=stamp % 10**9),
+                               frame_id=''),
+                 name=list(names), position=np.array(positions, dtype=float),
+                 velocity=empty, effort=empty)
+        writer.write(connection, (index + 1) * 10**6, store.serialize_cdr(msg, JS.__msgtype__))
+    writer.close()
+
+
+def test_partial_joint_states_merge_into_frames(tmp_path):
+    path = tmp_path / 'bag'
+    _bag_from_messages(path, [
+        (10**9, ['a'], [1.0]),                 # b not seen yet: no frame
+        (2 * 10**9, ['b', 'gripper'], [2.0, 9.0]),   # first frame (a=1, b=2); gripper ignored
+        (3 * 10**9, ['a'], [3.0]),             # a=3, b carried
+        (3 * 10**9, ['b'], [4.0]),             # same stamp: updates that frame
+    ])
+    back = read_sequence(path, joint_names=['a', 'b'])
+    assert back.times.tolist() == [2.0, 3.0]
+    assert back.positions.tolist() == [[1.0, 2.0], [3.0, 4.0]]
+
+
+def test_bag_missing_joint_is_an_error(tmp_path):
+    path = tmp_path / 'bag'
+    _bag_from_messages(path, [(10**9, ['a'], [1.0])])
+    with pytest.raises(SequenceError, match=r'never names joint\(s\) \[.b.\]'):
+        read_sequence(path, joint_names=['a', 'b'])
+
+
+def test_bag_stamps_going_back_are_an_error(tmp_path):
+    path = tmp_path / 'bag'
+    _bag_from_messages(path, [(2 * 10**9, ['a'], [1.0]), (1 * 10**9, ['a'], [2.0])])
+    with pytest.raises(SequenceError, match='message 1: .* earlier than'):
+        read_sequence(path)
+
+
+def test_bag_unknown_topic_names_the_topics_it_has(tmp_path, seq):
+    write_sequence(seq, tmp_path / 'bag', fmt='mcap')
+    with pytest.raises(SequenceError, match=r'no topic "/other".*/joint_states'):
+        read_sequence(tmp_path / 'bag', topic='/other')
+
+
+# --- the bad-input rules: each names the file, the place and the fix ---------------------------
+
+@pytest.mark.parametrize('text, pattern', [
+    ('', r'empty file; expected a header "time,<joint>'),
+    ('# only a comment\n', 'empty file'),
+    ('time,a,b\n', 'no frames after the header'),
+    ('t,a\n0,1\n', r'line 1: the first column is "t", expected "time"'),
+    ('time,a,a\n0,1,2\n', r"line 1: column\(s\) \['a'\] appear more than once"),
+    ('time,a,b\n0,1\n', r'line 2: 2 values, expected 3'),
+    ('time,a,b\n0,1,x\n', r'line 2, column "b": "x" is not a number'),
+    ('time,a,b\n0,1,nan\n', r'line 2, column "b": nan is not a finite number'),
+    ('time,a,b\n0,1,2\n0,1,2\n', r'line 3: time 0 is not after .* strictly increase'),
+    ('time,a,b\n1,1,2\n0.5,1,2\n', r'line 3: time 0.5 is not after'),
+])
+def test_bad_csv_is_reported_with_file_line_and_fix(tmp_path, text, pattern):
+    path = _csv(tmp_path, text)
+    with pytest.raises(SequenceError, match=pattern) as info:
+        read_sequence(path)
+    assert path in str(info.value)
+
+
+def test_unknown_column_names_the_robots_joints(tmp_path):
+    path = _csv(tmp_path, 'time,a,elbw\n0,1,2\n')
+    with pytest.raises(SequenceError, match=r"line 1: unknown joint column\(s\) \['elbw'\]; "
+                                            r"the robot's joints are \['a', 'elbow'\]"):
+        read_sequence(path, joint_names=['a', 'elbow'])
+
+
+def test_missing_column_is_reported(tmp_path):
+    path = _csv(tmp_path, 'time,a\n0,1\n')
+    with pytest.raises(SequenceError, match=r"line 1: no column for joint\(s\) \['b'\]"):
+        read_sequence(path, joint_names=['a', 'b'])
+
+
+def test_unreadable_files_are_reported(tmp_path):
+    with pytest.raises(SequenceError, match='no such file'):
+        read_sequence(tmp_path / 'missing.csv')
+    (tmp_path / 'plain_dir').mkdir()
+    with pytest.raises(SequenceError, match='without metadata.yaml is not a rosbag2 bag'):
+        read_sequence(tmp_path / 'plain_dir')
+    (tmp_path / 'binary.csv').write_bytes(b'\xff\xfe\x00time')
+    with pytest.raises(SequenceError, match='cannot read'):
+        read_sequence(tmp_path / 'binary.csv')
+    (tmp_path / 'broken.mcap').write_bytes(b'not an mcap file at all')
+    with pytest.raises(SequenceError, match='broken.mcap: cannot read the bag'):
+        read_sequence(tmp_path / 'broken.mcap')
+    (tmp_path / 's.txt').write_text('time,a\n0,1\n')
+    with pytest.raises(SequenceError, match='unknown sequence format ".txt"'):
+        read_sequence(tmp_path / 's.txt')
+
+
+def test_writing_a_bag_over_an_existing_path_is_refused(tmp_path, seq):
+    write_sequence(seq, tmp_path / 'bag', fmt='mcap')
+    with pytest.raises(SequenceError, match='exists already'):
+        write_sequence(seq, tmp_path / 'bag', fmt='mcap')
+
+
+def test_sequence_rejects_non_increasing_times_and_nan():
+    with pytest.raises(SequenceError, match='frame 1: .* strictly increase'):
+        JointSequence(('a',), np.array([0.0, 0.0]), np.zeros((2, 1)))
+    with pytest.raises(SequenceError, match='finite'):
+        JointSequence(('a',), np.array([0.0, 1.0]), np.array([[0.0], [np.nan]]))
+    with pytest.raises(SequenceError, match='shape'):
+        JointSequence(('a', 'b'), np.array([0.0, 1.0]), np.zeros((2, 1)))

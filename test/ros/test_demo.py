@@ -1,0 +1,139 @@
+"""``collision_sensor_demo`` (``make demo``) as a user runs it: a subprocess from its console
+script, which starts ``collision_sensor_node`` as a process of its own, in a random domain over
+shared memory. Its summary must agree with ``collision_sensor_check`` on the same sequence.
+"""
+import json
+import os
+import random
+import re
+import subprocess
+import threading
+import time
+
+import pytest
+
+from collision_sensor.ros import demo
+from collision_sensor.tools import offline_check
+from executables import console_script
+
+pytest.importorskip('rclpy')
+
+DEMO = console_script('collision_sensor_demo')
+
+
+def run_demo(*args, timeout=300):
+    env = dict(os.environ, FASTDDS_BUILTIN_TRANSPORTS='SHM',
+               ROS_DOMAIN_ID=str(random.SystemRandom().randint(1, 100)))
+    return subprocess.run([DEMO, *args], capture_output=True, text=True, env=env,
+                          timeout=timeout)
+
+
+def offline(name, tmp_path, capsys):
+    """Return the frames and pair spans ``collision_sensor_check NAME --json`` reports."""
+    path = tmp_path / f'{name}.jsonl'
+    offline_check.main([name, '--json', str(path), '--progress', 'never'])
+    capsys.readouterr()
+    frames = [json.loads(line) for line in path.read_text().splitlines()]
+    results = [offline_check.FrameResult(f['index'], f['time'], f['in_collision'],
+                                         tuple(tuple(p) for p in f['pairs']), 0.0)
+               for f in frames]
+    return frames, offline_check.pair_spans(results)
+
+
+def test_make_demo_reports_the_contacts_of_the_offline_check(tmp_path, capsys):
+    run = run_demo()    # what `make demo` runs: the paper's experiment at its recorded timing
+    assert run.returncode == 0, run.stdout + run.stderr
+    out = run.stdout
+    frames, spans = offline('paper_experiment', tmp_path, capsys)
+    n, hits = len(frames), sum(f['in_collision'] for f in frames)
+
+    assert 'robot loaded from urdf_path' in out    # the node's own log line, echoed
+    # The node said it was ready (trees built, query run once) before the demo played.
+    ready = out.index('node | [INFO] ready: checking /collision_sensor_demo/joint_states')
+    assert out.index('robot loaded from urdf_path') < ready < out.index('node up after')
+    assert 'Traceback' not in out + run.stderr
+    # Contacts as they happen: each pair enters (+) as often as it leaves (-), first at its
+    # first frame.
+    changes = re.findall(r'^\s+(\d+\.\d+) s\s+(?:CONTACT|clear)?\s*([+-]) (\S+) -- (\S+)$',
+                         out, re.MULTILINE)
+    assert changes, out
+    for span in spans:
+        entered = [float(t) for t, sign, a, b in changes if sign == '+' and (a, b) == span.pair]
+        left = [t for t, sign, a, b in changes if sign == '-' and (a, b) == span.pair]
+        assert entered and len(entered) == len(left), span.pair
+        assert entered[0] == pytest.approx(span.first - frames[0]['time'], abs=1e-3)
+    # The summary.
+    assert f'frames:              {n} played' in out and f'{n} verdicts' in out
+    assert re.search(rf'frames in collision: {hits} of {n}\b', out), out
+    for span in spans:
+        name = f'{span.pair[0]} -- {span.pair[1]}'
+        assert re.search(rf'{re.escape(name)}\s+first\s+{span.first - frames[0]["time"]:.3f} s'
+                         rf'\s+last\s+{span.last - frames[0]["time"]:.3f} s\s+{span.frames} '
+                         'frames', out), name
+    assert re.search(r'node check time \(/diagnostics\): mean \d+\.\d+ ms', out), out
+    assert 'result: COLLISION' in out
+
+
+def test_a_clear_sequence_played_as_fast_as_possible(tmp_path, capsys):
+    run = run_demo('--sequence', 'into_drum_clear', '--as-fast-as-possible')
+    assert run.returncode == 0, run.stdout + run.stderr
+    frames, _ = offline('into_drum_clear', tmp_path, capsys)
+    assert f'frames in collision: 0 of {len(frames)}' in run.stdout
+    assert 'pairs in contact:    none' in run.stdout and 'result: clear' in run.stdout
+
+
+def test_a_node_that_does_not_come_up_in_time_is_a_clear_error():
+    run = run_demo('--timeout', '0.01')
+    assert run.returncode == 1, run.stdout + run.stderr
+    assert re.search(r'collision_sensor_demo: error: collision_sensor_node did not subscribe '
+                     r'to /collision_sensor_demo/joint_states within 0\.01 s \(--timeout\)',
+                     run.stderr)
+    assert 'Traceback' not in run.stdout + run.stderr
+
+
+class FakeNode:
+    """A node process that becomes ready, or exits, after some seconds."""
+
+    def __init__(self, ready_after=None, exit_after=None, status=1):
+        self.ready = threading.Event()
+        self._started = time.monotonic()
+        self._ready_after, self._exit_after, self._status = ready_after, exit_after, status
+        if ready_after is not None:
+            threading.Timer(ready_after, self.ready.set).start()
+
+    def exited(self):
+        if self._exit_after is not None and time.monotonic() - self._started > self._exit_after:
+            return self._status
+        return None
+
+
+class Matched:
+    def get_subscription_count(self):
+        return 1
+
+    def get_publisher_count(self):
+        return 1
+
+    topic_name = '/demo/joint_states'
+
+
+def test_a_slow_start_is_waited_for_with_progress_lines():
+    said = []
+    seconds = demo.wait_until_ready(FakeNode(ready_after=0.6), Matched(), Matched(), None,
+                                    said.append, progress_period=0.2)
+    assert seconds >= 0.6 and len(said) >= 2
+    assert all(line.startswith('still waiting for collision_sensor_node to be ready')
+               for line in said)
+
+
+def test_a_node_that_exits_while_starting_is_a_clear_error():
+    with pytest.raises(demo.DemoError, match='exited with status 1 before it was ready'):
+        demo.wait_until_ready(FakeNode(exit_after=0.1), Matched(), Matched(), None,
+                              lambda line: None)
+
+
+def test_a_bad_sequence_fails_before_ros_starts(tmp_path):
+    run = run_demo('--sequence', str(tmp_path / 'missing.csv'))
+    assert run.returncode == 2
+    assert run.stderr.startswith('collision_sensor_demo: error: ') and 'missing.csv' in run.stderr
+    assert 'starting collision_sensor_node' not in run.stdout

@@ -1,0 +1,101 @@
+"""Smoke tests of collision_sensor_bench: it runs, writes its table and plot; no timing checks."""
+import sys
+
+import numpy as np
+import pytest
+
+from collision_sensor.tools.bench import main as bench
+from collision_sensor.tools.bench.scenario_cells import wavy_terrain
+from collision_sensor.tools.bench.scenario_scale import growth_fits
+
+HEADERS = ('### Scenario 1: random configurations', '### Scenario 2: coherent streams',
+           "### Scenario 3: the paper's experiment", '### Scenario 4: scale',
+           '### Scenario 5: the parts')
+
+
+def _installed(module):
+    import importlib.util
+    return importlib.util.find_spec(module) is not None
+
+
+def test_quick_run_writes_every_scenario_and_a_png(tmp_path, capsys):
+    table, png = tmp_path / 'bench.md', tmp_path / 'bench.png'
+    assert bench.main(['--quick', '--markdown', str(table), '--plot', str(png)]) == 0
+    text = table.read_text()
+    for header in HEADERS:
+        assert header in text, header
+    assert '### Targets' in text
+    assert capsys.readouterr().out.strip() == text.strip()     # printed as written
+    for word in ('PASS', 'MISS'):                 # every verdict is one of the two words
+        text = text.replace(f'**{word}**', '')
+    if _installed('fcl') and _installed('pinocchio'):
+        assert '**n/a**' not in text              # with every peer installed, all are judged
+    assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+def test_missing_peers_are_reported_not_faked(tmp_path, monkeypatch):
+    pytest.importorskip('fcl')
+    for module in ('fcl', 'pinocchio', 'coal'):
+        monkeypatch.setitem(sys.modules, module, None)    # import raises ImportError
+    table = tmp_path / 'bench.md'
+    assert bench.main(['--quick', '--scenario', '3', '--scenario', '4',
+                       '--markdown', str(table), '--plot', str(tmp_path / 'p.png')]) == 0
+    text = table.read_text()
+    assert 'not installed (fcl)' in text
+    assert 'not installed (coal)' in text
+    targets = text.split('### Targets')[1].split('### Scenario')[0]
+    assert '| S3 paper experiment: ours <= 0.5x python-fcl per check | python-fcl not ' \
+        'installed (fcl) | **n/a** |' in targets  # a target against a missing peer: not judged
+
+
+def test_scenario_selection_runs_only_those(tmp_path):
+    table = tmp_path / 'bench.md'
+    bench.main(['--quick', '--scenario', '5', '--markdown', str(table)])
+    text = table.read_text()
+    assert HEADERS[4] in text
+    assert not any(header in text for header in HEADERS[:4])
+
+
+def test_wavy_terrain_is_a_closed_grid_of_the_requested_size():
+    vertices, faces = wavy_terrain(10_000)
+    assert len(faces) >= 10_000 and len(faces) < 10_500
+    assert faces.min() == 0 and faces.max() == len(vertices) - 1
+    areas = np.linalg.norm(np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]],
+                                    vertices[faces[:, 2]] - vertices[faces[:, 0]]), axis=1)
+    assert areas.min() > 0.0                      # no degenerate triangles
+
+
+def test_growth_fits_tell_log_from_linear():
+    n = [1e4, 1e5, 1e6]
+    log = growth_fits(n, [10.0 + 3.0 * np.log10(x) for x in n])
+    assert log['residual'] < 1e-9 and log['first'] == pytest.approx(log['last'])
+    linear = growth_fits(n, [1e-3 * x for x in n])
+    assert linear['k'] == pytest.approx(1.0) and linear['last'] > linear['first']
+
+
+def test_proximity_scenario_measures_both_robots_against_fcl():
+    from collision_sensor.tools.bench import scenario_proximity
+    from collision_sensor.tools.bench.scenario_settings import Settings
+    section = scenario_proximity.run(Settings.for_run(quick=True, seed=3))
+    rows = [line for line in section.lines if line.startswith('| panda') or
+            line.startswith('| ur5')]
+    assert len(rows) == 2
+    assert all(line.rstrip(' |').endswith('30/30') for line in rows), rows  # min distances
+    assert len(section.verdicts) == 4 and all(v.passed is not None for v in section.verdicts)
+
+
+@pytest.mark.parametrize('args, line', [
+    (['--rate', '200,400', '--duration', '1'], 'highest rate without drops:'),
+    (['--soak', '--rate', '200', '--duration', '2', '--window', '1'], 'soak total: 2 s at 200 Hz'),
+], ids=['rates', 'soak'])
+def test_node_latency_drives_the_console_script_from_another_process(args, line):
+    """The node as a process of its own; the figures printed, the node's counters read back."""
+    pytest.importorskip('rclpy')
+    import os
+    import subprocess
+    run = subprocess.run([sys.executable, '-m', 'collision_sensor.ros.node_latency', *args],
+                         capture_output=True, text=True, timeout=300, env=dict(os.environ))
+    out = run.stdout + run.stderr
+    assert run.returncode == 0, out
+    assert line in run.stdout and 'node RSS' in run.stdout, out
+    assert 'node counters: received_total' in run.stdout and 'exited with' not in out, out
