@@ -105,6 +105,7 @@ setup(
             'example-robot-data>=4.0',
             'colcon-core>=0.21',
             'colcon-ros>=0.5',
+            'wheel',    # the packaging tests build a wheel without build isolation
         ],
     },
     ext_modules=[ENGINE],

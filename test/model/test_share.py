@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from collision_sensor.tools import share
+from collision_sensor.model import share
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
