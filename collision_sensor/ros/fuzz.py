@@ -7,7 +7,10 @@ process publishes ``--messages`` joint states at ``--rate``, half valid (random 
 within the limits) and half malformed, cycling through :data:`MALFORMED`: length mismatch,
 duplicate names, NaN and inf, huge values (1e9, 9.2e18, 1.7e308), unknown names (a few, floods
 of ``--flood`` new names, names with newlines and control characters that try to forge a log
-line), empty and velocity-only messages.
+line), empty and velocity-only messages, and oversized ones (:data:`OVERSIZED_NAMES` new names,
+above the node's ``max_joint_state_bytes``: rejected before decoding). The node runs with
+``overload_policy: every``: every accepted message must get its verdict, so one superseded on
+a busy machine counts as lost here.
 
 Each message carries a unique header stamp, which the node copies into its verdict. This process
 keeps its own :class:`~collision_sensor.ros.joint_state_merger.JointStateMerger` with the node's
@@ -42,13 +45,17 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
+from collision_sensor.ros.node_parameters import MAX_JOINT_STATE_BYTES
+
 os.environ.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'SHM')
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.SystemRandom().randint(1, 100)))
 
 #: The malformed classes, in the order they are cycled through.
 MALFORMED = ('length_mismatch', 'duplicate_names', 'nan', 'inf', 'huge_1e9', 'huge_9.2e18',
              'huge_1.7e308', 'unknown_names', 'unknown_flood', 'control_char_names',
-             'only_control_char_names', 'empty', 'velocity_only')
+             'only_control_char_names', 'empty', 'velocity_only', 'oversized')
+#: New unknown names in an ``oversized`` message: far above the node's max_joint_state_bytes.
+OVERSIZED_NAMES = 20_000
 #: What an injected name tries to make the node print as a line of its own.
 FORGED_PREFIX = '[ERROR] [0.000000000] [collision_sensor]: FORGED'
 #: How rcutils starts every line it writes (the default RCUTILS_CONSOLE_OUTPUT_FORMAT).
@@ -174,6 +181,9 @@ class MessageMaker:
         elif kind == 'unknown_flood':
             extra = self._fresh_names(self.flood)
             names, values = names + extra, values + [0.0] * len(extra)
+        elif kind == 'oversized':
+            extra = self._fresh_names(OVERSIZED_NAMES)
+            names, values = names + extra, values + [0.0] * len(extra)
         elif kind == 'control_char_names':
             extra = self._forging_names()
             names, values = names + extra, values + [0.0] * len(extra)
@@ -214,7 +224,8 @@ class NodeUnderTest:
             '--ros-args', '-r', f'__ns:={namespace}',
             '-p', f'urdf_path:={robot.urdf}', '-p', f'srdf_path:={robot.srdf}',
             '-p', f'package_paths:=[{package_paths}]', '-p', 'joint_states_qos:=reliable',
-            '-p', f'joint_limit_policy:={policy}', '-p', 'stale_timeout:=0.0']
+            '-p', f'joint_limit_policy:={policy}', '-p', 'stale_timeout:=0.0',
+            '-p', 'overload_policy:=every', '-p', f'max_joint_state_bytes:={MAX_JOINT_STATE_BYTES}']
         env = dict(os.environ, PYTHONUNBUFFERED='1')
         env.pop('RCUTILS_CONSOLE_OUTPUT_FORMAT', None)    # the default format, checked below
         self.lines: List[str] = []
@@ -265,12 +276,13 @@ def check_output_lines(lines: List[str]) -> Tuple[List[str], List[str]]:
 # -- the run ------------------------------------------------------------------------------------
 
 def run_fuzz(messages: int, seed: int = 1, rate: float = 500.0, policy: str = 'reject',
-             flood: int = 10_000, out=sys.stdout) -> Report:
+             flood: int = 1000, out=sys.stdout) -> Report:
     """Start the node, send the stream, compare every verdict; return the report."""
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from rclpy.serialization import serialize_message
     from sensor_msgs.msg import JointState
 
     from collision_sensor import CollisionChecker, JointStateError
@@ -361,9 +373,14 @@ def run_fuzz(messages: int, seed: int = 1, rate: float = 500.0, policy: str = 'r
         for index, (kind, names, values, velocities) in enumerate(maker.stream(messages)):
             stats = report.classes.setdefault(kind, ClassStats())
             stats.sent += 1
-            outcome = mirror.merge(names, values)
+            msg = JointState(name=names, position=values, velocity=velocities)
+            msg.header.stamp.sec, msg.header.stamp.nanosec = index + 1, index
+            msg.header.frame_id = 'fuzz'
             key = 1_000_000_000 * (index + 1) + index     # sec = index + 1, nanosec = index
-            if outcome.accepted and mirror.complete:
+            # The node rejects an oversized message before decoding it: the mirror never sees it.
+            oversized = len(serialize_message(msg)) > MAX_JOINT_STATE_BYTES
+            outcome = None if oversized else mirror.merge(names, values)
+            if outcome is not None and outcome.accepted and mirror.complete:
                 try:
                     result = reference.check(dict(mirror.positions))
                 except JointStateError:  # the node's engine refuses it too: no verdict
@@ -371,9 +388,6 @@ def run_fuzz(messages: int, seed: int = 1, rate: float = 500.0, policy: str = 'r
                 else:
                     stats.expected += 1
                     expected[key] = (kind, tuple(result.colliding_pairs))
-            msg = JointState(name=names, position=values, velocity=velocities)
-            msg.header.stamp.sec, msg.header.stamp.nanosec = index + 1, index
-            msg.header.frame_id = 'fuzz'
             delay = t0 + index * period - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
@@ -480,7 +494,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--rate', type=float, default=500.0,
                         help='messages per second (default %(default)g)')
     parser.add_argument('--seed', type=int, default=1)
-    parser.add_argument('--flood', type=int, default=10_000,
+    parser.add_argument('--flood', type=int, default=1000,
                         help='new unknown names per flood message (default %(default)s)')
     parser.add_argument('--joint-limit-policy', default='reject',
                         choices=('reject', 'clamp', 'accept'),

@@ -28,6 +28,7 @@ import signal
 import sys
 import threading
 import traceback
+from typing import Optional
 
 _EXPORTED = ('CollisionSensorNode', 'LATCHED_QOS', 'VERDICT_QOS', 'JOINT_STATES_QOS',
              'RELIABLE_INPUT_QOS', 'quaternion_from_matrix')
@@ -63,12 +64,49 @@ class StopRequest:
             self.signal_name = signal.Signals(signum).name
 
 
+#: Environment variables by which a user configures Fast DDS profiles already.
+_FAST_DDS_CONFIGURED = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE',
+                        'RMW_FASTRTPS_USE_QOS_FROM_XML')
+#: Profile files Fast DDS loads from the working directory on its own.
+_FAST_DDS_LOCAL_FILES = ('DEFAULT_FASTRTPS_PROFILES.xml', 'DEFAULT_FASTDDS_PROFILES.xml')
+
+
+def apply_dds_profile(environ=os.environ) -> Optional[str]:
+    """Point Fast DDS at ``config/fastdds_node.xml`` (its comment says why); return its path.
+
+    Only for this process, before rclpy starts, and only when the middleware is Fast DDS
+    (Jazzy's default), no Fast DDS profile is configured already (environment or working
+    directory) and ``COLLISION_SENSOR_DDS_PROFILE`` is not ``off``; else return None and change
+    nothing.
+    """
+    if environ.get('COLLISION_SENSOR_DDS_PROFILE', 'on').strip().lower() in ('off', '0', 'false',
+                                                                             'no'):
+        return None
+    if environ.get('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp') not in (
+            'rmw_fastrtps_cpp', 'rmw_fastrtps_dynamic_cpp', ''):
+        return None
+    if any(environ.get(name) for name in _FAST_DDS_CONFIGURED) or \
+            any(os.path.exists(name) for name in _FAST_DDS_LOCAL_FILES):
+        return None
+    from collision_sensor.model.share import config_path
+    try:
+        profile = config_path('fastdds_node.xml')
+    except FileNotFoundError:   # a broken install: the node itself says so
+        return None
+    if not os.path.isfile(profile):
+        return None
+    environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = profile
+    environ['RMW_FASTRTPS_USE_QOS_FROM_XML'] = '1'
+    return profile
+
+
 class _StartUp(threading.Thread):
     """Import the node, initialise rclpy and build the node, off the main thread."""
 
-    def __init__(self, args):
+    def __init__(self, args, dds_profile: Optional[str] = None):
         super().__init__(name='start-up', daemon=True)
         self._args = args
+        self._dds_profile = dds_profile
         self.node = None
         self.status = None     # 1: configuration failed (logged by the node)
         self.error = None      # anything else start-up raised
@@ -76,7 +114,7 @@ class _StartUp(threading.Thread):
     def run(self):
         try:
             from collision_sensor.ros import sensor_node
-            self.node, self.status = sensor_node.start(self._args)
+            self.node, self.status = sensor_node.start(self._args, self._dds_profile)
         except BaseException as error:  # noqa: B902 - reported by main, or moot after a stop
             # A stop shuts rclpy's context down under the constructor, which then fails
             # somewhere: main decides whether that is worth a word.
@@ -104,7 +142,7 @@ def main(args=None) -> int:
     stop = StopRequest()
     if threading.current_thread() is threading.main_thread():
         stop.install()
-    start_up = _StartUp(args)
+    start_up = _StartUp(args, apply_dds_profile())
     start_up.start()
     while start_up.is_alive() and stop.signal_name is None:
         start_up.join(_POLL)

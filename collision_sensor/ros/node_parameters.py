@@ -27,6 +27,9 @@ from collision_sensor.model.mesh_loading import parse_package_paths
 from collision_sensor.ros.joint_state_merger import (
     DEFAULT_LIMIT_TOLERANCE, LIMIT_POLICIES, MAX_UNKNOWN_NAMES)
 
+#: Default of ``max_joint_state_bytes``: a JointState of 1000 joints, names of 24 characters,
+#: positions, velocities and efforts is about 60 KiB serialized.
+MAX_JOINT_STATE_BYTES = 64 * 1024
 #: Accepted values of ``joint_states_qos``.
 JOINT_STATES_QOS = ('sensor_data', 'reliable')
 #: The engine's defaults, so that the node and the offline tools agree out of the box.
@@ -95,6 +98,11 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
     ParameterSpec('max_unknown_joints', MAX_UNKNOWN_NAMES,
                   'unknown joint names remembered (listed on /diagnostics, warned about once); '
                   'more are only counted, so memory stays bounded', '>= 0'),
+    ParameterSpec('max_joint_state_bytes', MAX_JOINT_STATE_BYTES,
+                  'largest joint_states message taken (bytes, serialized); a larger one is '
+                  'rejected before it is decoded (rejected_oversized on /diagnostics). The '
+                  'default holds about 1000 joints with names, positions, velocities and '
+                  'efforts', '>= 1024'),
     ParameterSpec('joint_states_qos', 'sensor_data',
                   'QoS of the joint_states subscription: "sensor_data" (best effort, depth 5) '
                   'or "reliable" (reliable, keep all: every message is checked)',
@@ -126,9 +134,11 @@ class NodeSettings:
     :ivar stale_timeout: seconds; 0 disables the stale check.
     :ivar joint_states_qos: one of :data:`JOINT_STATES_QOS`.
     :ivar publish_markers: publish ``~/markers``.
-    :ivar joint_limit_policy: one of :data:`~collision_sensor.ros.joint_state_merger.LIMIT_POLICIES`.
+    :ivar joint_limit_policy: one of
+        :data:`~collision_sensor.ros.joint_state_merger.LIMIT_POLICIES`.
     :ivar joint_limit_tolerance: rad or m beyond a limit still taken as given.
     :ivar max_unknown_joints: unknown joint names remembered.
+    :ivar max_joint_state_bytes: largest serialized joint_states message taken.
     :ivar xacro_args: ``{name: value}`` for a ``.xacro`` urdf_path.
     """
 
@@ -144,6 +154,7 @@ class NodeSettings:
     joint_limit_policy: str = 'reject'
     joint_limit_tolerance: float = DEFAULT_LIMIT_TOLERANCE
     max_unknown_joints: int = MAX_UNKNOWN_NAMES
+    max_joint_state_bytes: int = MAX_JOINT_STATE_BYTES
     xacro_args: Dict[str, str] = field(default_factory=dict)
     overload_policy: str = 'newest'
 
@@ -207,9 +218,13 @@ def _non_negative(values, name) -> float:
 
 
 def _non_negative_int(values, name) -> int:
+    return _at_least(values, name, 0)
+
+
+def _at_least(values, name, smallest: int) -> int:
     value = values[name]
-    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-        raise ConfigError(f'parameter {name}: {value!r} is not an integer >= 0')
+    if isinstance(value, bool) or not isinstance(value, int) or value < smallest:
+        raise ConfigError(f'parameter {name}: {value!r} is not an integer >= {smallest}')
     return value
 
 
@@ -262,6 +277,7 @@ def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
         joint_limit_policy=_choice(merged, 'joint_limit_policy', LIMIT_POLICIES),
         joint_limit_tolerance=_non_negative(merged, 'joint_limit_tolerance'),
         max_unknown_joints=_non_negative_int(merged, 'max_unknown_joints'),
+        max_joint_state_bytes=_at_least(merged, 'max_joint_state_bytes', 1024),
     )
 
 

@@ -30,8 +30,8 @@ not answer is counted on ``/diagnostics`` by reason (``skipped_*``), and so are 
 middleware reports lost before the node took them (``lost_total``).
 
 Start-up: the robot is loaded, all its collision trees built and the query run once before
-the node subscribes to ``joint_states``; then it logs one line starting ``ready:``. With the robot from ``robot_description`` the same happens when the first
-description has been built. Names and texts from the network reach logs and ``/diagnostics``
+the node subscribes to ``joint_states``; then it logs one line starting ``ready:``. With the
+robot from ``robot_description`` the same happens when the first description has been built. Names and texts from the network reach logs and ``/diagnostics``
 only through :mod:`collision_sensor.untrusted_text` (escaped, bounded), and no log line is
 written while the node's lock is held.
 
@@ -75,6 +75,7 @@ from rclpy.executors import (
 from rclpy.node import Node
 from rclpy.qos import (
     DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data)
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, ColorRGBA, Header, String
 from visualization_msgs.msg import Marker, MarkerArray
@@ -205,6 +206,31 @@ class _ModelLoader:
                     return
                 self.results.append((text, checker, error))
             self._notify()
+
+
+class _Oversized:
+    """A joint_states message above ``max_joint_state_bytes``, left undecoded.
+
+    :ivar size: its serialized size in bytes.
+    """
+
+    __slots__ = ('size',)
+
+    def __init__(self, size: int):
+        self.size = size
+
+
+def _joint_state_taker(put: Callable[[object], None], max_bytes: int) -> Callable[[bytes], None]:
+    """Return the raw joint_states callback: decode a message of at most ``max_bytes`` and
+    ``put`` it, or ``put`` an :class:`_Oversized` in its place (so it is counted, in order).
+
+    Taking the serialized bytes keeps a flood of huge messages (10^4 names each) from being
+    decoded into Python objects at all; the check is one ``len``.
+    """
+    def take(data: bytes) -> None:
+        size = len(data)
+        put(_Oversized(size) if size > max_bytes else deserialize_message(data, JointState))
+    return take
 
 
 class _NewestFirstWorker:
@@ -415,7 +441,8 @@ class CollisionSensorNode(Node):
             self._on_joint_states, 'joint_states checker',
             None if settings.overload_policy == 'every' else MAX_BACKLOG)
         joint_states = self.create_subscription(
-            JointState, 'joint_states', self._worker.put, qos,
+            JointState, 'joint_states',
+            _joint_state_taker(self._worker.put, settings.max_joint_state_bytes), qos, raw=True,
             callback_group=MutuallyExclusiveCallbackGroup(),
             event_callbacks=SubscriptionEventCallbacks(
                 message_lost=self._on_message_lost, incompatible_qos=self._on_incompatible_qos,
@@ -593,6 +620,15 @@ class CollisionSensorNode(Node):
             totals['no_model'] += 1
             notes.append(('warning', 'no_model', 'joint state ignored: no robot model yet '
                           '(waiting for robot_description)'))
+            return
+        if isinstance(msg, _Oversized):
+            period.rejected += 1
+            totals['rejected'] += 1
+            totals['rejected_oversized'] += 1
+            notes.append(('warning', 'OVERSIZED', (
+                f'joint state rejected before decoding, state unchanged: {msg.size} bytes, '
+                f'above max_joint_state_bytes ({self._settings.max_joint_state_bytes}); raise '
+                'the parameter if the robot\'s joint states are really that large')))
             return
         outcome = merger.merge(msg.name, msg.position)
         if outcome.problem is not None:
@@ -838,6 +874,7 @@ class CollisionSensorNode(Node):
             **{f'rejected_{problem.name.lower()}': str(totals[f'rejected_{problem.name.lower()}'])
                for problem in Problem},
             'rejected_engine_range': str(totals['rejected_engine_range']),
+            'rejected_oversized': str(totals['rejected_oversized']),
             'lost_total': str(totals['lost']),
             'clamped_total': str(totals['clamped']),
             'robot_description_rejected_total': str(totals['robot_description_rejected']),
@@ -880,15 +917,22 @@ def _bound(value) -> str:
     return 'none' if value is None else f'{value:.6g}'
 
 
-def start(args=None):
+def start(args=None, dds_profile: Optional[str] = None):
     """Initialise rclpy and build the node; return ``(node, None)`` or ``(None, 1)``.
 
     ``collision_sensor_node`` (:func:`collision_sensor.ros.node.main`) calls this on a start-up
     thread and :func:`spin` on the main thread.
+
+    :param dds_profile: the Fast DDS profile the console script applied (logged), or None.
     """
     rclpy.init(args=args)
     try:
-        return CollisionSensorNode(), None
+        node = CollisionSensorNode()
+        if dds_profile is not None:
+            node.get_logger().info(
+                f'Fast DDS profile {dds_profile}: readers free each sample once taken '
+                '(COLLISION_SENSOR_DDS_PROFILE=off leaves the middleware defaults)')
+        return node, None
     except CollisionSensorError:
         rclpy.try_shutdown()
         return None, 1    # the node logged the reason

@@ -28,7 +28,8 @@ from collision_sensor import CollisionChecker, CollisionSensorError, ConfigError
 from collision_sensor.model.share import config_path  # noqa: E402
 from collision_sensor.ros.node import (  # noqa: E402
     LATCHED_QOS, CollisionSensorNode, quaternion_from_matrix)
-from collision_sensor.ros.node_parameters import PARAMETERS, default_values  # noqa: E402
+from collision_sensor.ros.node_parameters import (  # noqa: E402
+    PARAMETERS, default_values, settings_from_values)
 from executables import console_script  # noqa: E402
 from ros_helpers import RosHarness, reliable  # noqa: E402
 
@@ -491,22 +492,47 @@ def test_a_flood_of_unknown_names_stays_bounded_and_forges_no_line(ros, panda_ur
     start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share, max_unknown_joints=50))
     probe = Probe(ros)
     forged = 'evil\n[ERROR] [0.0] [collision_sensor]: FORGED\x1b[2J'
-    for k in range(4):     # 4 x 2500 new names, then the forging one
-        names = [f'ghost_{k}_{i}' for i in range(2500)]
+    for k in range(4):     # 4 x 1500 new names (under max_joint_state_bytes), then the forging one
+        names = [f'ghost_{k}_{i}' for i in range(1500)]
         assert probe.send(joint_state(dict(poses['free'], **dict.fromkeys(names, 0.0)))) == \
             (False, ())
     assert probe.send(joint_state(dict(poses['free'], **{forged: 0.0}))) == (False, ())
     ros.spin_for(0.3)
     err = capfd.readouterr().err
     assert err.count('that the robot model does not move') <= 2     # throttled: one a second
-    assert '(+2495 more)' in err
+    assert '(+1495 more)' in err
     for line in err.splitlines():
         assert not line.startswith('[ERROR] [0.0]') and 'FORGED' not in line.split(']: ')[0]
     _, values = probe.next_diagnostics(lambda v: v['unknown_joints_not_remembered'] != '0')
     assert values['unknown_joints_count'] == '50'
-    assert values['unknown_joints_not_remembered'] == str(10_000 - 50 + 1)
+    assert values['unknown_joints_not_remembered'] == str(6000 - 50 + 1)
     assert values['unknown_joints'].endswith('(+40 more)')
     assert max(len(value) for value in values.values()) < 1000
+
+
+def test_an_oversized_joint_state_is_rejected_before_decoding(ros, panda_urdf, panda_srdf,
+                                                              erd_share, poses, capfd):
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
+                                     max_joint_state_bytes=4096))
+    probe = Probe(ros)
+    assert probe.send(joint_state(poses['free'])) == (False, ())
+    # 400 names: about 8 KiB serialized, above the 4 KiB allowed. No verdict, state unchanged.
+    huge = dict(poses['hit'], **{f'ghost_{i}': 0.0 for i in range(400)})
+    assert probe.no_verdict_for(joint_state(huge), 0.2)
+    assert probe.send(joint_state({'panda_joint1': poses['free']['panda_joint1']})) == \
+        (False, ())
+    assert probe.send(joint_state(poses['hit']))[0]     # the robot's own states still fit
+    err = capfd.readouterr().err
+    assert 'joint state rejected before decoding, state unchanged' in err
+    assert 'above max_joint_state_bytes (4096)' in err
+    _, values = probe.next_diagnostics(lambda v: v['rejected_oversized'] != '0')
+    assert values['rejected_oversized'] == '1' and values['unknown_joints_count'] == '0'
+
+
+def test_max_joint_state_bytes_refuses_a_cap_below_1024():
+    values = dict(default_values(), urdf_path='', max_joint_state_bytes=1000)
+    with pytest.raises(ConfigError, match='max_joint_state_bytes: 1000 is not an integer >= 1024'):
+        settings_from_values(values)
 
 
 def test_out_of_limit_joints_are_rejected_by_default(ros, panda_urdf, panda_srdf, erd_share,
@@ -958,3 +984,32 @@ def test_console_script_survives_a_name_that_is_not_utf8(ros, panda_urdf, panda_
     finally:
         status, output, _ = stop(process, signal.SIGINT)
     assert_clean_exit(status, output)
+
+
+# -- the Fast DDS profile of the console script --------------------------------------------------
+
+def test_console_script_points_fast_dds_at_the_shipped_profile_only_when_unconfigured(tmp_path,
+                                                                                      monkeypatch):
+    from lxml import etree
+
+    from collision_sensor.ros.node import apply_dds_profile
+    monkeypatch.chdir(tmp_path)
+    environ = {}
+    profile = apply_dds_profile(environ)
+    assert profile == config_path('fastdds_node.xml')
+    assert environ == {'FASTRTPS_DEFAULT_PROFILES_FILE': profile,
+                       'RMW_FASTRTPS_USE_QOS_FROM_XML': '1'}
+    ns = {'p': 'http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles'}
+    readers = etree.parse(profile).findall('p:data_reader', ns)
+    assert [r.findtext('p:historyMemoryPolicy', namespaces=ns) for r in readers] == ['DYNAMIC']
+    # A user's own Fast DDS configuration, another middleware or the switch: nothing changes.
+    for environ in ({'FASTRTPS_DEFAULT_PROFILES_FILE': '/mine.xml'},
+                    {'FASTDDS_DEFAULT_PROFILES_FILE': '/mine.xml'},
+                    {'RMW_FASTRTPS_USE_QOS_FROM_XML': '1'},
+                    {'RMW_IMPLEMENTATION': 'rmw_cyclonedds_cpp'},
+                    {'COLLISION_SENSOR_DDS_PROFILE': 'off'}):
+        before = dict(environ)
+        assert apply_dds_profile(environ) is None and environ == before
+    (tmp_path / 'DEFAULT_FASTRTPS_PROFILES.xml').write_text('<profiles/>')
+    environ = {}
+    assert apply_dds_profile(environ) is None and environ == {}
