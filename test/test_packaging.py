@@ -20,6 +20,8 @@ import zipfile
 
 import pytest
 
+import collision_sensor
+
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PACKAGE = 'collision_sensor'
 # What a release ships: everything setup.py reads, and nothing else of the checkout.
@@ -107,7 +109,10 @@ print(json.dumps(sorted(r for r in roots if r == 'rclpy' or r.startswith('rclpy'
 def ros_modules_loaded_by(module):
     """Return the ROS top-level modules (rclpy, *_msgs, *_srvs, *_interfaces) in
     ``sys.modules`` after importing ``module`` in a fresh interpreter."""
-    proc = run([sys.executable, '-c', PROBE, module], cwd=REPO, env=clean_env())
+    # From where the package under test is imported: this checkout (editable install), or the
+    # install space under colcon test, whose source directory has no compiled engine.
+    importing_from = os.path.dirname(os.path.dirname(os.path.abspath(collision_sensor.__file__)))
+    proc = run([sys.executable, '-c', PROBE, module], cwd=importing_from, env=clean_env())
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 

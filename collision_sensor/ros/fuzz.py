@@ -45,6 +45,7 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
+from collision_sensor.ros.console_scripts import console_command
 from collision_sensor.ros.node_parameters import MAX_JOINT_STATE_BYTES
 
 os.environ.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'SHM')
@@ -215,9 +216,7 @@ class NodeUnderTest:
     """``collision_sensor_node`` on the Panda, its output kept line by line."""
 
     def __init__(self, robot, namespace: str, policy: str):
-        script = os.path.join(os.path.dirname(sys.executable), 'collision_sensor_node')
-        program = [script] if os.path.exists(script) else [sys.executable, '-m',
-                                                           'collision_sensor.ros.node']
+        program = console_command('collision_sensor_node')
         package_paths = ','.join(f'"{name}={path}"' for name, path in
                                  robot.package_paths.items())
         command = program + [

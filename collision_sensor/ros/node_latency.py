@@ -38,6 +38,8 @@ from typing import Optional
 
 import numpy as np
 
+from collision_sensor.ros.console_scripts import console_command
+
 os.environ.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'SHM')
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.SystemRandom().randint(1, 100)))
 
@@ -45,10 +47,7 @@ N_CONFIGURATIONS = 1000     # distinct configurations, cycled through by every r
 
 
 def _node_command(params_file: str, namespace: str):
-    script = os.path.join(os.path.dirname(sys.executable), 'collision_sensor_node')
-    program = [script] if os.path.exists(script) else [sys.executable, '-m',
-                                                       'collision_sensor.ros.node']
-    return program + ['--ros-args', '--params-file', params_file, '-r', f'__ns:={namespace}',
+    return console_command('collision_sensor_node') + ['--ros-args', '--params-file', params_file, '-r', f'__ns:={namespace}',
                       '--log-level', 'warn']
 
 

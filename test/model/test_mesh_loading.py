@@ -211,6 +211,8 @@ def test_package_uri_of_this_package_uses_the_share_directory(monkeypatch, tmp_p
     (tmp_path / 'meshes').mkdir()
     (tmp_path / 'meshes' / 'x.stl').write_bytes(b'')
     monkeypatch.setattr('collision_sensor.model.share.share_directory', lambda: str(tmp_path))
+    for variable in ('AMENT_PREFIX_PATH', 'ROS_PACKAGE_PATH'):  # no install found first
+        monkeypatch.delenv(variable, raising=False)
     assert resolve_mesh_uri('package://collision_sensor/meshes/x.stl') == os.path.join(
         str(tmp_path), 'meshes/x.stl')
 

@@ -13,8 +13,8 @@ import time
 import pytest
 
 from collision_sensor.ros import demo
+from collision_sensor.ros.console_scripts import console_script
 from collision_sensor.tools import offline_check
-from executables import console_script
 
 pytest.importorskip('rclpy')
 

@@ -21,7 +21,8 @@ def run_fuzz(tmp_path, *args):
     run = subprocess.run(
         [sys.executable, '-m', 'collision_sensor.ros.fuzz', '--messages', str(MESSAGES),
          '--seed', '7', '--json', str(report), *args],
-        capture_output=True, text=True, timeout=600, env=dict(os.environ))
+        capture_output=True, text=True, timeout=600, env=dict(os.environ),
+        cwd=tmp_path)   # not the source directory: under colcon test it has no engine
     assert report.exists(), run.stdout + run.stderr
     return run, json.loads(report.read_text())
 

@@ -26,11 +26,11 @@ from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
 
 from collision_sensor import CollisionChecker, CollisionSensorError, ConfigError  # noqa: E402
 from collision_sensor.model.share import config_path  # noqa: E402
+from collision_sensor.ros.console_scripts import console_script  # noqa: E402
 from collision_sensor.ros.node import (  # noqa: E402
     LATCHED_QOS, CollisionSensorNode, quaternion_from_matrix)
 from collision_sensor.ros.node_parameters import (  # noqa: E402
     PARAMETERS, default_values, settings_from_values)
-from executables import console_script  # noqa: E402
 from ros_helpers import RosHarness, reliable  # noqa: E402
 
 ARM = tuple(f'panda_joint{i}' for i in range(1, 8))

@@ -88,13 +88,15 @@ def test_proximity_scenario_measures_both_robots_against_fcl():
     (['--rate', '200,400', '--duration', '1'], 'highest rate without drops:'),
     (['--soak', '--rate', '200', '--duration', '2', '--window', '1'], 'soak total: 2 s at 200 Hz'),
 ], ids=['rates', 'soak'])
-def test_node_latency_drives_the_console_script_from_another_process(args, line):
+def test_node_latency_drives_the_console_script_from_another_process(args, line, tmp_path):
     """The node as a process of its own; the figures printed, the node's counters read back."""
     pytest.importorskip('rclpy')
     import os
     import subprocess
+    # cwd: not the source directory, whose package has no engine under colcon test
     run = subprocess.run([sys.executable, '-m', 'collision_sensor.ros.node_latency', *args],
-                         capture_output=True, text=True, timeout=300, env=dict(os.environ))
+                         capture_output=True, text=True, timeout=300, env=dict(os.environ),
+                         cwd=tmp_path)
     out = run.stdout + run.stderr
     assert run.returncode == 0, out
     assert line in run.stdout and 'node RSS' in run.stdout, out

@@ -18,7 +18,9 @@ import yourdfpy
 from collision_sensor.model.sequences import read_sequence
 from collision_sensor.tools import demo_cell
 
-ROOT = demo_cell.default_output_dir()
+# The committed files of this checkout (also under colcon test, which imports the installed
+# package: the generator's default output is then not this tree).
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 CONFIG = os.path.join(ROOT, 'config')
 MESHES = os.path.join(ROOT, 'meshes', 'demo_cell')
 ARM_URDF = os.path.join(CONFIG, 'demo_arm.urdf')
