@@ -14,7 +14,7 @@ import pytest
 from collision_sensor.checker import CollisionChecker, ProximityRecord
 from collision_sensor.distance import triangle_distance
 from collision_sensor.sampling import random_configurations
-from engine_oracles import FclOracle
+from engine_oracles import FclOracle, distance_to_body
 
 N_CONFIGURATIONS = 150
 #: Distances agree with FCL's to this (m).
@@ -126,37 +126,11 @@ def test_triangle_distance_degenerate_cases(P, Q, expected):
 
 # ---------------------------------------------------------------- whole robots
 
-def _fcl_pair_distance(oracle, poses, a, b):
-    request = fcl.DistanceRequest()
-    Ta, Tb = poses[a], poses[b]
-    ta = fcl.Transform(Ta[:3, :3], Ta[:3, 3])
-    tb = fcl.Transform(Tb[:3, :3], Tb[:3, 3])
-    return min(fcl.distance(fcl.CollisionObject(ma, ta), fcl.CollisionObject(mb, tb), request,
-                            fcl.DistanceResult())
-               for ma in oracle.models[a] for mb in oracle.models[b])
-
-
-def _body_triangles(checker, name):
-    """(n, 3, 3) the body's triangles in the world, at the checker's current state."""
-    b = checker._body_index[name]
-    f = checker.forest
-    tris = np.concatenate([FclOracle._tris_of_tree(f, f.roots[e]) for e in range(
-        checker._body_elem_start[b], checker._body_elem_end[b])])
-    T = checker._poses()[b]
-    return tris @ T[:3, :3].T + T[:3, 3]
-
-
-def _distance_to_body(checker, x, name):
-    tris = _body_triangles(checker, name)
-    d, _, _ = triangle_distance(np.broadcast_to(x, (len(tris), 3, 3)).copy(), tris)
-    return float(d.min())
-
-
 def _assert_on_surfaces(checker, r):
     """Each point on its body's triangles; a colliding pair's one point on both, or (a body
     inside a solid primitive, no meeting triangles) on the contained body's."""
-    on_a = _distance_to_body(checker, r.point_a, r.link_a) < 1e-9
-    on_b = _distance_to_body(checker, r.point_b, r.link_b) < 1e-9
+    on_a = distance_to_body(checker, r.point_a, r.link_a) < 1e-9
+    on_b = distance_to_body(checker, r.point_b, r.link_b) < 1e-9
     assert (on_a or on_b) if r.distance <= 0 else (on_a and on_b), r
 
 
@@ -174,7 +148,7 @@ def _agree_with_fcl(checker, oracle, seed, max_distance=math.inf):
         for a, b in checker.checked_pairs:
             if (a, b) in colliding:
                 continue
-            theirs = _fcl_pair_distance(oracle, poses, a, b)
+            theirs = oracle.pair_distance(poses, a, b)
             if theirs >= max_distance + FCL_TOLERANCE:
                 assert (a, b) not in found
                 continue
