@@ -173,6 +173,9 @@ class CollisionChecker:
         with_geometry = [name for b, name in enumerate(body_names) if counts[b] > 0]
         self.link_names: Tuple[str, ...] = tuple(
             name for name in with_geometry if name in link_index)
+        #: Each body's padding (m), links and scene objects with geometry (objects: 0).
+        self.paddings: Dict[str, float] = {
+            name: float(self._padding[b]) for b, name in enumerate(body_names) if counts[b]}
         self.excluded_pairs: Dict[Pair, str] = self._exception_list(srdf, link_names)
         candidates = []
         robot = list(self.link_names)

@@ -29,6 +29,8 @@ UR5_PADDING = {'padding': 0.02, 'link_padding': {'wrist_3_link': 0.04}}
 
 
 def _paddings(checker):
+    """{body: metres} from the configuration alone (scene objects 0), to check
+    ``checker.paddings`` against."""
     link_padding = dict(checker.config.link_padding)
     return {name: (0.0 if name in checker.scene_object_names
                    else link_padding.get(name, checker.config.padding))
@@ -64,6 +66,7 @@ def ur5(ur5_builder, ur5_urdf):
 def _agree_with_fcl(checker, oracle, seed):
     """Contact iff fcl distance <= padding sum; proximity == fcl distance - padding sum."""
     padding = _paddings(checker)
+    assert checker.paddings == padding
     judged = padded_only = 0
     for k, q in enumerate(random_configurations(checker, N_CONFIGURATIONS, seed)):
         colliding = set(checker.check(q).colliding_pairs)
