@@ -231,3 +231,27 @@ def test_bad_input_changes_nothing(panda):
     with pytest.raises(ValueError):
         checker.proximity(before, math.nan)
     assert checker.positions == before
+
+
+def test_coherent_walk_seeded_from_the_last_nearest_triangles_equals_an_unseeded_run(panda):
+    """Each pair starts from the triangles nearest at the previous call (``nearest``); along a
+    coherent walk that seed is nearly the answer. The answers must be those of a run whose
+    seeds are wiped before every call."""
+    from collision_sensor.sampling import sampling_bounds
+    checker, _ = panda
+    lower, upper = sampling_bounds(checker)
+    rng = np.random.default_rng(7)
+    q = random_configurations(checker, 1, 7)[0]
+    nearest = checker.packed_array('nearest')
+    seeded_calls = 0
+    for step in range(300):
+        q = np.clip(q + rng.normal(scale=0.01, size=len(q)), lower, upper)
+        seeded_calls += bool((nearest >= 0).any())
+        seeded = checker.proximity(q, 0.1)
+        nearest[:] = -1
+        unseeded = checker.proximity(q, 0.1)
+        assert [(r.link_a, r.link_b) for r in seeded] == [(r.link_a, r.link_b) for r in unseeded]
+        for r, s in zip(seeded, unseeded):
+            assert r.distance == pytest.approx(s.distance, abs=1e-12), step
+        checker.proximity(q, 0.1)   # seeds for the next step, from this one
+    assert seeded_calls > 100
