@@ -173,8 +173,8 @@ class Engine {
     std::vector<double> placed_rows_, support_rows_;
     std::vector<int64_t> placed_stamp_, support_stamp_;
     int64_t placed_tag_ = 0, support_tag_ = 0;
-    double *q_last_, *q_ref_, *T_world_body_, *body_boxes_, *subtree_boxes_, *padding_, *clearance_,
-        *q_eval_, *reach_, *reach_ext_, *travel_, *front_until_, *front_travel_;
+    double *q_last_, *q_ref_, *T_world_body_, *body_boxes_, *subtree_boxes_, *padding_,
+        *clearance_, *q_eval_, *reach_, *reach_ext_, *travel_, *front_until_, *front_travel_;
     int64_t *is_scene_, *body_elem_start_, *body_elem_end_, *roots_, *pair_a_, *pair_b_,
         *joint_pairs_start_, *joint_pairs_, *joint_links_start_, *joint_links_,
         *joint_prismatic_, *status_, *witness_, *moved_, *stale_, *chain_, *pending_, *todo_,
