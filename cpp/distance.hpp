@@ -1,175 +1,29 @@
-// Distances with nearest points: triangle / triangle and OBB tree / OBB tree (issue 15).
-//
-// Contract (collision_sensor/distance.py states it in plain Python, with proximity's):
-//     triangle_distance(P, Q, x, y) == min |x - y| over x in P, y in Q (closed triangles)
-// with x, y written: a nearest pair of points, x on P and y on Q (x == y, a point of both,
-// when they touch or cross). P, Q: 3 vertices each, in the same frame.
-//
-// The nearest points of two disjoint triangles are a vertex of one and its nearest point on
-// the other, or the nearest points of an edge of each (Ericson, Real-Time Collision
-// Detection, 5.1.9 and 5.2.7); when the triangles cross, an edge of one pierces the other
-// (or, coplanar, two edges meet or a vertex lies inside), so 6 point-triangle, 9
-// segment-segment and 6 edge-through-face tests settle every case. A triangle thinner than
-// the contact tolerance (its sine below TRIANGLE_EPS_REL) is its three edges.
+// Distances with nearest points between two OBB trees (issue 15), for the proximity query.
 //
 // trees_distance: the smallest triangle distance between two OBB trees (traversal.hpp's
-// layout), found by descending both with a lower bound per node pair (the boxes' gap along
-// an axis aimed at their nearest points: projected_gap) and pruning every node pair whose
-// bound is not below the best distance found so far, which starts at the caller's cutoff
-// (max_distance, or the best over the pair's other trees): a pair with nothing nearer than
-// the cutoff costs only the node pairs that prove it. The nearer child pair is visited first.
+// layout), found by descending both with a lower bound per node pair and pruning every node
+// pair whose bound is not below the best distance found so far, which starts at the caller's
+// cutoff (max_distance, or the best over the pair's other trees, or the distance of the
+// triangles nearest last time): a pair with nothing nearer than the cutoff costs only the
+// node pairs that prove it. The nearer child pair is visited first. Leaves are measured with
+// triangle_distance (triangle_distance.hpp).
 #pragma once
 
 #include <cstdint>
 #include <cstring>
 
 #include "traversal.hpp"
-#include "triangle_test.hpp"
+#include "triangle_distance.hpp"
 
 namespace collision_sensor {
 
-namespace distance_detail {
-
-
-// Nearest points x on [p, q] and y on [a, b]; returns |x - y|^2 (triangle_test.hpp's
-// parameters, with the points kept).
-inline double segment_segment_closest(const double* p, const double* q, const double* a,
-                                      const double* b, double* x, double* y) {
-    double s, t;
-    triangle_detail::segment_segment_params(p, q, a, b, s, t);
-    for (int k = 0; k < 3; ++k) {
-        x[k] = p[k] + s * (q[k] - p[k]);
-        y[k] = a[k] + t * (b[k] - a[k]);
-    }
-    const double w0 = x[0] - y[0], w1 = x[1] - y[1], w2 = x[2] - y[2];
-    return w0 * w0 + w1 * w1 + w2 * w2;
-}
-
-// A triangle's plane for the distance: n = (T1 - T0) x (T2 - T0), nn2 = |n|^2, s[k] =
-// n . (S[k] - T0) for the other triangle S's vertices; flat when T is thinner than the
-// contact tolerance (|n| below TRIANGLE_EPS_REL times its two edges' lengths: a sine), and
-// then only its edges count.
-struct FacePlane {
-    double n[3], nn2, s[3];
-    bool flat;
-};
-
-inline FacePlane face_plane(const Triangle& T, const Triangle& S) {
-    const double a0 = T[1][0] - T[0][0], a1 = T[1][1] - T[0][1], a2 = T[1][2] - T[0][2];
-    const double b0 = T[2][0] - T[0][0], b1 = T[2][1] - T[0][1], b2 = T[2][2] - T[0][2];
-    FacePlane f;
-    f.n[0] = a1 * b2 - a2 * b1;
-    f.n[1] = a2 * b0 - a0 * b2;
-    f.n[2] = a0 * b1 - a1 * b0;
-    f.nn2 = f.n[0] * f.n[0] + f.n[1] * f.n[1] + f.n[2] * f.n[2];
-    const double scale = (a0 * a0 + a1 * a1 + a2 * a2) * (b0 * b0 + b1 * b1 + b2 * b2);
-    f.flat = !(f.nn2 > TRIANGLE_EPS_REL * TRIANGLE_EPS_REL * scale);
-    for (int k = 0; k < 3; ++k)
-        f.s[k] = f.n[0] * (S[k][0] - T[0][0]) + f.n[1] * (S[k][1] - T[0][1]) +
-                 f.n[2] * (S[k][2] - T[0][2]);
-    return f;
-}
-
-// True iff an edge of S passes strictly through T's plane at a point inside T; x is then
-// that point (a point of both triangles).
-inline bool edge_piercing(const Triangle& T, const FacePlane& f, const Triangle& S, double* x) {
-    for (int k = 0; k < 3; ++k) {
-        const double* a = S[k];
-        const double* b = S[(k + 1) % 3];
-        const double da = f.s[k], db = f.s[(k + 1) % 3];
-        if ((da > 0.0 && db < 0.0) || (da < 0.0 && db > 0.0)) {
-            const double t = da / (da - db);
-            for (int i = 0; i < 3; ++i) x[i] = a[i] + t * (b[i] - a[i]);
-            if (triangle_detail::inside_prism(T, f.n[0], f.n[1], f.n[2], x[0], x[1], x[2]))
-                return true;
-        }
-    }
-    return false;
-}
-
-// Vertex k of S against T's face: if its squared distance to T's plane is below best and it
-// projects inside T, its foot y is nearer than best: returns the squared distance, else INF.
-// (Outside the prism the nearest point of T is on an edge: the segment tests cover it.)
-inline double vertex_face(const Triangle& T, const FacePlane& f, const double* v, double sk,
-                          double best, double* y) {
-    const double d2 = sk * sk / f.nn2;
-    if (!(d2 < best) ||
-        !triangle_detail::inside_prism(T, f.n[0], f.n[1], f.n[2], v[0], v[1], v[2]))
-        return INF;
-    const double k = sk / f.nn2;
-    for (int i = 0; i < 3; ++i) y[i] = v[i] - k * f.n[i];
-    return d2;
-}
-
-}  // namespace distance_detail
-
-// The distance between the closed triangles P and Q, and a nearest pair of points: x on P, y
-// on Q (see the contract above). Only for finite input.
-//
-// Order of the work: an edge piercing the other's face (distance 0, stop); the 9 edge pairs;
-// then a vertex against the other's face only where its plane distance can beat the best so
-// far (a vertex's nearest point on an edge is already an edge pair's).
-//
-// apart: the caller knows the triangles apart (boxes around them with a positive gap), so no
-// edge can pierce the other's face and that test is skipped.
-inline double triangle_distance(const Triangle& P, const Triangle& Q, double* x, double* y,
-                                bool apart = false) {
-    using namespace distance_detail;
-    const FacePlane p = face_plane(P, Q);
-    const FacePlane q = face_plane(Q, P);
-    if (!apart &&
-        ((!q.flat && edge_piercing(Q, q, P, x)) || (!p.flat && edge_piercing(P, p, Q, x)))) {
-        std::memcpy(y, x, 3 * sizeof(double));
-        return 0.0;
-    }
-    double best = INF, u[3], v[3];
-    for (int i = 0; i < 3; ++i) {
-        for (int j = 0; j < 3; ++j) {
-            const double d =
-                segment_segment_closest(P[i], P[(i + 1) % 3], Q[j], Q[(j + 1) % 3], u, v);
-            if (d < best) {
-                best = d;
-                std::memcpy(x, u, sizeof u);
-                std::memcpy(y, v, sizeof v);
-                // Gottschalk's early exit (PQP TriDist): w = v - u; each edge lies behind its
-                // closest point along w (u on P's edge: (p - u) . w <= 0 for its endpoints, by
-                // the points' optimality), so if the third vertices do too, the slab between
-                // the planes through u and v normal to w separates the triangles: done.
-                const double w0 = v[0] - u[0], w1 = v[1] - u[1], w2 = v[2] - u[2];
-                const double* p3 = P[(i + 2) % 3];
-                const double* q3 = Q[(j + 2) % 3];
-                const double ap = (p3[0] - u[0]) * w0 + (p3[1] - u[1]) * w1 + (p3[2] - u[2]) * w2;
-                const double bq = (q3[0] - v[0]) * w0 + (q3[1] - v[1]) * w1 + (q3[2] - v[2]) * w2;
-                if (d > 0.0 && ap <= 0.0 && bq >= 0.0) return std::sqrt(d);
-            }
-        }
-    }
-    for (int i = 0; i < 3; ++i) {
-        if (!q.flat) {
-            const double d = vertex_face(Q, q, P[i], q.s[i], best, v);
-            if (d < best) {
-                best = d;
-                std::memcpy(x, P[i], sizeof u);
-                std::memcpy(y, v, sizeof v);
-            }
-        }
-        if (!p.flat) {
-            const double d = vertex_face(P, p, Q[i], p.s[i], best, u);
-            if (d < best) {
-                best = d;
-                std::memcpy(x, u, sizeof u);
-                std::memcpy(y, Q[i], sizeof v);
-            }
-        }
-    }
-    return std::sqrt(best);
-}
-
-// The nearest triangles found by trees_distance: distance, and the points on each (x in
-// body a's frame on tree a's triangle, y on tree b's, also in body a's frame).
+// The nearest triangles found by trees_distance: the padded distance (the triangles'
+// distance minus the pair's padding), the points on each (x in body a's frame on tree a's
+// triangle, y on tree b's, also in body a's frame), and the two triangles' rows of tris.
 struct NearestPoints {
     double distance;
     double x[3], y[3];
+    int64_t ia, ib;
     bool found;  // false: nothing nearer than the cutoff
 };
 
@@ -211,23 +65,104 @@ CS_ALWAYS_INLINE double projected_gap(const double* A, const double* B, const do
 // meets many of tree a's): rows (N, PLACED_WIDTH), the centre R_ab cb + t_ab, then the axes
 // R_ab Eb (row-major, column k is axis k); a row is current iff stamp[n] == tag.
 constexpr int PLACED_WIDTH = 12;
-struct PlacedBoxes {
-    double* rows;
-    int64_t* stamp;
-    int64_t tag;
+
+// A node pair's bound along the slab direction (below) is trusted without the boxes' own
+// bound (projected_gap, which costs as much as the rest of the node pair) once it comes within
+// this fraction of the best distance: the pair is then near the best along the direction of
+// the nearest points, where a direction of its own rarely proves more. Only the work depends
+// on it, never the answer (measured on the Panda and the UR5, collision_sensor_bench S8).
+constexpr double SLAB_TRUST_REL = 0.05;
+
+// Work rows of the proximity traversal, one per node of the forest (distance.cpp sizes them
+// on the first call): placed boxes (placed, placed_stamp) and each node's support along the
+// slab direction (support, support_stamp). A row is current iff its stamp equals the tag.
+struct DistanceWork {
+    double* placed;
+    int64_t* placed_stamp;
+    double* support;
+    int64_t* support_stamp;
+    int64_t placed_tag, support_tag;
 };
 
+// The slab direction of a traversal: a unit vector u in body a's frame, from the nearest
+// point on body a to the one on body b found so far; ub = R_ab' u (body b's frame) and
+// offset = u . t_ab. For p under a node of tree a and q under one of tree b,
+//     |q - p| >= u . (q - p) >= min_q (u . q) - max_p (u . p)
+// so each node's support along u (max for tree a, min for tree b, padding included) bounds
+// every node pair it is in, for one subtraction per pair: the cheap bound of this traversal.
+// Far apart bodies are exactly where the boxes' own bound is dear (thousands of triangle pairs
+// within a few per cent of the nearest), and there the nearest points' direction is nearly
+// every near node pair's own.
+struct Slab {
+    bool active;
+    double u[3], ub[3], offset;
+    double pad_a, pad_b;
+};
+
+// Node n's support along the slab direction: max of u . p over tree a's node (side_b false),
+// min over tree b's (side_b true: in body a's frame, as u . (R_ab q + t_ab) = ub . q +
+// offset), the padded geometry's: a leaf's triangles' vertices moved by the padding, an inner
+// node's box (already grown by it, see obb_tree's padded boxes in the checker).
+CS_ALWAYS_INLINE double node_support(const Forest& f, int64_t n, const Slab& s, bool side_b,
+                                     DistanceWork& work) {
+    if (work.support_stamp[n] == work.support_tag) return work.support[n];
+    const double* u = side_b ? s.ub : s.u;
+    const int64_t* node = f.node(n);
+    double v;
+    if (node[NODE_LEFT] < 0) {
+        const double* x = f.tris + 9 * node[NODE_FIRST];
+        const double* end = x + 9 * node[NODE_COUNT];
+        v = u[0] * x[0] + u[1] * x[1] + u[2] * x[2];
+        for (x += 3; x < end; x += 3) {
+            const double w = u[0] * x[0] + u[1] * x[1] + u[2] * x[2];
+            v = side_b ? std::min(v, w) : std::max(v, w);
+        }
+        v = side_b ? v - s.pad_b : v + s.pad_a;
+    } else {
+        const double* B = f.box(n);
+        const int e = BOX_AXES, h = BOX_HALF;
+        double r = 0.0;
+        for (int k = 0; k < 3; ++k)
+            r += B[h + k] *
+                 std::fabs(u[0] * B[e + k] + u[1] * B[e + 3 + k] + u[2] * B[e + 6 + k]);
+        const double c = u[0] * B[0] + u[1] * B[1] + u[2] * B[2];
+        v = side_b ? c - r : c + r;
+    }
+    if (side_b) v += s.offset;
+    work.support_stamp[n] = work.support_tag;
+    work.support[n] = v;
+    return v;
+}
+
+// Aim the slab at the nearest points of best (body b at pose P); every support is stale then.
+// Points that coincide give no direction: the slab stays as it was.
+inline void aim_slab(const NearestPoints& best, const double* P, Slab& s, DistanceWork& work) {
+    const double w0 = best.y[0] - best.x[0], w1 = best.y[1] - best.x[1],
+                 w2 = best.y[2] - best.x[2];
+    const double ww = w0 * w0 + w1 * w1 + w2 * w2;
+    if (!(ww > 0.0)) return;
+    const double k = 1.0 / std::sqrt(ww);
+    s.u[0] = w0 * k;
+    s.u[1] = w1 * k;
+    s.u[2] = w2 * k;
+    for (int j = 0; j < 3; ++j) s.ub[j] = P[j] * s.u[0] + P[3 + j] * s.u[1] + P[6 + j] * s.u[2];
+    s.offset = s.u[0] * P[9] + s.u[1] * P[10] + s.u[2] * P[11];
+    s.active = true;
+    ++work.support_tag;
+}
+
 // Lower bound of the distance between node na's box (tree a) and node nb's (tree b at pose
-// P): projected_gap, with nb's placement taken from (or put into) placed: box_in_frame's
-// [R, t] = [Ea' (R_ab Eb), Ea' ((R_ab cb + t_ab) - ca)] from its cached factors.
+// P): projected_gap, with nb's placement taken from (or put into) the work rows:
+// box_in_frame's [R, t] = [Ea' (R_ab Eb), Ea' ((R_ab cb + t_ab) - ca)] from its cached
+// factors.
 CS_ALWAYS_INLINE double placed_node_gap(const Forest& f, int64_t na, int64_t nb,
-                                        const double* P, PlacedBoxes& placed) {
+                                        const double* P, DistanceWork& work) {
     const double* A = f.box(na);
     const double* B = f.box(nb);
-    double* row = placed.rows + PLACED_WIDTH * nb;
+    double* row = work.placed + PLACED_WIDTH * nb;
     const int e = BOX_AXES;
-    if (placed.stamp[nb] != placed.tag) {
-        placed.stamp[nb] = placed.tag;
+    if (work.placed_stamp[nb] != work.placed_tag) {
+        work.placed_stamp[nb] = work.placed_tag;
         for (int i = 0; i < 3; ++i) {
             row[i] = P[3 * i] * B[0] + P[3 * i + 1] * B[1] + P[3 * i + 2] * B[2] + P[9 + i];
             for (int k = 0; k < 3; ++k)
@@ -246,19 +181,43 @@ CS_ALWAYS_INLINE double placed_node_gap(const Forest& f, int64_t na, int64_t nb,
     return projected_gap(A, B, T);
 }
 
-// The smallest distance between the triangles under node ra (body a) and under node rb (body
-// b at pose P in body a's frame), if it is below best.distance: then best is replaced (points
-// in body a's frame). Stops at the first distance 0 (touching or crossing triangles).
+// The smallest padded distance (triangle distance minus pad_a + pad_b) between the triangles
+// under node ra (body a) and under node rb (body b at pose P in body a's frame), if it is
+// below best.distance: then best is replaced (points in body a's frame, on the triangles).
+// Stops once the triangles touch or cross (padded distance -pad_a - pad_b, the least there
+// is). The boxes must hold the padded geometry (the checker grows each body's boxes by its
+// padding): every bound is then one of the padded distance.
+//
+// Bounds, cheapest first: once a nearest pair is known (from the caller's seed, or the first
+// leaf reached), the slab's (node_support), and, unless that one comes within SLAB_TRUST_REL
+// of the best, the boxes' own (placed_node_gap); the larger decides.
 //
 // stack: (S, 3) int64 work, S >= depth(a) + depth(b) + 2; rows (na, nb, bits of the node
-// pair's lower bound). placed: work rows for every node of the forest (its tag is advanced).
-// counters: COUNT_BOX_TESTS (node pairs bounded) and COUNT_TRIANGLE_TESTS (triangle pairs
-// measured) grow.
-inline void trees_distance(int64_t ra, int64_t rb, const double* P, const Forest& f,
-                           int64_t* stack, int64_t* counters, NearestPoints& best,
-                           PlacedBoxes& placed) {
-    ++placed.tag;
-    int64_t n_boxes = 1, n_triangles = 0;
+// pair's lower bound). work: rows for every node of the forest (its tags are advanced).
+// counters: COUNT_BOX_TESTS (node pairs bounded by their boxes) and COUNT_TRIANGLE_TESTS
+// (triangle pairs measured) grow.
+inline void trees_distance(int64_t ra, int64_t rb, const double* P, double pad_a, double pad_b,
+                           const Forest& f, int64_t* stack, int64_t* counters,
+                           NearestPoints& best, DistanceWork& work) {
+    ++work.placed_tag;
+    const double pad = pad_a + pad_b;
+    Slab slab;
+    slab.active = false;
+    slab.pad_a = pad_a;
+    slab.pad_b = pad_b;
+    if (best.found) aim_slab(best, P, slab, work);
+    int64_t n_boxes = 0, n_triangles = 0;
+    auto bound = [&](int64_t na, int64_t nb) {
+        double g = -INF;
+        if (slab.active) {
+            g = node_support(f, nb, slab, true, work) - node_support(f, na, slab, false, work);
+            if (!(g < best.distance) ||
+                g > best.distance - SLAB_TRUST_REL * std::fabs(best.distance))
+                return g;
+        }
+        ++n_boxes;
+        return std::max(g, placed_node_gap(f, na, nb, P, work));
+    };
     auto push = [&](int64_t top, int64_t na, int64_t nb, double lb) {
         int64_t* row = stack + 3 * top;
         row[0] = na;
@@ -266,11 +225,11 @@ inline void trees_distance(int64_t ra, int64_t rb, const double* P, const Forest
         std::memcpy(row + 2, &lb, sizeof lb);
     };
     int64_t top = 0;
-    const double root_gap = placed_node_gap(f, ra, rb, P, placed);
+    const double root_gap = bound(ra, rb);
     if (root_gap < best.distance) push(top++, ra, rb, root_gap);
     Triangle Q;
     double x[3], y[3];
-    while (top > 0 && best.distance > 0.0) {
+    while (top > 0 && best.distance > -pad) {
         --top;
         const int64_t* row = stack + 3 * top;
         const int64_t na = row[0], nb = row[1];
@@ -288,13 +247,17 @@ inline void trees_distance(int64_t ra, int64_t rb, const double* P, const Forest
                 for (int64_t ia = node_a[NODE_FIRST];
                      ia < node_a[NODE_FIRST] + node_a[NODE_COUNT]; ++ia) {
                     ++n_triangles;
+                    // lb > 0: the padded geometry apart, so the triangles too.
                     const double d =
-                        triangle_distance(triangle_at(f.tris, ia), Q, x, y, lb > 0.0);
+                        triangle_distance(triangle_at(f.tris, ia), Q, x, y, lb > 0.0) - pad;
                     if (d < best.distance) {
                         best.distance = d;
                         best.found = true;
+                        best.ia = ia;
+                        best.ib = ib;
                         std::memcpy(best.x, x, sizeof x);
                         std::memcpy(best.y, y, sizeof y);
+                        aim_slab(best, P, slab, work);
                     }
                 }
             }
@@ -311,9 +274,8 @@ inline void trees_distance(int64_t ra, int64_t rb, const double* P, const Forest
             c1b = node_b[NODE_LEFT];
             c2b = node_b[NODE_RIGHT];
         }
-        double g1 = placed_node_gap(f, c1a, c1b, P, placed);
-        double g2 = placed_node_gap(f, c2a, c2b, P, placed);
-        n_boxes += 2;
+        double g1 = bound(c1a, c1b);
+        double g2 = bound(c2a, c2b);
         if (g1 < g2) {  // the nearer child pair on top: popped first
             std::swap(g1, g2);
             std::swap(c1a, c2a);

@@ -80,6 +80,7 @@ Engine::Engine(double* F, int64_t f_size, int64_t* I, int64_t i_size) {
     check_shape("gain", fs[gain], n_nodes, 1, 1);
     check_shape("tris", fs[tris], -1, 3, 3);
     check_shape("subtree_boxes", fs[subtree_boxes], L1, BOX_WIDTH, 1);
+    check_shape("padding", fs[padding], n_bodies_, 1, 1);
     check_shape("elem_solid", fs[elem_solid], std::max<int64_t>(is[roots].size, 1), SOLID_WIDTH, 1);
     check_shape("clearance", fs[clearance], n_pairs_, 1, 1);
     check_shape("q_eval", fs[q_eval], n_pairs_, n_joints_, 1);
@@ -109,6 +110,7 @@ Engine::Engine(double* F, int64_t f_size, int64_t* I, int64_t i_size) {
     check_shape("counters", is[counters], N_COUNTERS, 1, 1);
     check_shape("front", is[front], fs[front_until].size, 3, 1);
     check_shape("front_state", is[front_state], n_pairs_, 2, 1);
+    check_shape("nearest", is[nearest], n_pairs_, 2, 1);
     culled_width_ = L1;
     stack_rows_ = is[stack].d0;
     front_capacity_ = fs[front_until].size / (n_pairs_ + 1);
@@ -123,6 +125,7 @@ Engine::Engine(double* F, int64_t f_size, int64_t* I, int64_t i_size) {
     T_world_body_ = fp[T_world_body];
     body_boxes_ = fp[body_boxes];
     subtree_boxes_ = fp[subtree_boxes];
+    padding_ = fp[padding];
     clearance_ = fp[clearance];
     q_eval_ = fp[q_eval];
     reach_ = fp[reach];
@@ -153,9 +156,13 @@ Engine::Engine(double* F, int64_t f_size, int64_t* I, int64_t i_size) {
     counters_ = ip[counters];
     front_ = ip[front];
     front_state_ = ip[front_state];
+    nearest_ = ip[nearest];
 
     // Indices the query follows without checking: validated once here.
-    const int64_t n_tris = fs[tris].d0;
+    const int64_t n_tris = n_tris_ = fs[tris].d0;
+    for (int64_t b = 0; b < n_bodies_; ++b)
+        if (!(padding_[b] >= 0.0 && padding_[b] < INF))
+            throw std::invalid_argument("packed array 'padding': not a finite value >= 0");
     for (int64_t i = 0; i < n_links_; ++i) {
         if (kin_.parent[i] >= i || (i > 0 && kin_.parent[i] < 0) || (i == 0 && kin_.parent[0] >= 0))
             throw std::invalid_argument("packed array 'parent': links are not parents first");
@@ -515,7 +522,7 @@ int64_t Engine::plan_update(const double* q) {
 // the roots made).
 TreesResult Engine::trees_of_pair(int64_t p, bool track, double scale, double travel,
                                   double margin, int64_t a, int64_t b, const double* pose,
-                                  int64_t wa, int64_t wb) {
+                                  int64_t wa, int64_t wb, double pad) {
     const int64_t F = front_capacity_;
     const int64_t n_old = (track && status_[p] == 0) ? front_state_[2 * p] : 0;
     const int64_t start = p * F;
@@ -547,7 +554,7 @@ TreesResult Engine::trees_of_pair(int64_t p, bool track, double scale, double tr
     const TreesResult tree =
         trees_collide(n_seeds, pose, forest_, int(header_[H_BOX_METHOD]),
                       int(header_[H_EXPANSION]), stack_, counters_, track, wa, wb, work, n_front,
-                      travel - margin);
+                      travel - margin, pad);
     if (tree.hit) return {true, tree.ia, tree.ib, 0.0, 0};
     gap = std::min(gap, tree.gap);
     n_front = tree.n_front;
@@ -711,7 +718,8 @@ int64_t Engine::recheck_pairs(int64_t n, bool full, bool* changed) {
             const int64_t wb = track ? witness_[2 * p + 1] : -1;
             const bool single = body_elem_end_[a] - body_elem_start_[a] == 1 &&
                                 body_elem_end_[b] - body_elem_start_[b] == 1;
-            if (wa >= 0) hit = triangle_pair_collides(forest_.tris, wa, wb, pose);
+            const double pad = padding_[a] + padding_[b];
+            if (wa >= 0) hit = triangle_pair_collides(forest_.tris, wa, wb, pose, pad);
             if (!hit) {
                 const double* A = body_boxes_ + BOX_WIDTH * a;
                 const double* B = body_boxes_ + BOX_WIDTH * b;
@@ -721,7 +729,7 @@ int64_t Engine::recheck_pairs(int64_t n, bool full, bool* changed) {
                     const double margin = track ? clearance_margin(a, b, pose) : 0.0;
                     const TreesResult r = trees_of_pair(p, track, A[BOX_RADIUS] + B[BOX_RADIUS],
                                                         front_travel_[p], margin, a, b, pose,
-                                                        wa, wb);
+                                                        wa, wb, pad);
                     hit = r.hit;
                     gap = r.gap;
                     if (hit) {

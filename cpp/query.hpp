@@ -19,7 +19,11 @@
 // the link boxes, never from geometry: sec. 2.2) and cull scene pairs with them first.
 //
 // Bodies are the robot's links (FK order, parents first, world == root link frame) followed
-// by the scene objects, whose poses never change.
+// by the scene objects, whose poses never change. A body may be padded (padding[b], metres: its
+// geometry grown by a swept sphere, MoveIt's link padding): its boxes then hold the padded
+// geometry (the checker grows them), the leaf test of a pair is "triangles within the two
+// paddings' sum" (traversal.hpp: triangles_within), and every clearance is one of the padded
+// distance, which moves exactly as the unpadded one does, so the travel bounds hold as they are.
 //
 // All state, the model's arrays and the carried statuses alike, lives in two flat buffers
 // that the Python checker packs (collision_sensor/array_pack.py): doubles F and int64 I, with
@@ -34,6 +38,7 @@
 #include <string>
 #include <vector>
 
+#include "distance.hpp"
 #include "kinematics.hpp"
 #include "traversal.hpp"
 
@@ -44,14 +49,14 @@ namespace collision_sensor {
 #define CS_FLOAT_SLOTS(X)                                                                     \
     X(scalars) X(q_last) X(q_ref) X(T_parent_joint) X(axis) X(multiplier) X(offset)           \
     X(T_world_body) X(body_boxes) X(boxes) X(volume) X(gain) X(tris) X(elem_solid)            \
-    X(subtree_boxes)                                                                          \
+    X(subtree_boxes) X(padding)                                                               \
     X(clearance) X(q_eval) X(reach) X(reach_ext) X(travel) X(front_until) X(front_travel)
 #define CS_INT_SLOTS(X)                                                                       \
     X(header) X(parent) X(joint_type) X(q_index) X(is_scene) X(body_elem_start)              \
     X(body_elem_end) X(roots) X(nodes) X(pair_a) X(pair_b) X(joint_pairs_start)              \
     X(joint_pairs) X(joint_links_start) X(joint_links) X(joint_prismatic) X(status) X(witness) \
     X(moved) X(stale) X(chain) X(pending) X(todo) X(scene_culled) X(stack) X(counters)        \
-    X(front) X(front_state)
+    X(front) X(front_state) X(nearest)
 
 #define CS_SLOT_ENUM(name) name,
 enum FloatSlot : int { CS_FLOAT_SLOTS(CS_SLOT_ENUM) N_FLOAT_SLOTS };
@@ -114,9 +119,9 @@ class Engine {
     int64_t batch(const double* Q, int64_t n, bool full, uint8_t* statuses, int64_t* codes);
     // Bring every link pose up to date (incremental calls compute them only on demand).
     void refresh_all_poses();
-    // distance.cpp: query(q, false), then each pair's distance and nearest points (world
-    // frame) into distance (P,) (INF when not below max_distance; 0 when colliding) and points
-    // (P, 6) (on body pair_a, on body pair_b). Returns query()'s code.
+    // distance.cpp: query(q, false), then each pair's padded distance and nearest points
+    // (world frame) into distance (P,) (INF when not below max_distance; <= 0 when in
+    // contact) and points (P, 6) (on body pair_a, on body pair_b). Returns query()'s code.
     int64_t proximity(const double* q, double max_distance, double* distance, double* points);
 
     int64_t n_joints() const { return n_joints_; }
@@ -146,29 +151,34 @@ class Engine {
     bool contained(int64_t a, int64_t b, const double* pose) const;
     bool inside_solid(int64_t e, const double* x) const;
     bool contained_vertex(int64_t a, int64_t b, const double* pose, double* x) const;
+    void seed_nearest(int64_t ia, int64_t ib, const double* pose, double pad,
+                      NearestPoints& best) const;
+    void write_nearest_points(int64_t a, double pad_a, double pad_b, const NearestPoints& best,
+                              double* row) const;
     TreesResult trees_of_pair(int64_t p, bool track, double scale, double travel, double margin,
-                              int64_t a, int64_t b, const double* pose, int64_t wa, int64_t wb);
+                              int64_t a, int64_t b, const double* pose, int64_t wa, int64_t wb,
+                              double pad);
 
     std::mutex lock_;
     int64_t* header_;
     double* scalars_;
     int64_t n_links_, n_bodies_, n_joints_, n_pairs_, n_scene_, culled_width_;
-    int64_t stack_rows_, front_capacity_;
+    int64_t stack_rows_, front_capacity_, n_tris_;
     KinematicTree kin_;
     Forest forest_;
     const double* elem_solid_;
     std::vector<uint8_t> body_solid_;  // 1 where a body has a solid element
     std::vector<int64_t> elem_tris_;   // (E, 2): each tree's triangle range (its leaves')
-    // distance.cpp's work rows (distance.hpp: PlacedBoxes), sized on the first proximity call.
-    std::vector<double> placed_rows_;
-    std::vector<int64_t> placed_stamp_;
-    int64_t placed_tag_ = 0;
-    double *q_last_, *q_ref_, *T_world_body_, *body_boxes_, *subtree_boxes_, *clearance_,
-        *q_eval_, *reach_, *reach_ext_, *travel_, *front_until_, *front_travel_;
+    // distance.cpp's work rows (distance.hpp: DistanceWork), sized on the first proximity call.
+    std::vector<double> placed_rows_, support_rows_;
+    std::vector<int64_t> placed_stamp_, support_stamp_;
+    int64_t placed_tag_ = 0, support_tag_ = 0;
+    double *q_last_, *q_ref_, *T_world_body_, *body_boxes_, *subtree_boxes_, *padding_,
+        *clearance_, *q_eval_, *reach_, *reach_ext_, *travel_, *front_until_, *front_travel_;
     int64_t *is_scene_, *body_elem_start_, *body_elem_end_, *roots_, *pair_a_, *pair_b_,
         *joint_pairs_start_, *joint_pairs_, *joint_links_start_, *joint_links_,
         *joint_prismatic_, *status_, *witness_, *moved_, *stale_, *chain_, *pending_, *todo_,
-        *scene_culled_, *stack_, *counters_, *front_, *front_state_;
+        *scene_culled_, *stack_, *counters_, *front_, *front_state_, *nearest_;
 };
 
 }  // namespace collision_sensor

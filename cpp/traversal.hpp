@@ -27,6 +27,7 @@
 
 #include "box_test.hpp"
 #include "tolerances.hpp"
+#include "triangle_distance.hpp"
 #include "triangle_test.hpp"
 
 namespace collision_sensor {
@@ -240,33 +241,55 @@ CS_ALWAYS_INLINE const Triangle&  triangle_at(const double* tris, int64_t i) {
     return *reinterpret_cast<const Triangle*>(tris + 9 * i);
 }
 
-// True iff triangle ia (body a) meets triangle ib (body b, at pose).
-inline bool triangle_pair_collides(const double* tris, int64_t ia, int64_t ib,
-                                   const double* pose) {
-    Triangle Q;
-    triangle_in_a(tris, ib, pose, Q);
-    return triangles_intersect(triangle_at(tris, ia), Q);
+// True iff triangle P is within pad of triangle Q (pad > 0: the padded contact rule, the
+// triangles' distance against the pair's padding, distance <= pad), or (pad 0) meets it.
+CS_ALWAYS_INLINE bool triangles_within(const Triangle& P, const Triangle& Q, double pad,
+                                       double& distance) {
+    if (pad > 0.0) {
+        double x[3], y[3];
+        distance = triangle_distance(P, Q, x, y);
+        return distance <= pad;
+    }
+    distance = 0.0;
+    return triangles_intersect(P, Q);
 }
 
-// Every triangle of leaf a against every triangle of leaf b (body b at pose): the first
-// meeting triangles (-1, -1 if none) and the number of triangle pairs tested.
+// True iff triangle ia (body a) meets triangle ib (body b, at pose), or comes within pad.
+inline bool triangle_pair_collides(const double* tris, int64_t ia, int64_t ib,
+                                   const double* pose, double pad) {
+    Triangle Q;
+    triangle_in_a(tris, ib, pose, Q);
+    double distance;
+    return triangles_within(triangle_at(tris, ia), Q, pad, distance);
+}
+
+// Every triangle of leaf a against every triangle of leaf b (body b at pose), by the padded
+// rule (triangles_within): the first pair in contact (-1, -1 if none), the number of triangle
+// pairs tested, and, with pad > 0 and none in contact, the smallest distance minus pad (a
+// padded leaf pair's clearance; 0 without padding, where no distance is measured).
 struct LeafResult {
     bool hit;
     int64_t ia, ib, tested;
+    double gap;
 };
 
 inline LeafResult leaves_collide(const double* tris, int64_t first_a, int64_t count_a,
-                                 int64_t first_b, int64_t count_b, const double* pose) {
+                                 int64_t first_b, int64_t count_b, const double* pose,
+                                 double pad) {
     Triangle Q;
     int64_t tested = 0;
+    double nearest = INF;
     for (int64_t ib = first_b; ib < first_b + count_b; ++ib) {
         triangle_in_a(tris, ib, pose, Q);
         for (int64_t ia = first_a; ia < first_a + count_a; ++ia) {
             ++tested;
-            if (triangles_intersect(triangle_at(tris, ia), Q)) return {true, ia, ib, tested};
+            double distance;
+            if (triangles_within(triangle_at(tris, ia), Q, pad, distance))
+                return {true, ia, ib, tested, 0.0};
+            nearest = std::min(nearest, distance);
         }
     }
-    return {false, -1, -1, tested};
+    return {false, -1, -1, tested, pad > 0.0 ? nearest - pad : 0.0};
 }
 
 // True iff box m's centre is nearer the point x than box n's (same body frame).
@@ -302,7 +325,7 @@ struct TreesResult {
 // level) meet one of the other's, and if not, how far apart are they at least?
 //
 // Contract, for a seed the two roots of a body's sub-group trees:
-//     hit = any(triangles_intersect(P, R_ab Q + t_ab) for P in triangles(na)
+//     hit = any(triangles_within(P, R_ab Q + t_ab, pad) for P in triangles(na)
 //               for Q in triangles(nb) for (na, nb) in seeds)
 // computed by descending both trees and pruning node pairs whose boxes are disjoint; ia, ib
 // are the rows of tris of the first meeting pair found (-1 if none), a witness the caller may
@@ -311,7 +334,8 @@ struct TreesResult {
 // With track, gap is a lower bound of the distance between the two trees' triangles when they
 // do not meet: the smallest gap of the node pairs pruned (sphere gap |d| - r_a - r_b, or
 // face_gap for a box test, or the gap along the edge axis that separated them), 0 once a leaf
-// pair had to be tested triangle by triangle. Not rounded down: the caller allows for that.
+// pair had to be tested triangle by triangle (without padding). Not rounded down: the caller
+// allows for that.
 // Without track (full checks), gap is 0 and costs nothing.
 //
 // The front: with n_front >= 0, every node pair where the descent stopped (pruned, or a leaf
@@ -326,11 +350,18 @@ struct TreesResult {
 // child whose centre is nearer the other box's centre. A colliding pair stops at its first
 // meeting triangles, so this finds them sooner.
 //
+// Padding (pad: the pair's two paddings summed, 0 for none): triangles count as meeting when
+// they are within pad of each other (triangles_within), and the boxes must hold the padded
+// geometry (the checker grows each body's boxes by its padding), so that boxes apart still
+// prove the padded bodies apart and every gap is one of the padded distance. A padded leaf
+// pair found apart has its distance measured: its gap is that distance minus pad, not 0.
+//
 // stack: (S, 3) int64 work, S >= n_seeds + depth(a) + depth(b) + 2.
 inline TreesResult trees_collide(int64_t n_seeds, const double* P, const Forest& f,
                                  int box_method, int expansion, int64_t* stack,
                                  int64_t* counters, bool track, int64_t wa, int64_t wb,
-                                 const FrontRows& front, int64_t n_front, double travel) {
+                                 const FrontRows& front, int64_t n_front, double travel,
+                                 double pad) {
     double best = track ? INF : 0.0;
     int64_t n_boxes = 0, n_spheres = 0, n_triangles = 0;
     bool hit = false;
@@ -378,7 +409,8 @@ inline TreesResult trees_collide(int64_t n_seeds, const double* P, const Forest&
         const bool leaf_b = node_b[NODE_LEFT] < 0;
         if (leaf_a && leaf_b) {
             const LeafResult leaf = leaves_collide(f.tris, node_a[NODE_FIRST], node_a[NODE_COUNT],
-                                                   node_b[NODE_FIRST], node_b[NODE_COUNT], P);
+                                                   node_b[NODE_FIRST], node_b[NODE_COUNT], P,
+                                                   pad);
             n_triangles += leaf.tested;
             if (leaf.hit) {
                 hit = true;
@@ -386,8 +418,8 @@ inline TreesResult trees_collide(int64_t n_seeds, const double* P, const Forest&
                 ib = leaf.ib;
                 break;
             }
-            n_front = record(front, n_front, na, nb, FRONT_LEAF, travel);
-            best = std::min(best, 0.0);
+            n_front = record(front, n_front, na, nb, FRONT_LEAF, travel + leaf.gap);
+            best = std::min(best, leaf.gap);
             continue;
         }
         bool expand_a;

@@ -147,6 +147,22 @@ class FclOracle:
             poses[name] = self.pin_data.oMf[fid].homogeneous
         return poses
 
+    def pair_distance(self, poses, a, b):
+        """fcl.distance between bodies a and b at ``poses`` (theirs): the smallest over their
+        elements' BVH models (fcl answers -1 or 0 for meshes that meet)."""
+        request = fcl.DistanceRequest()
+        Ta, Tb = poses[a], poses[b]
+        ta = fcl.Transform(Ta[:3, :3], Ta[:3, 3])
+        tb = fcl.Transform(Tb[:3, :3], Tb[:3, 3])
+        return min(fcl.distance(fcl.CollisionObject(ma, ta), fcl.CollisionObject(mb, tb),
+                                request, fcl.DistanceResult())
+                   for ma in self.models[a] for mb in self.models[b])
+
+    def contains(self, poses, a, b):
+        """True iff a vertex of one body lies inside a solid primitive of the other."""
+        Ta, Tb = poses[a], poses[b]
+        return self._contains(a, b, Ta, Tb) or self._contains(b, a, Tb, Ta)
+
     def colliding_pairs(self, positions):
         poses = self.poses(positions)
         request = fcl.CollisionRequest()
@@ -168,3 +184,21 @@ class FclOracle:
             if found or self._contains(a, b, Ta, Tb) or self._contains(b, a, Tb, Ta):
                 hits.append((a, b))
         return tuple(hits)
+
+
+def body_triangles(checker, name):
+    """(n, 3, 3) the body's triangles in the world, at the checker's current state."""
+    b = checker._body_index[name]
+    f = checker.forest
+    tris = np.concatenate([FclOracle._tris_of_tree(f, f.roots[e]) for e in range(
+        checker._body_elem_start[b], checker._body_elem_end[b])])
+    T = checker._poses()[b]
+    return tris @ T[:3, :3].T + T[:3, 3]
+
+
+def distance_to_body(checker, x, name):
+    """Distance from point x (world) to the body's triangles at the checker's state."""
+    from collision_sensor.engine.distance import triangle_distance
+    tris = body_triangles(checker, name)
+    d, _, _ = triangle_distance(np.broadcast_to(x, (len(tris), 3, 3)).copy(), tris)
+    return float(d.min())

@@ -26,7 +26,7 @@ from collision_sensor.engine.kinematics import (JOINT_FLOATING, JOINT_PLANAR, JO
                                          KinematicTree, build_kinematic_tree)
 from collision_sensor.engine.obb_tree import (
     BOX_WIDTH, box_table, build_forest, forest_view, node_table)
-from collision_sensor.errors import JointStateError, SceneError, SrdfError
+from collision_sensor.errors import ConfigError, JointStateError, SceneError, SrdfError
 from collision_sensor.model.exception_list import adjacent_pairs, parse_pair_strings, sorted_pair
 from collision_sensor.model.mesh_loading import SOLID_CLOSED_MESH, Solid, is_closed_surface
 from collision_sensor.model.robot_model import Joint, RobotModel, load_urdf
@@ -66,11 +66,18 @@ class ProximityRecord(NamedTuple):
 
     :ivar link_a: the pair's first name (``link_a < link_b``, as in ``checked_pairs``).
     :ivar link_b: the second name (a link or a scene object).
-    :ivar distance: the distance between the two bodies' triangle surfaces (m); 0 when they
-        collide (no penetration depth is computed).
-    :ivar point_a: (3,) float, a nearest point on ``link_a``, in the world (root link) frame;
-        when colliding, a point where the surfaces meet (or a vertex inside a solid primitive).
-    :ivar point_b: (3,) float, the nearest point on ``link_b`` (``point_a`` when colliding).
+    :ivar distance: the distance between the two bodies' triangle surfaces minus their two
+        paddings (m; without padding, the surfaces' distance); <= 0 exactly when the pair is
+        in contact: 0 when the surfaces meet, without padding (no penetration depth is
+        computed); with padding, the surfaces' distance minus the paddings (-padding when
+        they meet, or when a body lies inside a solid primitive).
+    :ivar point_a: (3,) float, a nearest point of ``link_a``'s padded geometry (on its
+        surface, moved towards ``point_b`` by its padding), in the world (root link) frame;
+        in contact, one point of both padded bodies: where the surfaces meet (or a vertex
+        inside a solid primitive), or, padded, the point between the surfaces' nearest points
+        that splits their segment in the ratio of the two paddings.
+    :ivar point_b: (3,) float, the nearest point of ``link_b``'s padded geometry
+        (``point_a`` in contact). Apart, ``|point_b - point_a| == distance``.
     """
 
     link_a: str
@@ -94,7 +101,9 @@ class CollisionChecker:
     are every two bodies with geometry, robot-robot and robot-scene, minus the exception list
     (adjacent links, SRDF ``disable_collisions``, ``allowed_collisions``). Contact means the
     two bodies' triangle surfaces share a point (touching counts); a body wholly inside another
-    without touching its surface is not reported (see README, "Contact rule").
+    without touching its surface is not reported (see README, "Contact rule"). With padding
+    (``padding``, ``link_padding`` in the config), each link's geometry is grown by its padding
+    (a sphere swept over it): contact means the surfaces come within the two paddings' sum.
     """
 
     def __init__(self, model: RobotModel, srdf: Optional[Srdf] = None,
@@ -143,6 +152,8 @@ class CollisionChecker:
             n_bodies, dtype=np.int64)
         self._body_elem_end = np.cumsum(counts).astype(np.int64)
         self._body_elem_start = (self._body_elem_end - counts).astype(np.int64)
+        self._padding = self._body_padding(link_names, n_bodies)
+        _grow_boxes(forest.half, forest.roots, self._padding[owners])
 
         # Each body's box over all its sub-groups, in the body frame (sec. 2.1: computed once).
         self._body_center = np.zeros((n_bodies, 3))
@@ -157,11 +168,15 @@ class CollisionChecker:
                                         for k, e in enumerate(range(self._body_elem_start[b],
                                                                     self._body_elem_end[b]))])
                 c, a, h = fit_obb(points, self.config.obb_fit_code, faces=faces)
-                self._body_center[b], self._body_axes[b], self._body_half[b] = c, a, h
+                self._body_center[b], self._body_axes[b] = c, a
+                self._body_half[b] = h + self._padding[b]   # the padded body (see _grow_boxes)
 
         with_geometry = [name for b, name in enumerate(body_names) if counts[b] > 0]
         self.link_names: Tuple[str, ...] = tuple(
             name for name in with_geometry if name in link_index)
+        #: Each body's padding (m), links and scene objects with geometry (objects: 0).
+        self.paddings: Dict[str, float] = {
+            name: float(self._padding[b]) for b, name in enumerate(body_names) if counts[b]}
         self.excluded_pairs: Dict[Pair, str] = self._exception_list(srdf, link_names)
         candidates = []
         robot = list(self.link_names)
@@ -243,7 +258,7 @@ class CollisionChecker:
             body_boxes=box_table(self._body_center, self._body_axes, self._body_half),
             boxes=box_table(f.center, f.axes, f.half), volume=f.volume, gain=f.gain,
             tris=f.tris, elem_solid=elem_solid,
-            subtree_boxes=np.zeros((max(n_links, 1), BOX_WIDTH)),
+            subtree_boxes=np.zeros((max(n_links, 1), BOX_WIDTH)), padding=self._padding,
             clearance=np.zeros(n_pairs), q_eval=np.zeros((n_pairs, n_joints)),
             reach=self._pair_reach, reach_ext=self._pair_reach_ext, travel=np.zeros((n_pairs, 2)),
             front_until=np.zeros((n_pairs + 1) * front_rows), front_travel=np.zeros(n_pairs))
@@ -261,7 +276,7 @@ class CollisionChecker:
             scene_culled=np.zeros((len(scene), max(n_links, 1))),
             stack=np.zeros((seeds + 2 * depth + 8, 3)),
             counters=np.zeros(engine.N_COUNTERS), front=np.zeros(((n_pairs + 1) * front_rows, 3)),
-            front_state=np.zeros((n_pairs, 2)))
+            front_state=np.zeros((n_pairs, 2)), nearest=np.full((n_pairs, 2), -1))
         self._F, self._F_layout, float_views = self._pack(np.float64, engine.FLOAT_SLOTS, floats)
         self._I, self._I_layout, int_views = self._pack(np.int64, engine.INT_SLOTS, ints)
         # The forest is only a view of the engine's tables: nothing is held twice (scenario 4).
@@ -349,6 +364,25 @@ class CollisionChecker:
         I[e.H_LAYOUTS:e.H_I_LAYOUT] = self._F_layout.ravel()
         I[e.H_I_LAYOUT:e.HEADER_SIZE] = self._I_layout.ravel()
 
+    def _body_padding(self, link_names: List[str], n_bodies: int) -> np.ndarray:
+        """(B,) float64: each body's padding (m), links from ``padding`` and
+        ``link_padding``, scene objects 0.
+
+        :raises ConfigError: ``link_padding`` names something that is not a link of the robot.
+        """
+        padding = np.zeros(n_bodies)
+        padding[:len(link_names)] = self.config.padding
+        index = {name: i for i, name in enumerate(link_names)}
+        for name, metres in self.config.link_padding:
+            if name not in index:
+                what = ('is a scene object; only robot links are padded'
+                        if name in self.scene_object_names else
+                        f'is not a link of robot "{self.model.name}"; links: '
+                        + ', '.join(link_names))
+                raise ConfigError(f'setting link_padding: "{name}" {what}')
+            padding[index[name]] = metres
+        return padding
+
     def _exception_list(self, srdf: Optional[Srdf], link_names: List[str]) -> Dict[Pair, str]:
         excluded: Dict[Pair, str] = {}
         if self.config.ignore_adjacent:
@@ -408,6 +442,9 @@ class CollisionChecker:
         k gets QUATERNION_REACH too (rare: multi-DOF joints are mostly the root's), so E stays
         the prismatic joints' sum. Below both bodies' common ancestor (a floating base under
         self-collision pairs) a joint moves nothing relative, and is skipped.
+
+        Padding does not enter: a padded pair's clearance is a bound of its surfaces' distance
+        minus a constant (the paddings), which moves exactly as much as that distance does.
         """
         kin = self.kinematics
         n_joints = len(kin.joint_names)
@@ -614,14 +651,16 @@ class CollisionChecker:
     def proximity(self, positions: Positions,
                   max_distance: float = 0.1) -> List[ProximityRecord]:
         """Run :meth:`update` at ``positions``, then measure every checked pair nearer than
-        ``max_distance``; return their records sorted by distance (colliding pairs first,
-        distance 0).
+        ``max_distance``; return their records sorted by distance (pairs in contact first,
+        distance <= 0).
 
         Same hierarchy and exception list as :meth:`check`; the engine descends both bodies'
-        OBB trees with box distance lower bounds and stops a pair once its bound reaches
-        ``max_distance`` or the best distance found (``cpp/distance.hpp``). A colliding pair
-        (exactly the pairs :meth:`update` reports) has distance 0 and a point where the bodies
-        meet; its penetration depth is not computed.
+        OBB trees with distance lower bounds (the boxes', and each node's extent along the
+        nearest points' direction) and stops a pair once its bound reaches ``max_distance``
+        or the best distance found, starting from the triangles that were nearest at the last
+        call (``cpp/distance.hpp``). Distances are padded (see :class:`ProximityRecord`); a
+        pair in contact (exactly the pairs :meth:`update` reports) has distance <= 0 and a
+        point in both padded bodies; penetration depth is not computed.
 
         :param positions: as for :meth:`check`.
         :param max_distance: only pairs closer than this (m; ``math.inf``: every pair).
@@ -710,6 +749,24 @@ class CollisionChecker:
                 T_body_box[:3, 3] = f.center[node]
                 boxes.append((name, T_world_body[b] @ T_body_box, f.half[node].copy()))
         return boxes
+
+
+def _grow_boxes(half: np.ndarray, roots: np.ndarray, padding: np.ndarray) -> None:
+    """Grow every box of tree e by ``padding[e]`` in each half extent, in place.
+
+    A padded element is its geometry swept by a sphere of radius ``padding`` (the Minkowski
+    sum); its box grown by the padding along each axis holds that, so every box test and box
+    gap of the engine is one of the padded geometry, and only the triangle tests at the leaves
+    need the padding itself (``cpp/traversal.hpp``: triangles_within). Trees are contiguous
+    node ranges starting at their roots.
+
+    :param half: (N, 3) float64 half extents of the forest's boxes.
+    :param roots: (E,) int64 root node of each tree; ``padding``: (E,) float64 metres.
+    """
+    ends = list(roots[1:]) + [len(half)]
+    for start, end, pad in zip(roots, ends, padding):
+        if pad > 0.0:
+            half[start:end] += pad
 
 
 def _variables(kin: KinematicTree, k: int) -> slice:

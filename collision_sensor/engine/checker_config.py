@@ -23,9 +23,17 @@ mesh_containment      False      also treat closed (watertight, consistently wou
                                  with primitives, which are always solid (README, "Contact
                                  rule"); costs a ray test over the mesh's triangles per
                                  element pair whose spheres overlap and surfaces do not meet
+padding               0.0        metres every robot link's geometry is grown by (a sphere
+                                 swept over it, as MoveIt's link padding): two bodies are in
+                                 contact when their surfaces are within the sum of their
+                                 paddings, and proximity reports that much less distance
+link_padding          {}         ``{link: metres}``, a link's own padding instead of
+                                 ``padding``; links of the robot only (scene objects are
+                                 never padded)
 ===================== ========== ============================================================
 """
 from dataclasses import dataclass, fields, replace
+import math
 from typing import Any, Mapping, Optional, Tuple
 
 from collision_sensor.engine.bounding_volumes import OBB_HULL_PCA, OBB_MIN_VOLUME, OBB_PCA
@@ -50,6 +58,9 @@ class CheckerConfig:
     leaf_size: int = 1
     primitive_sections: int = 32
     mesh_containment: bool = False
+    padding: float = 0.0
+    #: ``((link, metres), ...)`` sorted by link; given as a mapping, see :meth:`from_mapping`.
+    link_padding: Tuple[Tuple[str, float], ...] = ()
 
     @classmethod
     def from_mapping(cls, config: Optional[Mapping[str, Any]] = None) -> 'CheckerConfig':
@@ -89,6 +100,31 @@ def _choice(key, value, choices):
     return value
 
 
+def _metres(key, value) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        number = math.nan
+    if isinstance(value, bool) or not (number >= 0.0 and math.isfinite(number)):
+        raise ConfigError(f'setting {key}: expected a finite number of metres >= 0, got '
+                          f'{value!r}')
+    return number
+
+
+def _link_padding(value) -> Tuple[Tuple[str, float], ...]:
+    if isinstance(value, tuple) and all(isinstance(v, tuple) for v in value):
+        value = dict(value)   # a CheckerConfig's own (settings copied from another checker)
+    if not isinstance(value, Mapping):
+        raise ConfigError('setting link_padding: expected a mapping {link: metres}, got '
+                          f'{type(value).__name__}')
+    out = []
+    for link, metres in value.items():
+        if not isinstance(link, str) or not link:
+            raise ConfigError(f'setting link_padding: link name {link!r} is not a string')
+        out.append((link, _metres(f'link_padding[{link}]', metres)))
+    return tuple(sorted(out))
+
+
 def _converted(config):
     out = {}
     for key, value in config.items():
@@ -116,6 +152,10 @@ def _converted(config):
             out[key] = _choice(key, value, EXPANSION_RULES)
         elif key == 'obb_fit':
             out[key] = _choice(key, value, OBB_FITS)
+        elif key == 'padding':
+            out[key] = _metres(key, value)
+        elif key == 'link_padding':
+            out[key] = _link_padding(value)
         elif key in ('leaf_size', 'primitive_sections'):
             minimum = 1 if key == 'leaf_size' else 3
             if isinstance(value, bool) or not isinstance(value, int) or value < minimum:

@@ -6,21 +6,26 @@ Contract in plain Python::
     d == min(norm(p - q) for p in P for q in Q)     # over the closed triangles' points
     norm(x - y) == d; x in P; y in Q                # a nearest pair (x == y when they meet)
 
-    proximity: for each checked pair (a, b),
-    distance(a, b) == min(triangle_distance(P, Q)[0] for P in triangles(a) for Q in triangles(b))
-    reported iff distance(a, b) < max_distance; 0 (no penetration depth) iff check() says the
-    pair collides, with one point where the bodies meet
+    proximity: for each checked pair (a, b), with padding(x) the body's padding (0 for none),
+    surfaces = min(triangle_distance(P, Q)[0] for P in triangles(a) for Q in triangles(b))
+    distance(a, b) == surfaces - padding(a) - padding(b)
+    reported iff distance(a, b) < max_distance; <= 0 iff check() says the pair is in contact
+    (no penetration depth: 0 for surfaces that meet, minus the paddings), with one point in
+    both padded bodies; apart, the nearest points of the padded bodies
 
 ``P, Q : (3, 3) float64``, rows the vertices, both in the same frame. The nearest points of two
 disjoint triangles are a vertex of one and its foot on the other, or the nearest points of an
 edge of each; crossing triangles have an edge through the other's face. A triangle thinner than
 the contact tolerance (its sine below ``TRIANGLE_EPS_REL``) is its three edges.
 
-The kernels are C++ (``cpp/distance.hpp``): the triangle distance with Gottschalk's early exit
-(PQP's TriDist), and the traversal of two OBB trees that bounds each node pair by the boxes'
-gap along an axis aimed at their nearest points by alternating projection, visits the nearer
-child pair first, and prunes node pairs whose bound reaches ``max_distance`` or the best
-distance found.
+The kernels are C++: the triangle distance with Gottschalk's early exit (PQP's TriDist,
+``cpp/triangle_distance.hpp``), and the traversal of two OBB trees (``cpp/distance.hpp``) that
+visits the nearer child pair first and prunes node pairs whose lower bound reaches
+``max_distance`` or the best distance found. Two bounds: each node's extent along the
+direction of the nearest points found so far (one subtraction per node pair, tight for bodies
+far apart), and, where that one falls short, the boxes' gap along an axis aimed at their own
+nearest points by alternating projection. Each pair starts from the triangles nearest at the
+previous call, so under coherent motion the traversal mostly proves a known answer.
 """
 from typing import Tuple
 

@@ -82,6 +82,13 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
     ParameterSpec('mesh_containment', _ENGINE.mesh_containment,
                   'treat closed (watertight) meshes as solid: a part wholly inside one '
                   'collides with it (primitives always are solid)'),
+    ParameterSpec('padding', _ENGINE.padding,
+                  'metres every robot link is grown by (a sphere swept over its geometry, as '
+                  'MoveIt\'s link padding): two links, or a link and a scene object, are in '
+                  'contact when their surfaces are within the sum of their paddings', '>= 0'),
+    ParameterSpec('link_padding', (),
+                  'a link\'s own padding instead of padding, as "link=metres"',
+                  'each entry "link=metres" with a link of the robot and a number >= 0'),
     ParameterSpec('require_all_joints', True,
                   'publish no verdict until every movable joint has been heard at least once'),
     ParameterSpec('stale_timeout', 1.0,
@@ -113,9 +120,13 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
                   'current; "every" checks every one in order however far behind (a recorded '
                   'path replayed as fast as possible, one verdict per frame)',
                   'newest | every'),
+    ParameterSpec('warning_distance', 0.0,
+                  'metres: pairs nearer than this (padded distance) are reported on near, '
+                  'min_distance and near_pairs with every verdict; 0 turns the proximity '
+                  'outputs off', '>= 0'),
     ParameterSpec('publish_markers', False,
-                  'publish the boxes of colliding links on ~/markers '
-                  '(visualization_msgs/MarkerArray)'),
+                  'publish the boxes of colliding links, and the nearest points of pairs '
+                  'nearer than warning_distance, on ~/markers (visualization_msgs/MarkerArray)'),
 )
 
 _SPECS = {spec.name: spec for spec in PARAMETERS}
@@ -140,6 +151,7 @@ class NodeSettings:
     :ivar max_unknown_joints: unknown joint names remembered.
     :ivar max_joint_state_bytes: largest serialized joint_states message taken.
     :ivar xacro_args: ``{name: value}`` for a ``.xacro`` urdf_path.
+    :ivar warning_distance: metres; 0: no proximity outputs.
     """
 
     urdf_path: Optional[str]
@@ -157,6 +169,7 @@ class NodeSettings:
     max_joint_state_bytes: int = MAX_JOINT_STATE_BYTES
     xacro_args: Dict[str, str] = field(default_factory=dict)
     overload_policy: str = 'newest'
+    warning_distance: float = 0.0
 
 
 def default_values() -> Dict[str, Any]:
@@ -200,6 +213,22 @@ def _parse_allowed_collisions(entries: List[str]) -> List[str]:
                               'twice; a pair needs two different links')
         pairs.append(f'{first}:{second}')
     return pairs
+
+
+def _parse_link_padding(entries: List[str]) -> Dict[str, float]:
+    padding = {}
+    for entry in entries:
+        link, separator, metres = entry.partition('=')
+        link = link.strip()
+        try:
+            value = float(metres)
+        except ValueError:
+            value = math.nan
+        if not separator or not link or not (math.isfinite(value) and value >= 0.0):
+            raise ConfigError(f'parameter link_padding: entry "{entry}" is not "link=metres" '
+                              'with a number >= 0; write e.g. "panda_hand=0.02"')
+        padding[link] = value
+    return padding
 
 
 def _choice(values, name, choices) -> str:
@@ -254,6 +283,8 @@ def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
         'expansion': merged['expansion'],
         'obb_fit': merged['obb_fit'],
         'mesh_containment': bool(merged['mesh_containment']),
+        'padding': _non_negative(merged, 'padding'),
+        'link_padding': _parse_link_padding(merged['link_padding']),
     }
     try:
         # The engine validates its own settings; doing it now makes a typo fail configuration
@@ -278,6 +309,7 @@ def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
         joint_limit_tolerance=_non_negative(merged, 'joint_limit_tolerance'),
         max_unknown_joints=_non_negative_int(merged, 'max_unknown_joints'),
         max_joint_state_bytes=_at_least(merged, 'max_joint_state_bytes', 1024),
+        warning_distance=_non_negative(merged, 'warning_distance'),
     )
 
 

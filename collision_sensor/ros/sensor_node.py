@@ -15,6 +15,9 @@ robot_description   in   std_msgs/String                     reliable, transient
                                                              (only when ``urdf_path`` is empty)
 contact             out  std_msgs/Bool                       reliable, transient local, depth 100
 colliding_pairs     out  diagnostic_msgs/DiagnosticArray     reliable, transient local, depth 100
+near                out  std_msgs/Bool                       as contact (``warning_distance`` > 0)
+min_distance        out  std_msgs/Float64                    as contact (``warning_distance`` > 0)
+near_pairs          out  diagnostic_msgs/DiagnosticArray     as contact (``warning_distance`` > 0)
 ~/markers           out  visualization_msgs/MarkerArray      reliable, depth 10 (if enabled)
 /diagnostics        out  diagnostic_msgs/DiagnosticArray     reliable, depth 10, once a second
 =================== ==== =================================== ====================================
@@ -22,6 +25,14 @@ colliding_pairs     out  diagnostic_msgs/DiagnosticArray     reliable, transient
 Every accepted joint state that completes the state (see ``require_all_joints``) gives exactly
 one ``contact`` and then one ``colliding_pairs`` message, in input order; the latter carries the
 joint state's header (stamp and frame) so a consumer can tell which input a verdict answers.
+With ``warning_distance`` > 0 (the warning zone, as nav2's collision monitor slows down before
+it stops) the same joint state then gives one ``near`` (some checked pair is nearer than
+``warning_distance``), one ``min_distance`` (the smallest padded distance of those pairs, <= 0
+in contact; ``inf`` when no pair is that near) and one ``near_pairs`` message (the joint
+state's header; one status per such pair, nearest first: level ERROR in contact, else WARN;
+name ``link_a:link_b``; values ``link_a``, ``link_b``, ``distance`` (m) and ``point_a``,
+``point_b``, the nearest points as "x y z" in metres in the robot's root link frame, also its
+``hardware_id``): :meth:`CollisionChecker.proximity` at ``max_distance = warning_distance``.
 No verdict is lost at the documented input rate: the verdict topics keep the last
 :data:`VERDICT_DEPTH` (100) messages, 0.1 s at :data:`MAX_INPUT_RATE` (1 kHz), so a reliable
 subscriber that keeps its own history at least that deep and falls less than 0.1 s behind gets
@@ -67,7 +78,7 @@ from typing import Callable, Dict, Optional
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Pose
+from geometry_msgs.msg import Point, Pose
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import (
@@ -77,7 +88,7 @@ from rclpy.qos import (
     DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data)
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Bool, ColorRGBA, Header, String
+from std_msgs.msg import Bool, ColorRGBA, Float64, Header, String
 from visualization_msgs.msg import Marker, MarkerArray
 
 from collision_sensor.errors import CollisionSensorError, JointStateError
@@ -115,6 +126,11 @@ MODEL_POLL_PERIOD = 0.05    # s between looks for a finished robot_description b
 WARNING_PERIOD = 1.0        # s between two warnings of one kind
 MARKER_PERIOD = 0.1         # s between marker updates while the colliding set stays the same
 MARKER_COLOR = ColorRGBA(r=1.0, g=0.0, b=0.0, a=0.6)
+NEAR_COLOR = ColorRGBA(r=1.0, g=0.55, b=0.0, a=0.9)   # nearest-point segments
+TEXT_COLOR = ColorRGBA(r=1.0, g=1.0, b=1.0, a=0.9)
+SEGMENT_WIDTH = 0.004       # m, line width of the nearest-point segments
+CONTACT_DIAMETER = 0.02     # m, the contact points' spheres
+TEXT_HEIGHT = 0.02          # m
 #: Joint states that may wait for the checking thread before it answers only the newest (see
 #: :class:`_NewestFirstWorker`): 0.1 s at :data:`MAX_INPUT_RATE`, as the verdict history.
 MAX_BACKLOG = 100
@@ -396,7 +412,8 @@ class CollisionSensorNode(Node):
         self._pairs_msg = DiagnosticArray()
         self._unchecked = []    # outcomes merged but superseded since the last check
         self._in_collision: Optional[bool] = None
-        self._marker_links = ()
+        self._marker_content = ()    # (colliding links, near pairs) the markers show
+        self._near_msgs = (Bool(data=False), Bool(data=True))
         self._marker_time = 0.0
         try:
             self._configure()
@@ -415,6 +432,12 @@ class CollisionSensorNode(Node):
         self._pairs_pub = self.create_publisher(DiagnosticArray, 'colliding_pairs', VERDICT_QOS)
         self._markers_pub = (self.create_publisher(MarkerArray, '~/markers', 10)
                              if settings.publish_markers else None)
+        self._near_pub = self._min_distance_pub = self._near_pairs_pub = None
+        if settings.warning_distance > 0:
+            self._near_pub = self.create_publisher(Bool, 'near', VERDICT_QOS)
+            self._min_distance_pub = self.create_publisher(Float64, 'min_distance', VERDICT_QOS)
+            self._near_pairs_pub = self.create_publisher(DiagnosticArray, 'near_pairs',
+                                                         VERDICT_QOS)
         self._diagnostics_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
         if settings.urdf_path:
@@ -685,8 +708,8 @@ class CollisionSensorNode(Node):
         try:
             # Every joint known: the array in checker.joint_names order, the engine's fast path;
             # otherwise the dict (joints not heard yet keep the checker's value).
-            result = self._checker.update(merger.array if merger.complete
-                                          else merger.positions)
+            positions = merger.array if merger.complete else merger.positions
+            result = self._checker.update(positions)
         except JointStateError as error:
             # The engine refuses a value it cannot honour (a slider beyond its range, a zero
             # quaternion): the message is rejected after all, the state stays as it was, the
@@ -716,6 +739,9 @@ class CollisionSensorNode(Node):
         if elapsed > period.check_time_max:
             period.check_time_max = elapsed
         self._publish_verdict(msg, result)
+        records = self._publish_proximity(msg, positions) if self._near_pub is not None else ()
+        if self._markers_pub is not None:
+            self._publish_markers(msg, result.colliding_pairs, records)
         totals['verdicts'] += 1
 
     def _update_limits(self, updated, positions, notes) -> None:
@@ -744,20 +770,49 @@ class CollisionSensorNode(Node):
                 for a, b in pairs]
         verdict.header = msg.header
         self._pairs_pub.publish(verdict)
-        if self._markers_pub is not None:
-            self._publish_markers(msg, pairs)
+
+    # -- proximity (warning_distance > 0) -------------------------------------------------------
+
+    def _publish_proximity(self, msg: JointState, positions) -> list:
+        """Measure the pairs nearer than ``warning_distance`` at the state just checked and
+        publish ``near``, ``min_distance`` and ``near_pairs``; return the records."""
+        # The state is the one update() just checked: proximity re-checks nothing, it measures.
+        records = self._checker.proximity(positions, self._settings.warning_distance)
+        self._near_pub.publish(self._near_msgs[bool(records)])
+        self._min_distance_pub.publish(
+            Float64(data=float(records[0].distance) if records else math.inf))
+        self._near_pairs_pub.publish(DiagnosticArray(
+            header=msg.header, status=[self._near_status(r) for r in records]))
+        return records
+
+    def _near_status(self, record) -> DiagnosticStatus:
+        """One ``near_pairs`` entry (see the module docstring)."""
+        a, b, distance = record.link_a, record.link_b, float(record.distance)
+        message = (f'{a} is in contact with {b} ({distance:.4f} m)' if distance <= 0
+                   else f'{a} is {distance:.4f} m from {b}')
+        return DiagnosticStatus(
+            level=DiagnosticStatus.ERROR if distance <= 0 else DiagnosticStatus.WARN,
+            name=f'{a}:{b}', message=message, hardware_id=self._root_frame,
+            values=[KeyValue(key='link_a', value=a), KeyValue(key='link_b', value=b),
+                    KeyValue(key='distance', value=repr(distance)),
+                    KeyValue(key='point_a', value=_xyz(record.point_a)),
+                    KeyValue(key='point_b', value=_xyz(record.point_b))])
 
     # -- markers ------------------------------------------------------------------------------
 
-    def _publish_markers(self, msg: JointState, pairs) -> None:
+    def _publish_markers(self, msg: JointState, pairs, records=()) -> None:
+        """Boxes of the colliding links and, with ``warning_distance``, the near pairs'
+        nearest points; at most every MARKER_PERIOD while they stay the same pairs."""
         links = tuple(sorted({name for pair in pairs for name in pair}))
-        if not links:
+        near = tuple((r.link_a, r.link_b) for r in records)
+        if not links and not near:
             self._clear_markers()
             return
         now = time.monotonic()
-        if links == self._marker_links and now - self._marker_time < MARKER_PERIOD:
+        content = (links, near)
+        if content == self._marker_content and now - self._marker_time < MARKER_PERIOD:
             return
-        self._marker_links, self._marker_time = links, now
+        self._marker_content, self._marker_time = content, now
         # DELETEALL first: links that stopped colliding lose their boxes in the same message.
         markers = [Marker(action=Marker.DELETEALL)]
         for index, (name, T_world_box, half) in enumerate(self._checker.collision_boxes(links)):
@@ -767,20 +822,53 @@ class CollisionSensorNode(Node):
                 float(v) for v in T_world_box[:3, 3])
             pose.orientation.x, pose.orientation.y = x, y
             pose.orientation.z, pose.orientation.w = z, w
-            marker = Marker(ns=name, id=index, type=Marker.CUBE, action=Marker.ADD, pose=pose,
-                            color=MARKER_COLOR, frame_locked=False)
-            marker.header.frame_id = self._root_frame
-            marker.header.stamp = msg.header.stamp
+            marker = self._marker(msg, name, index, Marker.CUBE, MARKER_COLOR)
+            marker.pose = pose
             marker.scale.x, marker.scale.y, marker.scale.z = (2.0 * float(h) for h in half)
             markers.append(marker)
+        markers.extend(self._proximity_markers(msg, records))
         self._markers_pub.publish(MarkerArray(markers=markers))
 
+    def _proximity_markers(self, msg: JointState, records) -> list:
+        """The near pairs: nearest points joined (LINE_LIST, apart pairs), the contact points
+        (SPHERE_LIST) and each pair's distance as text, with the padding it includes."""
+        segments = self._marker(msg, 'proximity', 0, Marker.LINE_LIST, NEAR_COLOR)
+        segments.scale.x = SEGMENT_WIDTH
+        contacts = self._marker(msg, 'proximity', 1, Marker.SPHERE_LIST, MARKER_COLOR)
+        contacts.scale.x = contacts.scale.y = contacts.scale.z = CONTACT_DIAMETER
+        labels = []
+        paddings = getattr(self._checker, 'paddings', {})
+        for index, r in enumerate(records):
+            a, b = _point(r.point_a), _point(r.point_b)
+            if r.distance > 0:
+                segments.points.extend((a, b))
+            else:
+                contacts.points.append(a)
+            padding = paddings.get(r.link_a, 0.0) + paddings.get(r.link_b, 0.0)
+            label = self._marker(msg, 'proximity/distance', index, Marker.TEXT_VIEW_FACING,
+                                 TEXT_COLOR)
+            label.scale.z = TEXT_HEIGHT
+            label.pose.position = _point(0.5 * (r.point_a + r.point_b))
+            label.pose.orientation.w = 1.0
+            label.text = (f'{r.link_a}:{r.link_b} {1e3 * r.distance:.1f} mm'
+                          + (f' (padding {1e3 * padding:g} mm)' if padding > 0 else ''))
+            labels.append(label)
+        return [m for m in (segments, contacts) if m.points] + labels
+
+    def _marker(self, msg: JointState, ns: str, index: int, kind: int,
+                color: ColorRGBA) -> Marker:
+        marker = Marker(ns=ns, id=index, type=kind, action=Marker.ADD, color=color,
+                        frame_locked=False)
+        marker.header.frame_id = self._root_frame
+        marker.header.stamp = msg.header.stamp
+        return marker
+
     def _clear_markers(self) -> None:
-        if self._marker_links and getattr(self, '_markers_pub', None) is not None:
+        if self._marker_content and getattr(self, '_markers_pub', None) is not None:
             marker = Marker(action=Marker.DELETEALL)
             marker.header.frame_id = self._root_frame
             self._markers_pub.publish(MarkerArray(markers=[marker]))
-        self._marker_links = ()
+        self._marker_content = ()
 
     # -- diagnostics --------------------------------------------------------------------------
 
@@ -911,6 +999,15 @@ class CollisionSensorNode(Node):
             self._loader.close()
             self._loader = None
         return super().destroy_node()
+
+
+def _xyz(point) -> str:
+    """A point as "x y z" (metres, 9 significant digits)."""
+    return ' '.join(f'{float(v):.9g}' for v in point)
+
+
+def _point(point) -> Point:
+    return Point(x=float(point[0]), y=float(point[1]), z=float(point[2]))
 
 
 def _bound(value) -> str:

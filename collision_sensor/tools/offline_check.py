@@ -8,8 +8,11 @@ order; ``--full`` uses ``checker.check`` instead. The robot defaults to the bund
     collision_sensor_check run.mcap --urdf my_robot.urdf --package-path my_robot=~/ws/src/my_robot
 
 With ``--max-distance D`` (default 0.1 m; 0 turns it off) each frame also gets the smallest
-distance between the checked pairs nearer than D (``CollisionChecker.proximity``: 0 in
-collision), in the JSON lines, the summary and under the timeline of ``--plot``.
+distance between the checked pairs nearer than D (``CollisionChecker.proximity``: <= 0 in
+collision), in the JSON lines, the summary and under the timeline of ``--plot``. Padding is a
+checker setting (``--config`` with ``padding: 0.01`` and ``link_padding: {panda_hand: 0.02}``):
+contact then means within the paddings, and distances are the padded ones (negative in
+contact, by how far the surfaces are inside the paddings).
 
 Exit status: 0 no frame in collision, 1 at least one frame in collision, 2 error (the error is
 one line on stderr: ``collision_sensor_check: error: ...``).
@@ -233,7 +236,8 @@ def plot_timeline(results: Sequence[FrameResult], seq: JointSequence, path: str,
         if max_distance > 0:
             distance = [math.nan if r.min_distance is None else r.min_distance for r in results]
             ax_d.plot(times - t0, distance, color='tab:blue', lw=1.2)
-            ax_d.set_ylim(0.0, max_distance * 1.05)
+            lowest = min([0.0] + [d for d in distance if d < 0])   # padded contact: < 0
+            ax_d.set_ylim(1.05 * lowest, max_distance * 1.05)
             ax_d.set_ylabel('min distance [m]')
             ax_d.grid(alpha=0.3)
             ax_d.set_xlabel('time from the first frame [s]')

@@ -14,7 +14,7 @@ import pytest
 from collision_sensor.engine.checker import CollisionChecker, ProximityRecord
 from collision_sensor.engine.distance import triangle_distance
 from collision_sensor.engine.sampling import random_configurations
-from engine_oracles import FclOracle
+from engine_oracles import FclOracle, distance_to_body
 
 N_CONFIGURATIONS = 150
 #: Distances agree with FCL's to this (m).
@@ -126,37 +126,11 @@ def test_triangle_distance_degenerate_cases(P, Q, expected):
 
 # ---------------------------------------------------------------- whole robots
 
-def _fcl_pair_distance(oracle, poses, a, b):
-    request = fcl.DistanceRequest()
-    Ta, Tb = poses[a], poses[b]
-    ta = fcl.Transform(Ta[:3, :3], Ta[:3, 3])
-    tb = fcl.Transform(Tb[:3, :3], Tb[:3, 3])
-    return min(fcl.distance(fcl.CollisionObject(ma, ta), fcl.CollisionObject(mb, tb), request,
-                            fcl.DistanceResult())
-               for ma in oracle.models[a] for mb in oracle.models[b])
-
-
-def _body_triangles(checker, name):
-    """(n, 3, 3) the body's triangles in the world, at the checker's current state."""
-    b = checker._body_index[name]
-    f = checker.forest
-    tris = np.concatenate([FclOracle._tris_of_tree(f, f.roots[e]) for e in range(
-        checker._body_elem_start[b], checker._body_elem_end[b])])
-    T = checker._poses()[b]
-    return tris @ T[:3, :3].T + T[:3, 3]
-
-
-def _distance_to_body(checker, x, name):
-    tris = _body_triangles(checker, name)
-    d, _, _ = triangle_distance(np.broadcast_to(x, (len(tris), 3, 3)).copy(), tris)
-    return float(d.min())
-
-
 def _assert_on_surfaces(checker, r):
     """Each point on its body's triangles; a colliding pair's one point on both, or (a body
     inside a solid primitive, no meeting triangles) on the contained body's."""
-    on_a = _distance_to_body(checker, r.point_a, r.link_a) < 1e-9
-    on_b = _distance_to_body(checker, r.point_b, r.link_b) < 1e-9
+    on_a = distance_to_body(checker, r.point_a, r.link_a) < 1e-9
+    on_b = distance_to_body(checker, r.point_b, r.link_b) < 1e-9
     assert (on_a or on_b) if r.distance <= 0 else (on_a and on_b), r
 
 
@@ -174,7 +148,7 @@ def _agree_with_fcl(checker, oracle, seed, max_distance=math.inf):
         for a, b in checker.checked_pairs:
             if (a, b) in colliding:
                 continue
-            theirs = _fcl_pair_distance(oracle, poses, a, b)
+            theirs = oracle.pair_distance(poses, a, b)
             if theirs >= max_distance + FCL_TOLERANCE:
                 assert (a, b) not in found
                 continue
@@ -257,3 +231,27 @@ def test_bad_input_changes_nothing(panda):
     with pytest.raises(ValueError):
         checker.proximity(before, math.nan)
     assert checker.positions == before
+
+
+def test_coherent_walk_seeded_from_the_last_nearest_triangles_equals_an_unseeded_run(panda):
+    """Each pair starts from the triangles nearest at the previous call (``nearest``); along a
+    coherent walk that seed is nearly the answer. The answers must be those of a run whose
+    seeds are wiped before every call."""
+    from collision_sensor.engine.sampling import sampling_bounds
+    checker, _ = panda
+    lower, upper = sampling_bounds(checker)
+    rng = np.random.default_rng(7)
+    q = random_configurations(checker, 1, 7)[0]
+    nearest = checker.packed_array('nearest')
+    seeded_calls = 0
+    for step in range(300):
+        q = np.clip(q + rng.normal(scale=0.01, size=len(q)), lower, upper)
+        seeded_calls += bool((nearest >= 0).any())
+        seeded = checker.proximity(q, 0.1)
+        nearest[:] = -1
+        unseeded = checker.proximity(q, 0.1)
+        assert [(r.link_a, r.link_b) for r in seeded] == [(r.link_a, r.link_b) for r in unseeded]
+        for r, s in zip(seeded, unseeded):
+            assert r.distance == pytest.approx(s.distance, abs=1e-12), step
+        checker.proximity(q, 0.1)   # seeds for the next step, from this one
+    assert seeded_calls > 100
