@@ -24,7 +24,7 @@ from collision_sensor.errors import JointStateError, SceneError, SrdfError
 from collision_sensor.exception_list import adjacent_pairs, parse_pair_strings, sorted_pair
 from collision_sensor.dynamic_scene import (
     AddObject, MoveObject, PlacedObject, PreparedSceneChanges, RemoveObject, SceneChange,
-    build_object_block, check_geometry, checked_pose, same_geometry, solid_row)
+    SceneChangeError, build_object_block, check_geometry, checked_pose, same_geometry, solid_row)
 from collision_sensor.kinematics import (JOINT_FIXED, JOINT_FLOATING, JOINT_PLANAR,
                                          JOINT_PRISMATIC, KinematicTree, build_kinematic_tree)
 from collision_sensor.obb_tree import (BOX_WIDTH, NODE_LEFT, NODE_RIGHT, box_table, build_forest,
@@ -236,8 +236,8 @@ class CollisionChecker:
         self._results: Dict[bytes, Tuple[Pair, ...]] = {}
         try:
             prepared = self.prepare_scene_changes([AddObject(obj) for obj in scene])
-        except SceneError as error:
-            raise SceneError(f'scene: {error}') from None
+        except SceneChangeError as error:
+            raise SceneError(f'scene: {error.reason}') from None
         self._install(prepared)
 
     @classmethod
@@ -463,7 +463,18 @@ class CollisionChecker:
 
         :raises SceneError: no such object, or a pose that is not a rigid transform.
         """
-        self.apply_scene_changes([MoveObject(name, pose)])
+        # apply_scene_changes([MoveObject(name, pose)]), without its bookkeeping: this is the
+        # call a moving object makes at every step.
+        old = self._objects.get(name)
+        if old is None:
+            raise SceneError(f'no object "{name}" to move; add it first (objects: '
+                             f'{", ".join(self._objects) or "none"})')
+        placed = PlacedObject(old.obj, old.block, old.attach_to, old.touch_links,
+                              checked_pose(pose, f'object "{name}"'))
+        objects = dict(self._objects)   # never changed in place: prepared changes compare it
+        objects[name] = placed
+        self._move_in_place(placed)
+        self._objects = objects
 
     def remove_object(self, name: str) -> None:
         """Remove object ``name`` from the scene.
@@ -491,53 +502,53 @@ class CollisionChecker:
         :param changes: :class:`AddObject`, :class:`MoveObject`, :class:`RemoveObject`, in
             the order they apply.
         :return: the result, for :meth:`commit_scene_changes`.
-        :raises SceneError: the first change that cannot apply, by position and object name,
-            with the fix.
+        :raises SceneChangeError: the first change that cannot apply (``index``), naming the
+            object and the fix.
         """
         base = self._objects
         objects = dict(base)
         moved, rebuilt = set(), set()
         structural = False
         for k, change in enumerate(changes):
-            if isinstance(change, AddObject):
-                placed, same = self._placed(change, objects, f'scene change {k}')
-                objects[placed.name] = placed
-                if same:
-                    moved.add(placed.name)
+            try:
+                if isinstance(change, AddObject):
+                    placed, same = self._placed(change, objects)
+                    objects[placed.name] = placed
+                    (moved if same else rebuilt).add(placed.name)
+                    structural |= not same
+                elif isinstance(change, (MoveObject, RemoveObject)):
+                    name = change.name
+                    old = objects.get(name)
+                    if old is None:
+                        verb = 'move' if isinstance(change, MoveObject) else 'remove'
+                        raise SceneError(f'no object "{name}" to {verb}; add it first '
+                                         f'(objects: {", ".join(objects) or "none"})')
+                    if isinstance(change, MoveObject):
+                        pose = checked_pose(change.pose, f'object "{name}"')
+                        objects[name] = PlacedObject(old.obj, old.block, old.attach_to,
+                                                     old.touch_links, pose)
+                        moved.add(name)
+                    else:
+                        del objects[name]
+                        moved.discard(name)
+                        rebuilt.discard(name)
+                        structural = True
                 else:
-                    rebuilt.add(placed.name)
-                    structural = True
-            elif isinstance(change, (MoveObject, RemoveObject)):
-                name = change.name
-                verb = 'move' if isinstance(change, MoveObject) else 'remove'
-                old = objects.get(name)
-                if old is None:
-                    raise SceneError(f'scene change {k}: no object "{name}" to {verb}; add it '
-                                     f'first (objects: {", ".join(objects) or "none"})')
-                if isinstance(change, MoveObject):
-                    owner = f'scene change {k}: object "{name}"'
-                    objects[name] = dataclasses.replace(old, pose=checked_pose(change.pose,
-                                                                               owner))
-                    moved.add(name)
-                else:
-                    del objects[name]
-                    moved.discard(name)
-                    rebuilt.discard(name)
-                    structural = True
-            else:
-                raise SceneError(f'scene change {k}: {type(change).__name__} is not a scene '
-                                 'change; give AddObject, MoveObject or RemoveObject')
+                    raise SceneError(f'{type(change).__name__} is not a scene change; give '
+                                     'AddObject, MoveObject or RemoveObject')
+            except SceneError as error:
+                raise SceneChangeError(k, str(error)) from None
         return PreparedSceneChanges(self, base, objects, structural,
                                     frozenset(moved - rebuilt), frozenset(rebuilt))
 
-    def _placed(self, change: AddObject, objects: Mapping[str, PlacedObject],
-                where: str) -> Tuple[PlacedObject, bool]:
+    def _placed(self, change: AddObject,
+                objects: Mapping[str, PlacedObject]) -> Tuple[PlacedObject, bool]:
         """The object ``change`` adds, and whether it only moves the one of its name."""
         obj = change.obj
         name = getattr(obj, 'name', None)
         if not isinstance(name, str) or not name:
-            raise SceneError(f'{where}: the object has no name; give it a unique name')
-        owner = f'{where}: object "{name}"'
+            raise SceneError('the object has no name; give it a unique name')
+        owner = f'object "{name}"'
         if name in self._link_index or name in self.world_frames:
             raise SceneError(f'{owner} has the name of a link or frame of robot '
                              f'"{self.model.name}"; rename the object')

@@ -52,6 +52,18 @@ MAX_COORDINATE = 1e6
 ROTATION_TOLERANCE = 1e-6
 
 
+class SceneChangeError(SceneError):
+    """A change of a batch that cannot apply; the checker is unchanged.
+
+    :ivar index: the change's position in the batch.
+    :ivar reason: what is wrong and the fix, without the position.
+    """
+
+    def __init__(self, index: int, reason: str):
+        self.index, self.reason = index, reason
+        super().__init__(f'scene change {index}: {reason}')
+
+
 @dataclass(frozen=True, eq=False)
 class AddObject:
     """Add ``obj``, or replace the object of that name.
@@ -193,7 +205,7 @@ def check_geometry(obj, owner: str) -> None:
 
 
 def checked_pose(pose, owner: str) -> np.ndarray:
-    """Return ``pose`` as a read-only (4, 4) float64 rigid transform.
+    """Return ``pose`` as a read-only (4, 4) float64 rigid transform (a new array).
 
     :raises SceneError: not (4, 4), not finite, a position beyond :data:`MAX_COORDINATE`, a
         rotation that is not orthonormal with determinant +1 (to
@@ -207,17 +219,26 @@ def checked_pose(pose, owner: str) -> np.ndarray:
     if T.shape != (4, 4):
         raise SceneError(f'{owner}: pose has shape {T.shape}, not (4, 4); give a rigid '
                          'transform')
-    if not np.isfinite(T).all():
+    # On the 16 numbers as Python floats: a move is cheap (numpy's small-array calls are not).
+    r00, r01, r02, x, r10, r11, r12, y, r20, r21, r22, z, *last = T.ravel().tolist()
+    if not all(map(math.isfinite, (r00, r01, r02, x, r10, r11, r12, y, r20, r21, r22, z))):
         raise SceneError(f'{owner}: pose is not finite (NaN or infinity); give a finite '
                          'rigid transform')
-    if np.abs(T[:3, 3]).max() > MAX_COORDINATE or not np.array_equal(T[3], [0, 0, 0, 1]):
+    if max(abs(x), abs(y), abs(z)) > MAX_COORDINATE or last != [0.0, 0.0, 0.0, 1.0]:
         raise SceneError(f'{owner}: pose position must lie within {MAX_COORDINATE:g} m and the '
                          'last row be (0, 0, 0, 1); fix the transform')
-    R = T[:3, :3]
-    error = np.abs(R.T @ R - np.eye(3)).max()
-    if not error <= ROTATION_TOLERANCE or np.linalg.det(R) < 0:
+    # R^T R - I, entry by entry (symmetric: six of them).
+    error = max(abs(r00 * r00 + r10 * r10 + r20 * r20 - 1.0),
+                abs(r01 * r01 + r11 * r11 + r21 * r21 - 1.0),
+                abs(r02 * r02 + r12 * r12 + r22 * r22 - 1.0),
+                abs(r00 * r01 + r10 * r11 + r20 * r21),
+                abs(r00 * r02 + r10 * r12 + r20 * r22),
+                abs(r01 * r02 + r11 * r12 + r21 * r22))
+    det = (r00 * (r11 * r22 - r12 * r21) - r01 * (r10 * r22 - r12 * r20)
+           + r02 * (r10 * r21 - r11 * r20))
+    if not error <= ROTATION_TOLERANCE or det < 0:
         raise SceneError(f'{owner}: pose rotation is not a rotation (|R^T R - I| = {error:.3g}, '
-                         f'det {np.linalg.det(R):.3g}); give an orthonormal matrix with '
+                         f'determinant {det:.3g}); give an orthonormal matrix with '
                          'determinant +1 (a unit quaternion)')
     T.setflags(write=False)
     return T

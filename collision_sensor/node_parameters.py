@@ -25,12 +25,15 @@ from collision_sensor.errors import ConfigError
 from collision_sensor.joint_state_merger import (
     DEFAULT_LIMIT_TOLERANCE, LIMIT_POLICIES, MAX_UNKNOWN_NAMES)
 from collision_sensor.mesh_loading import parse_package_paths
+from collision_sensor.scene_markers import SceneLimits
 from collision_sensor.traversal import EXPANSION_RULES
 
 #: Accepted values of ``joint_states_qos``.
 JOINT_STATES_QOS = ('sensor_data', 'reliable')
 #: The engine's defaults, so that the node and the offline tools agree out of the box.
 _ENGINE = CheckerConfig()
+#: The scene topic's default caps.
+_TOPIC = SceneLimits()
 
 
 @dataclass(frozen=True)
@@ -106,8 +109,22 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
                   'path replayed as fast as possible, one verdict per frame)',
                   'newest | every'),
     ParameterSpec('publish_markers', False,
-                  'publish the boxes of colliding links on ~/markers '
+                  'publish the boxes of colliding links and the scene objects on ~/markers '
                   '(visualization_msgs/MarkerArray)'),
+    ParameterSpec('scene_max_objects', _TOPIC.max_objects,
+                  'objects the scene topic may hold at once; an array that would add more is '
+                  'rejected', '>= 0'),
+    ParameterSpec('scene_max_triangles', _TOPIC.max_triangles,
+                  'triangles of one object from the scene topic, at most', '>= 0'),
+    ParameterSpec('scene_max_total_triangles', _TOPIC.max_total_triangles,
+                  'triangles of all objects from the scene topic together, at most', '>= 0'),
+    ParameterSpec('scene_max_mesh_bytes', _TOPIC.max_mesh_bytes,
+                  'size of a MESH_RESOURCE file the scene topic may make the node read, at most',
+                  '>= 0'),
+    ParameterSpec('scene_mesh_roots', (),
+                  'directories under which MESH_RESOURCE files given as file:// or absolute '
+                  'paths may lie (package:// URIs need none); empty: package:// only',
+                  'each entry an existing directory'),
 )
 
 _SPECS = {spec.name: spec for spec in PARAMETERS}
@@ -130,6 +147,7 @@ class NodeSettings:
     :ivar joint_limit_tolerance: rad or m beyond a limit still taken as given.
     :ivar max_unknown_joints: unknown joint names remembered.
     :ivar xacro_args: ``{name: value}`` for a ``.xacro`` urdf_path.
+    :ivar scene_limits: the ``scene`` topic's caps and mesh roots.
     """
 
     urdf_path: Optional[str]
@@ -146,6 +164,7 @@ class NodeSettings:
     max_unknown_joints: int = MAX_UNKNOWN_NAMES
     xacro_args: Dict[str, str] = field(default_factory=dict)
     overload_policy: str = 'newest'
+    scene_limits: SceneLimits = field(default_factory=SceneLimits)
 
 
 def default_values() -> Dict[str, Any]:
@@ -163,6 +182,17 @@ def _existing_file(values, name) -> Optional[str]:
         raise ConfigError(f'parameter {name}: file "{path}" not found; give an existing file '
                           'or an empty string')
     return path
+
+
+def _directories(values, name) -> Tuple[str, ...]:
+    roots = []
+    for entry in values[name]:
+        directory = os.path.abspath(os.path.expanduser(entry))
+        if not os.path.isdir(directory):
+            raise ConfigError(f'parameter {name}: directory "{entry}" not found; give existing '
+                              'directories')
+        roots.append(directory)
+    return tuple(roots)
 
 
 def _parse_xacro_args(entries: List[str]) -> Dict[str, str]:
@@ -262,6 +292,12 @@ def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
         joint_limit_policy=_choice(merged, 'joint_limit_policy', LIMIT_POLICIES),
         joint_limit_tolerance=_non_negative(merged, 'joint_limit_tolerance'),
         max_unknown_joints=_non_negative_int(merged, 'max_unknown_joints'),
+        scene_limits=SceneLimits(
+            max_objects=_non_negative_int(merged, 'scene_max_objects'),
+            max_triangles=_non_negative_int(merged, 'scene_max_triangles'),
+            max_total_triangles=_non_negative_int(merged, 'scene_max_total_triangles'),
+            max_mesh_bytes=_non_negative_int(merged, 'scene_max_mesh_bytes'),
+            mesh_roots=_directories(merged, 'scene_mesh_roots')),
     )
 
 
