@@ -201,7 +201,7 @@ void expect_box_pairs(const Array<double>& ha, const Array<double>& hb, const Ar
 
 //: Bumped whenever the binding's functions or the packed layouts change; the Python side
 //: refuses an extension built from other sources (collision_sensor/compiled.py).
-constexpr int ENGINE_API = 1;
+constexpr int ENGINE_API = 2;
 
 PYBIND11_MODULE(_engine, m) {
     m.doc() = "collision_sensor's compiled engine (C++17); see collision_sensor.compiled";
@@ -236,6 +236,7 @@ PYBIND11_MODULE(_engine, m) {
     m.attr("H_EXPANSION") = cs::H_EXPANSION;
     m.attr("H_CHECKED_ONCE") = cs::H_CHECKED_ONCE;
     m.attr("H_RESYNC_COUNTDOWN") = cs::H_RESYNC_COUNTDOWN;
+    m.attr("H_FORCED") = cs::H_FORCED;
     m.attr("H_LAYOUTS") = cs::H_LAYOUTS;
     m.attr("H_I_LAYOUT") = cs::H_I_LAYOUT;
     m.attr("TRAVEL_RESYNC_CALLS") = cs::TRAVEL_RESYNC_CALLS;

@@ -111,6 +111,7 @@ Engine::Engine(double* F, int64_t f_size, int64_t* I, int64_t i_size) {
     check_shape("front", is[front], fs[front_until].size, 3, 1);
     check_shape("front_state", is[front_state], n_pairs_, 2, 1);
     check_shape("nearest", is[nearest], n_pairs_, 2, 1);
+    check_shape("forced", is[forced], n_pairs_, 1, 1);
     culled_width_ = L1;
     stack_rows_ = is[stack].d0;
     front_capacity_ = fs[front_until].size / (n_pairs_ + 1);
@@ -157,6 +158,7 @@ Engine::Engine(double* F, int64_t f_size, int64_t* I, int64_t i_size) {
     front_ = ip[front];
     front_state_ = ip[front_state];
     nearest_ = ip[nearest];
+    forced_ = ip[forced];
 
     // Indices the query follows without checking: validated once here.
     const int64_t n_tris = n_tris_ = fs[tris].d0;
@@ -761,6 +763,10 @@ int64_t Engine::query(const double* q, bool full) {
     return run(q, full);
 }
 
+// A scene change (an object added, moved or replaced) leaves pairs whose carried status,
+// clearance and front describe the scene as it was: the checker sets forced[p] for each and
+// H_FORCED. The next query re-checks them whatever the joints did (an incremental one from
+// their roots: a front's untils and a clearance measured the old scene), then clears both.
 int64_t Engine::run(const double* q, bool full) {
     full = full || header_[H_CHECKED_ONCE] == 0;
     bool any_moved = full;
@@ -769,19 +775,43 @@ int64_t Engine::run(const double* q, bool full) {
         q_last_[j] = q[j];
         if (std::fabs(q[j] - q_ref_[j]) > tolerance) any_moved = true;
     }
-    if (!any_moved) return 0;
+    const bool forced = header_[H_FORCED] != 0;
+    if (!any_moved && !forced) return 0;
     header_[H_CHECKED_ONCE] = 1;
     int64_t n;
     if (full) {
         plan_full(q_last_);
         n = n_pairs_;
+        if (forced) {  // every pair is re-checked from scratch anyway
+            for (int64_t p = 0; p < n_pairs_; ++p) forced_[p] = 0;
+            header_[H_FORCED] = 0;
+        }
     } else {
-        n = plan_update(q_last_);
+        n = any_moved ? plan_update(q_last_) : 0;
+        if (forced) n = add_forced(n);
         if (n == 0) return 0;
     }
     bool changed = false;
     const int64_t rechecked = recheck_pairs(n, full, &changed);
     return 2 * rechecked + (changed ? 1 : 0);
+}
+
+// Append the forced pairs not yet in todo[:n] to it, dropping their fronts; clear the flags.
+// Return the new length. pending is all zero on entry and on return (plan_update's contract).
+int64_t Engine::add_forced(int64_t n) {
+    for (int64_t t = 0; t < n; ++t) pending_[todo_[t]] = 1;
+    for (int64_t p = 0; p < n_pairs_; ++p) {
+        if (!forced_[p]) continue;
+        forced_[p] = 0;
+        front_state_[2 * p] = 0;
+        if (!pending_[p]) {
+            pending_[p] = 1;
+            todo_[n++] = p;
+        }
+    }
+    for (int64_t t = 0; t < n; ++t) pending_[todo_[t]] = 0;
+    header_[H_FORCED] = 0;
+    return n;
 }
 
 int64_t Engine::batch(const double* Q, int64_t n, bool full, uint8_t* statuses, int64_t* codes) {

@@ -18,8 +18,12 @@
 // world box around its subtree's link boxes, the root's being the robot's root volume, from
 // the link boxes, never from geometry: sec. 2.2) and cull scene pairs with them first.
 //
-// Bodies are the robot's links (FK order, parents first, world == root link frame) followed
-// by the scene objects, whose poses never change. A body may be padded (padding[b], metres: its
+// Bodies are the engine's links (FK order, parents first, world == root link frame): the
+// robot's links, then the objects attached to them (each a link on a fixed joint below its
+// robot link, whose T_parent_joint is the object's pose in that link's frame), followed by
+// the world objects. A query never moves a world object; the checker does, between queries
+// (collision_sensor/engine/dynamic_scene.py), and then lists the pairs that must be re-checked
+// whatever the joints did in `forced` (see run). A body may be padded (padding[b], metres: its
 // geometry grown by a swept sphere, MoveIt's link padding): its boxes then hold the padded
 // geometry (the checker grows them), the leaf test of a pair is "triangles within the two
 // paddings' sum" (traversal.hpp: triangles_within), and every clearance is one of the padded
@@ -56,7 +60,7 @@ namespace collision_sensor {
     X(body_elem_end) X(roots) X(nodes) X(pair_a) X(pair_b) X(joint_pairs_start)              \
     X(joint_pairs) X(joint_links_start) X(joint_links) X(joint_prismatic) X(status) X(witness) \
     X(moved) X(stale) X(chain) X(pending) X(todo) X(scene_culled) X(stack) X(counters)        \
-    X(front) X(front_state) X(nearest)
+    X(front) X(front_state) X(nearest) X(forced)
 
 #define CS_SLOT_ENUM(name) name,
 enum FloatSlot : int { CS_FLOAT_SLOTS(CS_SLOT_ENUM) N_FLOAT_SLOTS };
@@ -66,8 +70,9 @@ enum IntSlot : int { CS_INT_SLOTS(CS_SLOT_ENUM) N_INT_SLOTS };
 // scalars[S_*]; header[H_*], then the float layout (N_FLOAT_SLOTS, LAYOUT_WIDTH), then the
 // int layout. layout[k] = (offset, size, d0, d1, d2).
 constexpr int S_TOLERANCE = 0, S_EXTENSION = 1, N_SCALARS = 2;
+// H_FORCED: nonzero when some forced[p] is set (the checker sets both after a scene change).
 constexpr int H_N_LINKS = 0, H_BOX_METHOD = 1, H_EXPANSION = 2, H_CHECKED_ONCE = 3,
-              H_RESYNC_COUNTDOWN = 4, H_LAYOUTS = 5;
+              H_RESYNC_COUNTDOWN = 4, H_FORCED = 5, H_LAYOUTS = 6;
 constexpr int LAYOUT_WIDTH = 5;
 constexpr int H_I_LAYOUT = H_LAYOUTS + N_FLOAT_SLOTS * LAYOUT_WIDTH;
 constexpr int HEADER_SIZE = H_I_LAYOUT + N_INT_SLOTS * LAYOUT_WIDTH;
@@ -135,6 +140,7 @@ class Engine {
     };
     void check_shape(const char* name, const Shape& s, int64_t d0, int64_t d1, int64_t d2) const;
     int64_t plan_update(const double* q);
+    int64_t add_forced(int64_t n);
     void plan_full(const double* q);
     int64_t recheck_pairs(int64_t n, bool full, bool* changed);
     void refresh_pose(int64_t i);
@@ -178,7 +184,7 @@ class Engine {
     int64_t *is_scene_, *body_elem_start_, *body_elem_end_, *roots_, *pair_a_, *pair_b_,
         *joint_pairs_start_, *joint_pairs_, *joint_links_start_, *joint_links_,
         *joint_prismatic_, *status_, *witness_, *moved_, *stale_, *chain_, *pending_, *todo_,
-        *scene_culled_, *stack_, *counters_, *front_, *front_state_, *nearest_;
+        *scene_culled_, *stack_, *counters_, *front_, *front_state_, *nearest_, *forced_;
 };
 
 }  // namespace collision_sensor

@@ -164,10 +164,13 @@ class FclOracle:
         return self._contains(a, b, Ta, Tb) or self._contains(b, a, Tb, Ta)
 
     def colliding_pairs(self, positions):
-        poses = self.poses(positions)
+        return self.colliding_among(self.checker.checked_pairs, self.poses(positions))
+
+    def colliding_among(self, pairs, poses):
+        """The pairs of ``pairs`` that collide, bodies placed at ``poses`` ({name: (4, 4)})."""
         request = fcl.CollisionRequest()
         hits = []
-        for a, b in self.checker.checked_pairs:
+        for a, b in pairs:
             Ta, Tb = poses[a], poses[b]
             ta = fcl.Transform(Ta[:3, :3], Ta[:3, 3])
             tb = fcl.Transform(Tb[:3, :3], Tb[:3, 3])

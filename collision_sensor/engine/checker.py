@@ -22,13 +22,16 @@ from collision_sensor.engine.array_pack import ArrayPack
 from collision_sensor.engine.bounding_volumes import fit_obb
 from collision_sensor.engine.checker_config import CheckerConfig
 from collision_sensor.engine.compiled import engine
-from collision_sensor.engine.kinematics import (JOINT_FLOATING, JOINT_PLANAR, JOINT_PRISMATIC,
-                                         KinematicTree, build_kinematic_tree)
+from collision_sensor.engine.dynamic_scene import (
+    AddObject, MoveObject, PlacedObject, PreparedSceneChanges, RemoveObject, SceneChange,
+    SceneChangeError, build_object_block, check_geometry, checked_pose, same_geometry, solid_row)
+from collision_sensor.engine.kinematics import (JOINT_FIXED, JOINT_FLOATING, JOINT_PLANAR,
+                                                JOINT_PRISMATIC, KinematicTree,
+                                                build_kinematic_tree)
 from collision_sensor.engine.obb_tree import (
-    BOX_WIDTH, box_table, build_forest, forest_view, node_table)
+    BOX_WIDTH, NODE_LEFT, NODE_RIGHT, box_table, build_forest, forest_view, node_table)
 from collision_sensor.errors import ConfigError, JointStateError, SceneError, SrdfError
 from collision_sensor.model.exception_list import adjacent_pairs, parse_pair_strings, sorted_pair
-from collision_sensor.model.mesh_loading import SOLID_CLOSED_MESH, Solid, is_closed_surface
 from collision_sensor.model.robot_model import Joint, RobotModel, load_urdf
 from collision_sensor.model.scene import SceneObject, load_scene
 from collision_sensor.model.srdf import Srdf, load_srdf_for_model
@@ -87,6 +90,43 @@ class ProximityRecord(NamedTuple):
     point_b: np.ndarray
 
 
+class _RobotBlock(NamedTuple):
+    """What the engine reads of the robot that no scene change alters (built once).
+
+    Trees (``boxes (N, BOX_WIDTH)``, ``nodes (N, NODE_WIDTH)``, ``volume, gain (N,)``,
+    ``tris (T, 3, 3)``, ``roots (E,)``, ``depth``, ``elem_solid (E, SOLID_WIDTH)``), each
+    link's element range ``elem_start, elem_end (L,)``, box ``body_boxes (L, BOX_WIDTH)``,
+    vertex radius ``radius (L,)`` and padding ``padding (L,)`` (metres; its boxes are grown by
+    it, see :func:`_grow_boxes`), and the self-collision pairs checked.
+    """
+
+    boxes: np.ndarray
+    nodes: np.ndarray
+    volume: np.ndarray
+    gain: np.ndarray
+    tris: np.ndarray
+    roots: np.ndarray
+    depth: int
+    elem_solid: np.ndarray
+    elem_start: np.ndarray
+    elem_end: np.ndarray
+    body_boxes: np.ndarray
+    radius: np.ndarray
+    padding: np.ndarray
+    pairs: Tuple[Pair, ...]
+
+
+class _EngineTree(NamedTuple):
+    """The engine's kinematic arrays: the robot's links, then each attached object as a link
+    on a fixed joint below its own (``T_parent_joint`` its pose in that link's frame)."""
+
+    parent: np.ndarray
+    joint_type: np.ndarray
+    q_index: np.ndarray
+    multiplier: np.ndarray
+    T_parent_joint: np.ndarray
+
+
 def _transformed(T: np.ndarray, vertices: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(vertices @ T[:3, :3].T + T[:3, 3])
 
@@ -110,6 +150,7 @@ class CollisionChecker:
                  scene: Sequence[SceneObject] = (), config=None):
         """Build the hierarchies and the exception list; prefer :meth:`from_urdf`.
 
+        :param scene: world objects at the start (:meth:`add_object` adds more at any time).
         :raises CollisionSensorError: on a bad scene, configuration or exception list.
         """
         self.config = CheckerConfig.from_mapping(config)
@@ -117,96 +158,69 @@ class CollisionChecker:
         self.kinematics: KinematicTree = build_kinematic_tree(model)
         kin = self.kinematics
         link_names = list(kin.link_names)
+        n_links = len(link_names)
         scene = tuple(scene)
-        clashes = sorted(set(link_names) & {obj.name for obj in scene})
-        if clashes:
-            raise SceneError(f'scene object name(s) {", ".join(clashes)} are also link names of '
-                             f'robot "{model.name}"; rename the scene objects')
-        self.scene_objects: Tuple[SceneObject, ...] = scene
-        self.scene_object_names: Tuple[str, ...] = tuple(obj.name for obj in scene)
-        body_names = link_names + list(self.scene_object_names)
-        n_links, n_bodies = len(link_names), len(body_names)
-        self._n_links = n_links
+        self._link_index = {name: i for i, name in enumerate(link_names)}
+        #: Frames a world object's pose may be given in: the root link, and the parent frame of
+        #: an SRDF fixed virtual joint (MoveIt's "world" above the robot).
+        self.world_frames = frozenset([model.root_link] + [
+            joint.parent_frame for joint in (srdf.virtual_joints if srdf is not None else ())
+            if joint.type == 'fixed' and joint.child_link == model.root_link])
 
-        # One tree per collision element (the paper's per-link sub-groups), in body frames.
-        link_index = {name: i for i, name in enumerate(link_names)}
+        # One tree per collision element (the paper's per-link sub-groups), in link frames.
         meshes, owners, solids = [], [], []
         for element in model.elements:
             meshes.append((_transformed(element.T_link_element, element.vertices),
                            element.faces))
-            owners.append(link_index[element.link])
+            owners.append(self._link_index[element.link])
             solids.append(self._solid_row(element.solid, element.faces,
                                           element.T_link_element))
-        for s, obj in enumerate(scene):
-            meshes.append((np.asarray(obj.vertices, dtype=np.float64), obj.faces))
-            owners.append(n_links + s)
-            solids.append(self._solid_row(obj.solid, obj.faces, np.eye(4)))
         order = np.argsort(np.asarray(owners, dtype=np.int64), kind='stable')
         meshes = [meshes[i] for i in order]
         elem_solid = (np.array([solids[i] for i in order]) if solids
-                      else np.zeros((1, engine.SOLID_WIDTH)))
+                      else np.zeros((0, engine.SOLID_WIDTH)))
         owners = np.asarray(owners, dtype=np.int64)[order]
         forest = build_forest(meshes, leaf_size=self.config.leaf_size,
                               fit=self.config.obb_fit_code)
-        counts = np.bincount(owners, minlength=n_bodies) if len(owners) else np.zeros(
-            n_bodies, dtype=np.int64)
-        self._body_elem_end = np.cumsum(counts).astype(np.int64)
-        self._body_elem_start = (self._body_elem_end - counts).astype(np.int64)
-        self._padding = self._body_padding(link_names, n_bodies)
-        _grow_boxes(forest.half, forest.roots, self._padding[owners])
+        counts = np.bincount(owners, minlength=n_links) if len(owners) else np.zeros(
+            n_links, dtype=np.int64)
+        elem_end = np.cumsum(counts).astype(np.int64)
+        elem_start = (elem_end - counts).astype(np.int64)
+        padding = self._link_padding(link_names, [obj.name for obj in scene])
+        _grow_boxes(forest.half, forest.roots, padding[owners])
 
-        # Each body's box over all its sub-groups, in the body frame (sec. 2.1: computed once).
-        self._body_center = np.zeros((n_bodies, 3))
-        self._body_axes = np.tile(np.eye(3), (n_bodies, 1, 1))
-        self._body_half = np.zeros((n_bodies, 3))
-        for b in range(n_bodies):
-            chunk = [meshes[e][0] for e in range(self._body_elem_start[b],
-                                                 self._body_elem_end[b])]
+        # Each link's box over all its sub-groups, in the link frame (sec. 2.1: computed once).
+        center, axes, half = np.zeros((n_links, 3)), np.tile(np.eye(3), (n_links, 1, 1)), \
+            np.zeros((n_links, 3))
+        vertex_radius = np.zeros(n_links)
+        for b in range(n_links):
+            chunk = [meshes[e][0] for e in range(elem_start[b], elem_end[b])]
             if chunk:
                 points = np.concatenate(chunk)
                 faces = np.concatenate([meshes[e][1] + sum(len(c) for c in chunk[:k])
-                                        for k, e in enumerate(range(self._body_elem_start[b],
-                                                                    self._body_elem_end[b]))])
-                c, a, h = fit_obb(points, self.config.obb_fit_code, faces=faces)
-                self._body_center[b], self._body_axes[b] = c, a
-                self._body_half[b] = h + self._padding[b]   # the padded body (see _grow_boxes)
+                                        for k, e in enumerate(range(elem_start[b],
+                                                                    elem_end[b]))])
+                center[b], axes[b], half[b] = fit_obb(points, self.config.obb_fit_code,
+                                                      faces=faces)
+                half[b] += padding[b]   # the padded link (see _grow_boxes)
+                vertex_radius[b] = float(np.sqrt((points ** 2).sum(axis=1).max()))
 
-        with_geometry = [name for b, name in enumerate(body_names) if counts[b] > 0]
         self.link_names: Tuple[str, ...] = tuple(
-            name for name in with_geometry if name in link_index)
-        #: Each body's padding (m), links and scene objects with geometry (objects: 0).
-        self.paddings: Dict[str, float] = {
-            name: float(self._padding[b]) for b, name in enumerate(body_names) if counts[b]}
-        self.excluded_pairs: Dict[Pair, str] = self._exception_list(srdf, link_names)
-        candidates = []
+            name for b, name in enumerate(link_names) if counts[b] > 0)
+        self._base_exclusions: Dict[Pair, str] = self._exception_list(
+            srdf, link_names, [obj.name for obj in scene])
         robot = list(self.link_names)
-        for i, a in enumerate(robot):
-            for b in robot[i + 1:]:
-                candidates.append(sorted_pair(a, b))
-        for obj in self.scene_object_names:
-            if counts[body_names.index(obj)] > 0:
-                candidates.extend(sorted_pair(link, obj) for link in robot)
-        self.checked_pairs: Tuple[Pair, ...] = tuple(
-            sorted(pair for pair in set(candidates) if pair not in self.excluded_pairs))
-
-        body_index = {name: b for b, name in enumerate(body_names)}
-        self._body_index = body_index
-        pair_a, pair_b = [], []
-        for a, b in self.checked_pairs:
-            ia, ib = body_index[a], body_index[b]
-            if ia >= n_links:  # the engine expects the scene body second
-                ia, ib = ib, ia
-            pair_a.append(ia)
-            pair_b.append(ib)
-        self._pair_a = np.asarray(pair_a, dtype=np.int64)
-        self._pair_b = np.asarray(pair_b, dtype=np.int64)
-        pair_path = self._pair_paths(n_links)
-        vertex_radius = np.zeros(n_bodies)
-        for e, owner in enumerate(owners):
-            if len(meshes[e][0]):
-                vertex_radius[owner] = max(vertex_radius[owner],
-                                           float(np.sqrt((meshes[e][0] ** 2).sum(axis=1).max())))
-        self._pair_reach, self._pair_reach_ext = self._pair_reaches(n_links, vertex_radius)
+        robot_pairs = [sorted_pair(a, b) for i, a in enumerate(robot) for b in robot[i + 1:]]
+        # The robot's block: everything the engine reads that no scene change alters.
+        self._robot = _RobotBlock(
+            boxes=box_table(forest.center, forest.axes, forest.half),
+            nodes=node_table(forest), volume=forest.volume, gain=forest.gain,
+            tris=forest.tris, roots=forest.roots, depth=int(forest.depth.max(initial=1)),
+            elem_solid=elem_solid, elem_start=elem_start, elem_end=elem_end,
+            body_boxes=box_table(center, axes, half), radius=vertex_radius, padding=padding,
+            pairs=tuple(sorted(pair for pair in robot_pairs
+                               if pair not in self._base_exclusions)))
+        del forest, meshes
 
         self.joint_names: Tuple[str, ...] = tuple(kin.joint_names)
         self._joint_index = {name: j for j, name in enumerate(self.joint_names)}
@@ -216,86 +230,30 @@ class CollisionChecker:
         self.joint_limits: Dict[str, Tuple[float, float]] = {
             name: (float(kin.lower[j]), float(kin.upper[j]))
             for j, name in enumerate(self.joint_names)}
-
-        is_scene = np.zeros(n_bodies, dtype=np.int64)
-        is_scene[n_links:] = 1
-        T_world_body = np.tile(np.eye(4), (n_bodies, 1, 1))
-        for s, obj in enumerate(scene):
-            T_world_body[n_links + s] = obj.T_world_object
-        n_joints = len(self.joint_names)
-        n_pairs = len(self.checked_pairs)
-        # Each variable's pairs (those with it on their path), as one list cut per variable.
-        on_path = pair_path.T.nonzero()
-        joint_pairs_start = np.searchsorted(on_path[0], np.arange(n_joints + 1))
         # Each variable's links (whose pose depends on it), and whether it drives a slider.
+        n_joints = len(self.joint_names)
         depends = np.zeros((n_joints, n_links), dtype=bool)
-        joint_prismatic = np.zeros(n_joints)
+        joint_prismatic = np.zeros(n_joints, dtype=np.int64)
         for i in range(n_links):  # parents come first
             if kin.parent[i] >= 0:
                 depends[:, i] = depends[:, kin.parent[i]]
             if kin.q_index[i] >= 0:
                 depends[_variables(kin, i), i] = True
                 joint_prismatic[kin.q_index[i]] += kin.joint_type[i] == JOINT_PRISMATIC
-        joint_links = depends.nonzero()
-        joint_links_start = np.searchsorted(joint_links[0], np.arange(n_joints + 1))
-        depth = int(forest.depth.max()) if len(forest.depth) else 1
-        # Each pair's front (cpp/query.cpp: trees_of_pair) gets the same number of rows; the
-        # traversal's stack takes a front's node pairs, or a pair's root pairs, as seeds.
-        front_rows = int(np.clip(engine.FRONT_POOL_ROWS // max(n_pairs, 1),
-                                 engine.FRONT_ROWS_MIN, engine.FRONT_ROWS_MAX))
-        elements = self._body_elem_end - self._body_elem_start
-        seeds = max([front_rows] + [int(elements[a] * elements[b])
-                                    for a, b in zip(self._pair_a, self._pair_b)])
-        f = forest
-        # Everything the engine reads or keeps, in two flat buffers (see array_pack): static
-        # model data and the carried state (q_ref, poses, statuses) alike.
-        scalars = np.zeros(engine.N_SCALARS)
-        scalars[engine.S_TOLERANCE] = self.config.motion_tolerance
-        floats = dict(
-            scalars=scalars, q_last=kin.neutral(), q_ref=kin.neutral(),
-            T_parent_joint=kin.T_parent_joint, axis=kin.axis,
-            multiplier=kin.multiplier, offset=kin.offset, T_world_body=T_world_body,
-            body_boxes=box_table(self._body_center, self._body_axes, self._body_half),
-            boxes=box_table(f.center, f.axes, f.half), volume=f.volume, gain=f.gain,
-            tris=f.tris, elem_solid=elem_solid,
-            subtree_boxes=np.zeros((max(n_links, 1), BOX_WIDTH)), padding=self._padding,
-            clearance=np.zeros(n_pairs), q_eval=np.zeros((n_pairs, n_joints)),
-            reach=self._pair_reach, reach_ext=self._pair_reach_ext, travel=np.zeros((n_pairs, 2)),
-            front_until=np.zeros((n_pairs + 1) * front_rows), front_travel=np.zeros(n_pairs))
-        ints = dict(
-            header=np.zeros(engine.HEADER_SIZE), parent=kin.parent, joint_type=kin.joint_type,
-            q_index=kin.q_index,
-            is_scene=is_scene, body_elem_start=self._body_elem_start,
-            body_elem_end=self._body_elem_end, roots=f.roots, nodes=node_table(f),
-            pair_a=self._pair_a, pair_b=self._pair_b, joint_pairs_start=joint_pairs_start,
-            joint_pairs=on_path[1], joint_links_start=joint_links_start,
-            joint_links=joint_links[1], joint_prismatic=joint_prismatic,
-            status=np.zeros(n_pairs), witness=np.full((n_pairs, 2), -1),
-            moved=np.zeros(n_joints), stale=np.zeros(n_bodies), chain=np.zeros(max(n_links, 1)),
-            pending=np.zeros(n_pairs), todo=np.zeros(n_pairs),
-            scene_culled=np.zeros((len(scene), max(n_links, 1))),
-            stack=np.zeros((seeds + 2 * depth + 8, 3)),
-            counters=np.zeros(engine.N_COUNTERS), front=np.zeros(((n_pairs + 1) * front_rows, 3)),
-            front_state=np.zeros((n_pairs, 2)), nearest=np.full((n_pairs, 2), -1))
-        self._F, self._F_layout, float_views = self._pack(np.float64, engine.FLOAT_SLOTS, floats)
-        self._I, self._I_layout, int_views = self._pack(np.int64, engine.INT_SLOTS, ints)
-        # The forest is only a view of the engine's tables: nothing is held twice (scenario 4).
-        self.forest = forest_view(float_views['boxes'], int_views['nodes'],
-                                  float_views['volume'], float_views['gain'],
-                                  float_views['tris'], int_views['roots'], forest.depth)
-        self._views = {**float_views, **int_views}
-        del forest, f, floats, ints
-        self._write_header(n_links)
-        self._engine = engine.Engine(self._F, self._I)
-        self._q_ref = float_views['q_ref']
-        self._T_world_body = float_views['T_world_body']
-        self._status = int_views['status']
-        self.counters = int_views['counters']  # work done, see traversal.COUNT_* (benchmarks)
-        # The joint vector of the last call; the engine writes it (read-only for Python).
-        self._q = float_views['q_last']
+        self._link_depends = depends
+        self._joint_prismatic = joint_prismatic
+
+        self._objects: Dict[str, PlacedObject] = {}
+        # Each pair's (path, reach, reach_ext) rows (see _pair_rows), kept across scene changes.
+        self._rows: Dict[Pair, Tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._views: Optional[Dict[str, np.ndarray]] = None
         self._result = CheckResult(False, (), 0)
         self._results: Dict[bytes, Tuple[Pair, ...]] = {}
-        self._query = self._engine.query
+        try:
+            prepared = self.prepare_scene_changes([AddObject(obj) for obj in scene])
+        except SceneChangeError as error:
+            raise SceneError(f'scene: {error.reason}') from None
+        self._install(prepared)
 
     @classmethod
     def from_urdf(cls, urdf, srdf=None, package_paths: Optional[Mapping[str, str]] = None,
@@ -343,47 +301,40 @@ class CollisionChecker:
         return self._views[name]
 
     def _solid_row(self, solid, faces, T_body_element) -> np.ndarray:
-        """The engine's row for one element (``cpp/query.hpp``: SOLID_*): what it fills, in
-        its body's frame. Primitives are solid; a closed mesh is with ``mesh_containment``."""
-        row = np.zeros(engine.SOLID_WIDTH)
-        if solid is None and self.config.mesh_containment and is_closed_surface(faces):
-            solid = Solid(SOLID_CLOSED_MESH)
-        if solid is not None:
-            row[0] = solid.kind
-            row[1:4] = solid.size
-            row[4:13] = T_body_element[:3, :3].ravel()
-            row[13:16] = T_body_element[:3, 3]
-        return row
+        """The engine's row for one element (see :func:`dynamic_scene.solid_row`)."""
+        return solid_row(solid, faces, T_body_element, self.config.mesh_containment,
+                         engine.SOLID_WIDTH)
 
-    def _write_header(self, n_links: int) -> None:
-        """Fill the int buffer's header (cpp/query.hpp: H_*) once, after packing."""
-        I, e = self._I, engine
+    def _write_header(self, I: np.ndarray, F_layout: np.ndarray, I_layout: np.ndarray,
+                      n_links: int) -> None:
+        """Fill the int buffer's header (cpp/query.hpp: H_*), after packing."""
+        e = engine
         I[e.H_N_LINKS], I[e.H_BOX_METHOD], I[e.H_EXPANSION] = (
             n_links, self.config.box_test_code, self.config.expansion_code)
         I[e.H_CHECKED_ONCE], I[e.H_RESYNC_COUNTDOWN] = 0, e.TRAVEL_RESYNC_CALLS
-        I[e.H_LAYOUTS:e.H_I_LAYOUT] = self._F_layout.ravel()
-        I[e.H_I_LAYOUT:e.HEADER_SIZE] = self._I_layout.ravel()
+        I[e.H_LAYOUTS:e.H_I_LAYOUT] = F_layout.ravel()
+        I[e.H_I_LAYOUT:e.HEADER_SIZE] = I_layout.ravel()
 
-    def _body_padding(self, link_names: List[str], n_bodies: int) -> np.ndarray:
-        """(B,) float64: each body's padding (m), links from ``padding`` and
-        ``link_padding``, scene objects 0.
+    def _link_padding(self, link_names: List[str], object_names: List[str]) -> np.ndarray:
+        """(L,) float64: each robot link's padding (m), from ``padding`` and
+        ``link_padding``; scene objects are never padded.
 
         :raises ConfigError: ``link_padding`` names something that is not a link of the robot.
         """
-        padding = np.zeros(n_bodies)
-        padding[:len(link_names)] = self.config.padding
+        padding = np.full(len(link_names), float(self.config.padding))
         index = {name: i for i, name in enumerate(link_names)}
         for name, metres in self.config.link_padding:
             if name not in index:
                 what = ('is a scene object; only robot links are padded'
-                        if name in self.scene_object_names else
+                        if name in object_names else
                         f'is not a link of robot "{self.model.name}"; links: '
                         + ', '.join(link_names))
                 raise ConfigError(f'setting link_padding: "{name}" {what}')
             padding[index[name]] = metres
         return padding
 
-    def _exception_list(self, srdf: Optional[Srdf], link_names: List[str]) -> Dict[Pair, str]:
+    def _exception_list(self, srdf: Optional[Srdf], link_names: List[str],
+                        object_names: List[str]) -> Dict[Pair, str]:
         excluded: Dict[Pair, str] = {}
         if self.config.ignore_adjacent:
             parents = {link: None for link in link_names}
@@ -395,34 +346,20 @@ class CollisionChecker:
             for entry in srdf.disabled_pairs:
                 pair = sorted_pair(entry.link1, entry.link2)
                 excluded.setdefault(pair, f'srdf: {entry.reason}' if entry.reason else 'srdf')
-        known = set(link_names) | set(self.scene_object_names)
+        known = set(link_names) | set(object_names)
         for pair in parse_pair_strings(self.config.allowed_collisions, known):
             excluded.setdefault(pair, 'allowed_collisions')
         return excluded
 
-    def _pair_paths(self, n_links: int) -> np.ndarray:
-        """(P, J) uint8: variable j drives a joint on the tree path between the pair's bodies."""
-        kin = self.kinematics
-        n_joints = len(kin.joint_names)
-        above = []  # links from each link up to (excluding) the root
-        for i in range(n_links):
-            chain, k = set(), i
-            while k > 0:
-                chain.add(k)
-                k = int(kin.parent[k])
-            above.append(chain)
-        path = np.zeros((len(self._pair_a), n_joints), dtype=np.int64)
-        for p, (a, b) in enumerate(zip(self._pair_a, self._pair_b)):
-            links = above[a] ^ (above[b] if b < n_links else set())
-            for k in links:
-                if kin.q_index[k] >= 0:
-                    path[p, _variables(kin, k)] = 1
-        return path
+    def _pair_rows(self, tree: '_EngineTree', vertex_radius: np.ndarray, pair_a: np.ndarray,
+                   pair_b: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return ``path, reach, reach_ext``, each (n, J), for the pairs of bodies
+        ``(pair_a[i], pair_b[i])`` (engine body indices; a world object second).
 
-    def _pair_reaches(self, n_links: int, vertex_radius: np.ndarray) -> np.ndarray:
-        """Return ``reach, reach_ext`` (P, J) float64: how far a point of either body can move,
-        relative to the other, per unit of variable j: ``reach + reach_ext * E``, where E is
-        the sum of |value| of every prismatic joint at the current state (0 off the path).
+        ``path[i, j]`` is 1 iff variable j drives a joint on the tree path between the two
+        bodies (int64). ``reach, reach_ext`` (float64): how far a point of either body can
+        move, relative to the other, per unit of variable j: ``reach + reach_ext * E``, where
+        E is the sum of |value| of every prismatic joint at the current state (0 off the path).
 
         A joint k on the path moves the body on its side (relative to the pair's common
         ancestor). Revolute: every point of body x below k stays within the distance from
@@ -431,7 +368,8 @@ class CollisionChecker:
         between them (at most E), plus x's vertex radius around its origin. Prismatic: 1.
         Both times |multiplier|, summed over the joints variable j drives. E is taken at the
         new state: moving the prismatic variables first, then the others, is a path from the
-        old state along which every bound holds.
+        old state along which every bound holds. An attached object is a link on a fixed
+        joint whose offset is its pose in its link's frame: it enters the lever arms so.
 
         Planar and floating joints translate, then rotate about the translated origin (their
         child frame's). Translation variables: 1, as a prismatic joint. Planar theta: as a
@@ -446,33 +384,34 @@ class CollisionChecker:
         Padding does not enter: a padded pair's clearance is a bound of its surfaces' distance
         minus a constant (the paddings), which moves exactly as much as that distance does.
         """
-        kin = self.kinematics
-        n_joints = len(kin.joint_names)
-        offset_norm = np.linalg.norm(kin.T_parent_joint[:, :3, 3], axis=1)
-        reach = np.zeros((len(self._pair_a), n_joints))
-        reach_ext = np.zeros((len(self._pair_a), n_joints))
-        for p, (a, b) in enumerate(zip(self._pair_a, self._pair_b)):
+        n_links, n_joints = len(tree.parent), len(self.joint_names)
+        offset_norm = np.linalg.norm(tree.T_parent_joint[:, :3, 3], axis=1)
+        path = np.zeros((len(pair_a), n_joints), dtype=np.int64)
+        reach = np.zeros((len(pair_a), n_joints))
+        reach_ext = np.zeros((len(pair_a), n_joints))
+        for p, (a, b) in enumerate(zip(pair_a, pair_b)):
             chains = {}
             for x in (a, b) if b < n_links else (a,):
                 chain, k = [], int(x)
                 while k > 0:
                     chain.append(k)  # x and its ancestors, up to (excluding) the root
-                    k = int(kin.parent[k])
+                    k = int(tree.parent[k])
                 chains[int(x)] = chain
             for x, chain in chains.items():
                 other = chains.get(int(b) if x == a else int(a), [])
                 for depth, k in enumerate(chain):
-                    if k in other or kin.q_index[k] < 0:
+                    if k in other or tree.q_index[k] < 0:
                         continue  # above the common ancestor, or not driven
+                    path[p, _variables(tree, k)] = 1
                     below = chain[:depth]  # from x up to, excluding, k
-                    m = abs(kin.multiplier[k]) * (1.0 + 1e-9)
-                    j = kin.q_index[k]
-                    kind = kin.joint_type[k]
+                    m = abs(tree.multiplier[k]) * (1.0 + 1e-9)
+                    j = tree.q_index[k]
+                    kind = tree.joint_type[k]
                     if kind == JOINT_PRISMATIC:
                         reach[p, j] += m
                         continue
                     lever = float(offset_norm[below].sum()) + vertex_radius[x]
-                    if any(kin.joint_type[c] in _VARIABLE_COUNT for c in below):
+                    if any(tree.joint_type[c] in _VARIABLE_COUNT for c in below):
                         lever = QUATERNION_REACH   # a multi-DOF translation in the lever arm
                     if kind == JOINT_PLANAR:
                         reach[p, j:j + 2] += m   # x, y
@@ -482,9 +421,494 @@ class CollisionChecker:
                         reach[p, j + 3:j + 7] = QUATERNION_REACH
                         continue
                     reach[p, j] = min(reach[p, j] + m * lever, QUATERNION_REACH)
-                    if any(kin.joint_type[c] == JOINT_PRISMATIC for c in below):
+                    if any(tree.joint_type[c] == JOINT_PRISMATIC for c in below):
                         reach_ext[p, j] += m
-        return reach, reach_ext
+        return path, reach, reach_ext
+
+    @property
+    def paddings(self) -> Dict[str, float]:
+        """Each body's padding (m): the robot's links with geometry, and the scene objects
+        (never padded: 0)."""
+        link_padding = dict(zip(self.kinematics.link_names, self._robot.padding))
+        return {**{name: float(link_padding[name]) for name in self.link_names},
+                **{name: 0.0 for name in self.scene_object_names}}
+
+    # ------------------------------------------------------------------ the scene
+    @property
+    def object_names(self) -> Tuple[str, ...]:
+        """Names of the scene's objects, world and attached, in the order they were added."""
+        return self.scene_object_names
+
+    @property
+    def scene_objects(self) -> Tuple[SceneObject, ...]:
+        """The objects of :attr:`scene_object_names`, each with ``T_world_object`` its world
+        pose (an attached object's at the last checked state)."""
+        poses = None
+        objects = []
+        for placed in self._objects.values():
+            T = placed.pose
+            if placed.attach_to is not None:
+                poses = self._poses() if poses is None else poses
+                T = poses[self._body_index[placed.name]].copy()
+            objects.append(placed.obj if placed.obj.T_world_object is T
+                           else dataclasses.replace(placed.obj, T_world_object=T))
+        return tuple(objects)
+
+    @property
+    def attachments(self) -> Dict[str, Tuple[str, Tuple[str, ...]]]:
+        """``{object: (link, touch links)}`` for every attached object."""
+        return {name: (placed.attach_to, placed.touch_links)
+                for name, placed in self._objects.items() if placed.attach_to is not None}
+
+    def object_pose(self, name: str) -> np.ndarray:
+        """Return object ``name``'s pose as last set: (4, 4), in the world frame, or in its
+        link's frame when attached.
+
+        :raises SceneError: no such object.
+        """
+        placed = self._objects.get(name)
+        if placed is None:
+            raise SceneError(f'no object "{name}"; objects are {", ".join(self._objects)}')
+        return placed.pose.copy()
+
+    def object_triangles(self, name: str) -> int:
+        """Return how many triangles object ``name`` has (its tree's).
+
+        :raises SceneError: no such object.
+        """
+        placed = self._objects.get(name)
+        if placed is None:
+            raise SceneError(f'no object "{name}"; objects are {", ".join(self._objects)}')
+        return placed.block.triangles
+
+    def add_object(self, obj: SceneObject, attach_to: Optional[str] = None,
+                   touch_links: Iterable[str] = (), pose=None) -> None:
+        """Add ``obj`` to the scene, or replace the object of the same name.
+
+        A replacement with the same triangles, link and touch links only moves the object.
+        The change takes effect at the next :meth:`check` or :meth:`update`, which re-checks
+        the object's pairs whatever the joints did.
+
+        :param obj: the object (its triangles in its own frame, and its name).
+        :param attach_to: a link of the robot: the object moves with it and is never checked
+            against it; None (or a name of :attr:`world_frames`): fixed in the world.
+        :param touch_links: further links the attached object is never checked against.
+        :param pose: (4, 4) the object's pose in the world or, attached, in the link's frame;
+            default ``obj.T_world_object``.
+        :raises SceneError: naming what is wrong (the name is a link's, an unknown link, a
+            pose that is not a rigid transform, no triangles ...); nothing changes then.
+        """
+        self.apply_scene_changes([AddObject(obj, attach_to, tuple(touch_links), pose)])
+
+    def move_object(self, name: str, pose) -> None:
+        """Give object ``name`` a new pose, (4, 4), in the world or, when attached, in its
+        link's frame. The next :meth:`update` re-checks its pairs only (and what the joints
+        moved).
+
+        :raises SceneError: no such object, or a pose that is not a rigid transform.
+        """
+        # apply_scene_changes([MoveObject(name, pose)]), without its bookkeeping: this is the
+        # call a moving object makes at every step.
+        old = self._objects.get(name)
+        if old is None:
+            raise SceneError(f'no object "{name}" to move; add it first (objects: '
+                             f'{", ".join(self._objects) or "none"})')
+        placed = PlacedObject(old.obj, old.block, old.attach_to, old.touch_links,
+                              checked_pose(pose, f'object "{name}"'))
+        objects = dict(self._objects)   # never changed in place: prepared changes compare it
+        objects[name] = placed
+        self._move_in_place(placed)
+        self._objects = objects
+
+    def remove_object(self, name: str) -> None:
+        """Remove object ``name`` from the scene.
+
+        :raises SceneError: no such object.
+        """
+        self.apply_scene_changes([RemoveObject(name)])
+
+    def apply_scene_changes(self, changes: Iterable[SceneChange]) -> None:
+        """Apply scene changes in order, all or nothing (see
+        :mod:`collision_sensor.engine.dynamic_scene`): :meth:`prepare_scene_changes`, then
+        :meth:`commit_scene_changes`.
+
+        :raises SceneError: naming the change at fault; the checker is then unchanged.
+        """
+        self.commit_scene_changes(self.prepare_scene_changes(changes))
+
+    def prepare_scene_changes(self, changes: Iterable[SceneChange]) -> PreparedSceneChanges:
+        """Validate ``changes`` against the current scene and build the new objects' trees,
+        without changing the checker.
+
+        This is the slow part of adding objects; it reads only what queries never change, so
+        it may run on another thread while this checker answers queries.
+
+        :param changes: :class:`AddObject`, :class:`MoveObject`, :class:`RemoveObject`, in
+            the order they apply.
+        :return: the result, for :meth:`commit_scene_changes`.
+        :raises SceneChangeError: the first change that cannot apply (``index``), naming the
+            object and the fix.
+        """
+        base = self._objects
+        objects = dict(base)
+        moved, rebuilt = set(), set()
+        structural = False
+        for k, change in enumerate(changes):
+            try:
+                if isinstance(change, AddObject):
+                    placed, same = self._placed(change, objects)
+                    objects[placed.name] = placed
+                    (moved if same else rebuilt).add(placed.name)
+                    structural |= not same
+                elif isinstance(change, (MoveObject, RemoveObject)):
+                    name = change.name
+                    old = objects.get(name)
+                    if old is None:
+                        verb = 'move' if isinstance(change, MoveObject) else 'remove'
+                        raise SceneError(f'no object "{name}" to {verb}; add it first '
+                                         f'(objects: {", ".join(objects) or "none"})')
+                    if isinstance(change, MoveObject):
+                        pose = checked_pose(change.pose, f'object "{name}"')
+                        objects[name] = PlacedObject(old.obj, old.block, old.attach_to,
+                                                     old.touch_links, pose)
+                        moved.add(name)
+                    else:
+                        del objects[name]
+                        moved.discard(name)
+                        rebuilt.discard(name)
+                        structural = True
+                else:
+                    raise SceneError(f'{type(change).__name__} is not a scene change; give '
+                                     'AddObject, MoveObject or RemoveObject')
+            except SceneError as error:
+                raise SceneChangeError(k, str(error)) from None
+        return PreparedSceneChanges(self, base, objects, structural,
+                                    frozenset(moved - rebuilt), frozenset(rebuilt))
+
+    def _placed(self, change: AddObject,
+                objects: Mapping[str, PlacedObject]) -> Tuple[PlacedObject, bool]:
+        """The object ``change`` adds, and whether it only moves the one of its name."""
+        obj = change.obj
+        name = getattr(obj, 'name', None)
+        if not isinstance(name, str) or not name:
+            raise SceneError('the object has no name; give it a unique name')
+        owner = f'object "{name}"'
+        if name in self._link_index or name in self.world_frames:
+            raise SceneError(f'{owner} has the name of a link or frame of robot '
+                             f'"{self.model.name}"; rename the object')
+        check_geometry(obj, owner)
+        attach_to = None if change.attach_to in self.world_frames else change.attach_to
+        touch_links = tuple(dict.fromkeys(change.touch_links))
+        if attach_to is not None and attach_to not in self._link_index:
+            raise SceneError(f'{owner}: "{attach_to}" is not a link of robot '
+                             f'"{self.model.name}"; attach it to one of its links, or to '
+                             f'{" or ".join(sorted(self.world_frames))} (the world)')
+        unknown = [link for link in touch_links if link not in self._link_index]
+        if unknown or (touch_links and attach_to is None):
+            why = (f'touch link "{unknown[0]}" is not a link of robot "{self.model.name}"'
+                   if unknown else 'touch links are given for an object fixed in the world')
+            raise SceneError(f'{owner}: {why}; give touch links of the robot, and only for an '
+                             'object attached to a link other than the root')
+        pose = checked_pose(obj.T_world_object if change.pose is None else change.pose, owner)
+        old = objects.get(name)
+        if (old is not None and old.attach_to == attach_to and old.touch_links == touch_links
+                and same_geometry(old.obj, obj)):
+            return PlacedObject(obj, old.block, attach_to, touch_links, pose), True
+        block = build_object_block(obj, self.config, engine.SOLID_WIDTH)
+        return PlacedObject(obj, block, attach_to, touch_links, pose), False
+
+    def commit_scene_changes(self, prepared: PreparedSceneChanges) -> None:
+        """Make the scene ``prepared`` describes this checker's: moves write poses (cheap);
+        added or removed objects put the engine's tables together again from the robot's and
+        the objects' trees (nothing is rebuilt), keeping every surviving pair's state.
+
+        :raises SceneError: ``prepared`` was made for another checker, or another scene change
+            was committed since it was prepared; nothing changes then.
+        """
+        if prepared.checker is not self or prepared.base is not self._objects:
+            raise SceneError('these scene changes were prepared for another checker or scene '
+                             '(another change was committed since); prepare them again')
+        if prepared.structural:
+            self._install(prepared)
+            return
+        for name in prepared.moved:
+            self._move_in_place(prepared.objects[name])
+        self._objects = prepared.objects
+
+    def _move_in_place(self, placed: PlacedObject) -> None:
+        """Write an object's new pose into the engine's tables and force its pairs."""
+        views, pairs = self._views, self._object_pairs[placed.name]
+        b = self._body_index[placed.name]
+        if placed.attach_to is None:
+            views['T_world_body'][b] = placed.pose
+        else:
+            # The fixed joint's origin, and the reach bounds whose lever arms run through it.
+            views['T_parent_joint'][b] = placed.pose
+            views['stale'][b] = 1
+            _, reach, reach_ext = self._pair_rows(self._engine_tree(), self._radius,
+                                                  self._pair_a[pairs], self._pair_b[pairs])
+            views['reach'][pairs] = reach
+            views['reach_ext'][pairs] = reach_ext
+            for row, p in enumerate(pairs):
+                path = self._rows[self.checked_pairs[p]][0]
+                self._rows[self.checked_pairs[p]] = (path, reach[row], reach_ext[row])
+        views['forced'][pairs] = 1
+        self._I[engine.H_FORCED] = 1
+
+    def _engine_tree(self) -> '_EngineTree':
+        """The engine's kinematic arrays (robot links, then attached objects)."""
+        v = self._views
+        return _EngineTree(v['parent'], v['joint_type'], v['q_index'], v['multiplier'],
+                           v['T_parent_joint'])
+
+    def _install(self, prepared: PreparedSceneChanges) -> None:
+        """Put the engine's buffers together for the scene ``prepared`` describes, carrying
+        over the state of every pair that survives, and swap them in.
+
+        Bodies: the robot's links, the attached objects (links on fixed joints below theirs),
+        the world objects. Trees: the robot's block, then each object's, indices shifted.
+        Every new pair, and every pair of an object added or moved, is forced; a pair that
+        survives keeps its status, clearance, travel and witness (its triangles moved by
+        its object's shift), not its front (the front rows are sized anew).
+        """
+        kin, robot, objects = self.kinematics, self._robot, prepared.objects
+        n_robot = len(kin.link_names)
+        attached = [p for p in objects.values() if p.attach_to is not None]
+        world = [p for p in objects.values() if p.attach_to is None]
+        placed = attached + world
+        body_names = list(kin.link_names) + [p.name for p in placed]
+        n_links, n_bodies, n_attached = n_robot + len(attached), len(body_names), len(attached)
+        body_index = {name: b for b, name in enumerate(body_names)}
+        attach_links = np.array([self._link_index[p.attach_to] for p in attached],
+                                dtype=np.int64)
+        tree = _EngineTree(
+            parent=np.concatenate([kin.parent, attach_links]),
+            joint_type=np.concatenate([kin.joint_type, np.full(n_attached, JOINT_FIXED)]),
+            q_index=np.concatenate([kin.q_index, np.full(n_attached, -1)]),
+            multiplier=np.concatenate([kin.multiplier, np.ones(n_attached)]),
+            T_parent_joint=np.concatenate(
+                [kin.T_parent_joint, np.reshape([p.pose for p in attached], (-1, 4, 4))]))
+
+        # The forest: the robot's trees, then one per object (node and triangle indices
+        # shifted by what comes before it).
+        node_start = len(robot.boxes) + np.cumsum(
+            [0] + [len(p.block.boxes) for p in placed], dtype=np.int64)
+        tri_start = len(robot.tris) + np.cumsum([0] + [p.block.triangles for p in placed],
+                                                dtype=np.int64)
+        nodes = [robot.nodes]
+        for p, n0, t0 in zip(placed, node_start, tri_start):
+            shifted = p.block.nodes + np.array([n0, n0, t0, 0], dtype=np.int64)
+            leaf = p.block.nodes[:, NODE_LEFT] < 0
+            shifted[leaf, NODE_LEFT:NODE_RIGHT + 1] = -1
+            nodes.append(shifted)
+        n_elements = len(robot.roots) + len(placed)
+        elem_solid = np.concatenate([robot.elem_solid] + [p.block.solid_row[None] for p in placed]
+                                    + [np.zeros((0 if n_elements else 1, engine.SOLID_WIDTH))])
+        first_object_element = len(robot.roots) + np.arange(len(placed), dtype=np.int64)
+        body_elem_start = np.concatenate([robot.elem_start, first_object_element])
+        body_elem_end = np.concatenate([robot.elem_end, first_object_element + 1])
+        radius = np.concatenate([robot.radius, [p.block.radius for p in placed]])
+
+        checked, excluded, object_pairs = self._scene_pairs(attached, world)
+        n_pairs, n_joints = len(checked), len(self.joint_names)
+        pair_a = np.empty(n_pairs, dtype=np.int64)
+        pair_b = np.empty(n_pairs, dtype=np.int64)
+        for p, (a, b) in enumerate(checked):
+            ia, ib = body_index[a], body_index[b]
+            pair_a[p], pair_b[p] = (ib, ia) if ia >= n_links else (ia, ib)  # world object second
+        # Each pair's rows, computed once and kept while its bodies keep their place.
+        changed = prepared.rebuilt | (prepared.base.keys() - objects.keys()) | {
+            name for name in prepared.moved if objects[name].attach_to is not None}
+        rows = {pair: row for pair, row in self._rows.items()
+                if pair[0] not in changed and pair[1] not in changed}
+        missing = [p for p, pair in enumerate(checked) if pair not in rows]
+        for p, path, reach, reach_ext in zip(missing, *self._pair_rows(
+                tree, radius, pair_a[missing], pair_b[missing])):
+            rows[checked[p]] = (path, reach, reach_ext)
+        rows = {pair: rows[pair] for pair in checked}
+        path = np.reshape([rows[pair][0] for pair in checked], (n_pairs, n_joints))
+        reach = np.reshape([rows[pair][1] for pair in checked], (n_pairs, n_joints))
+        reach_ext = np.reshape([rows[pair][2] for pair in checked], (n_pairs, n_joints))
+        # Each variable's pairs (those with it on their path), as one list cut per variable;
+        # each variable's links (whose pose depends on it), attached objects with their link.
+        on_path = path.T.nonzero()
+        joint_pairs_start = np.searchsorted(on_path[0], np.arange(n_joints + 1))
+        depends = np.concatenate([self._link_depends, self._link_depends[:, attach_links]],
+                                 axis=1)
+        joint_links = depends.nonzero()
+        joint_links_start = np.searchsorted(joint_links[0], np.arange(n_joints + 1))
+        depth = max([robot.depth] + [p.block.depth for p in placed])
+        # Each pair's front (cpp/query.cpp: trees_of_pair) gets the same number of rows; the
+        # traversal's stack takes a front's node pairs, or a pair's root pairs, as seeds.
+        front_rows = int(np.clip(engine.FRONT_POOL_ROWS // max(n_pairs, 1),
+                                 engine.FRONT_ROWS_MIN, engine.FRONT_ROWS_MAX))
+        elements = body_elem_end - body_elem_start
+        seeds = max([front_rows] + list(elements[pair_a] * elements[pair_b]))
+
+        is_scene = np.zeros(n_bodies, dtype=np.int64)
+        is_scene[n_links:] = 1
+        T_world_body = np.tile(np.eye(4), (n_bodies, 1, 1))
+        stale = np.zeros(n_bodies, dtype=np.int64)
+        stale[:n_links] = 1
+        for b, p in enumerate(world, start=n_links):
+            T_world_body[b] = p.pose
+        scalars = np.zeros(engine.N_SCALARS)
+        scalars[engine.S_TOLERANCE] = self.config.motion_tolerance
+        floats = dict(
+            scalars=scalars, q_last=kin.neutral(), q_ref=kin.neutral(),
+            T_parent_joint=tree.T_parent_joint, axis=np.concatenate(
+                [kin.axis, np.tile([0.0, 0.0, 1.0], (n_attached, 1))]),
+            multiplier=tree.multiplier,
+            offset=np.concatenate([kin.offset, np.zeros(n_attached)]),
+            T_world_body=T_world_body,
+            body_boxes=np.concatenate([robot.body_boxes] + [p.block.boxes[:1] for p in placed]),
+            boxes=np.concatenate([robot.boxes] + [p.block.boxes for p in placed]),
+            volume=np.concatenate([robot.volume] + [p.block.volume for p in placed]),
+            gain=np.concatenate([robot.gain] + [p.block.gain for p in placed]),
+            tris=np.concatenate([robot.tris] + [p.block.tris for p in placed]),
+            elem_solid=elem_solid,
+            subtree_boxes=np.zeros((max(n_links, 1), BOX_WIDTH)),
+            padding=np.concatenate([robot.padding, np.zeros(len(placed))]),
+            clearance=np.zeros(n_pairs), q_eval=np.zeros((n_pairs, n_joints)),
+            reach=reach, reach_ext=reach_ext, travel=np.zeros((n_pairs, 2)),
+            front_until=np.zeros((n_pairs + 1) * front_rows), front_travel=np.zeros(n_pairs))
+        ints = dict(
+            header=np.zeros(engine.HEADER_SIZE), parent=tree.parent,
+            joint_type=tree.joint_type, q_index=tree.q_index,
+            is_scene=is_scene, body_elem_start=body_elem_start,
+            body_elem_end=body_elem_end,
+            roots=np.concatenate([robot.roots, node_start[:-1]]),
+            nodes=np.concatenate(nodes), pair_a=pair_a, pair_b=pair_b,
+            joint_pairs_start=joint_pairs_start, joint_pairs=on_path[1],
+            joint_links_start=joint_links_start, joint_links=joint_links[1],
+            joint_prismatic=self._joint_prismatic,
+            status=np.zeros(n_pairs), witness=np.full((n_pairs, 2), -1),
+            moved=np.zeros(n_joints), stale=stale, chain=np.zeros(max(n_links, 1)),
+            pending=np.zeros(n_pairs), todo=np.zeros(n_pairs),
+            scene_culled=np.zeros((len(world), max(n_links, 1))),
+            stack=np.zeros((seeds + 2 * depth + 8, 3)),
+            counters=np.zeros(engine.N_COUNTERS), front=np.zeros(((n_pairs + 1) * front_rows, 3)),
+            front_state=np.zeros((n_pairs, 2)), nearest=np.full((n_pairs, 2), -1),
+            forced=np.ones(n_pairs))
+        tri_starts = {p.name: int(t0) for p, t0 in zip(placed, tri_start)}
+        forced_names = prepared.rebuilt | prepared.moved
+        if self._views is not None:
+            self._carry_state(floats, ints, checked, body_index, tri_starts, forced_names)
+        F, F_layout, float_views = self._pack(np.float64, engine.FLOAT_SLOTS, floats)
+        I, I_layout, int_views = self._pack(np.int64, engine.INT_SLOTS, ints)
+        self._write_header(I, F_layout, I_layout, n_links)
+        if self._views is not None:
+            I[engine.H_CHECKED_ONCE] = self._I[engine.H_CHECKED_ONCE]
+            I[engine.H_RESYNC_COUNTDOWN] = self._I[engine.H_RESYNC_COUNTDOWN]
+        I[engine.H_FORCED] = int(int_views['forced'].any())
+        new_engine = engine.Engine(F, I)
+
+        # Nothing above changed the checker; from here on, nothing can fail.
+        self._F, self._I, self._views = F, I, {**float_views, **int_views}
+        self._engine, self._query = new_engine, new_engine.query
+        # The forest is only a view of the engine's tables: nothing is held twice (scenario 4).
+        self.forest = forest_view(float_views['boxes'], int_views['nodes'],
+                                  float_views['volume'], float_views['gain'],
+                                  float_views['tris'], int_views['roots'],
+                                  np.array([robot.depth] + [p.block.depth for p in placed]))
+        self._q_ref = float_views['q_ref']
+        self._T_world_body = float_views['T_world_body']
+        self._status = int_views['status']
+        self.counters = int_views['counters']  # work done, see traversal.COUNT_* (benchmarks)
+        # The joint vector of the last call; the engine writes it (read-only for Python).
+        self._q = float_views['q_last']
+        self._pair_reach, self._pair_reach_ext = float_views['reach'], float_views['reach_ext']
+        self._body_names, self._body_index, self._radius = tuple(body_names), body_index, radius
+        self._body_elem_start, self._body_elem_end = body_elem_start, body_elem_end
+        self._pair_a, self._pair_b = int_views['pair_a'], int_views['pair_b']
+        self._n_links = n_links
+        self.checked_pairs: Tuple[Pair, ...] = checked
+        self.excluded_pairs: Dict[Pair, str] = excluded
+        self.scene_object_names: Tuple[str, ...] = tuple(objects)
+        self._objects, self._rows, self._object_pairs = objects, rows, object_pairs
+        self._tri_starts = tri_starts
+        self._results = {}
+        self._result = self._result_from_status(0)
+
+    def _scene_pairs(self, attached: Sequence[PlacedObject], world: Sequence[PlacedObject]):
+        """Return the checked pairs (sorted), the exception list and ``{object: its pairs'
+        indices}`` for a scene of these objects (see :mod:`collision_sensor.engine.dynamic_scene`)."""
+        excluded = dict(self._base_exclusions)
+        pairs = list(self._robot.pairs)
+        for i, placed in enumerate(attached):
+            name, link = placed.name, placed.attach_to
+            for other in self.link_names:
+                pair = sorted_pair(name, other)
+                if other == link:
+                    excluded.setdefault(pair, f'attached to {link}')
+                elif other in placed.touch_links:
+                    excluded.setdefault(pair, 'touch link')
+                elif pair not in excluded:
+                    pairs.append(pair)
+            for other in attached[i + 1:]:
+                pair = sorted_pair(name, other.name)
+                if other.attach_to in (link,) + placed.touch_links or (
+                        link in other.touch_links):
+                    excluded.setdefault(pair, 'attached to the same or touching links')
+                elif pair not in excluded:
+                    pairs.append(pair)
+        movers = list(self.link_names) + [placed.name for placed in attached]
+        for placed in world:
+            pairs.extend(pair for pair in (sorted_pair(placed.name, other) for other in movers)
+                         if pair not in excluded)
+        checked = tuple(sorted(pairs))
+        object_pairs = {name: [] for name in [p.name for p in attached] + [p.name for p in world]}
+        for p, (a, b) in enumerate(checked):
+            for name in (a, b):
+                if name in object_pairs:
+                    object_pairs[name].append(p)
+        return checked, excluded, {name: np.asarray(indices, dtype=np.int64)
+                                   for name, indices in object_pairs.items()}
+
+    def _carry_state(self, floats, ints, checked, body_index, tri_starts, forced_names) -> None:
+        """Copy the current state into the arrays of a new layout (see :meth:`_install`)."""
+        old = self._views
+        old_index = {pair: p for p, pair in enumerate(self.checked_pairs)}
+        for name in ('scalars', 'q_last', 'q_ref'):
+            floats[name] = old[name].copy()
+        ints['counters'] = old['counters'].copy()
+        n_robot = len(self.kinematics.link_names)
+        floats['T_world_body'][:n_robot] = old['T_world_body'][:n_robot]
+        ints['stale'][:n_robot] = old['stale'][:n_robot]
+        for name, b in body_index.items():
+            old_b = self._body_index.get(name)
+            if n_robot <= b < self._n_links and old_b is not None and (
+                    old_b < self._n_links and name not in forced_names):
+                floats['T_world_body'][b] = old['T_world_body'][old_b]
+                ints['stale'][b] = old['stale'][old_b]
+        new, kept = [], []
+        for p, pair in enumerate(checked):
+            o = old_index.get(pair)
+            if o is not None:
+                new.append(p)
+                kept.append(o)
+        new, kept = np.asarray(new, dtype=np.int64), np.asarray(kept, dtype=np.int64)
+        for name in ('clearance', 'q_eval', 'travel'):
+            floats[name][new] = old[name][kept]
+        ints['status'][new] = old['status'][kept]
+        # A witness names a triangle of each body: shifted with its object's triangles.
+        shift = {name: start - self._tri_starts[name] for name, start in tri_starts.items()
+                 if name in self._tri_starts and name not in forced_names}
+        witness = ints['witness']
+        for p, o in zip(new, kept):
+            a, b = checked[p]
+            w = old['witness'][o]
+            names = (a, b) if body_index[a] == ints['pair_a'][p] else (b, a)
+            if w[0] >= 0 and all(n in shift or n not in tri_starts for n in names):
+                witness[p] = (w[0] + shift.get(names[0], 0), w[1] + shift.get(names[1], 0))
+        # Forced: new pairs, pairs of objects added or moved, and those still forced.
+        forced = ints['forced']
+        forced[:] = 0
+        forced[new] = old['forced'][kept]
+        forced[[p for p, pair in enumerate(checked)
+                if pair not in old_index or pair[0] in forced_names
+                or pair[1] in forced_names]] = 1
+
 
     # ------------------------------------------------------------------ queries
     def _merged(self, positions: Positions) -> np.ndarray:
@@ -719,9 +1143,8 @@ class CollisionChecker:
 
     def link_poses(self) -> Dict[str, np.ndarray]:
         """World poses (4, 4) of every link and scene object at the last checked state."""
-        names = list(self.kinematics.link_names) + list(self.scene_object_names)
         T_world_body = self._poses()
-        return {name: T_world_body[b].copy() for b, name in enumerate(names)}
+        return {name: T_world_body[b].copy() for b, name in enumerate(self._body_names)}
 
     def _poses(self) -> np.ndarray:
         """(B, 4, 4) world poses of all bodies, brought up to date (``update`` computes a

@@ -12,7 +12,7 @@ import os
 from collision_sensor.errors import CollisionSensorError
 
 #: The binding's interface version this Python code expects (cpp/bindings.cpp: ENGINE_API).
-ENGINE_API = 1
+ENGINE_API = 2
 _REBUILD = ('rebuild it: "make" (or "pip install -e ." in the source tree, '
             '"colcon build --packages-select collision_sensor" in a workspace)')
 

@@ -26,6 +26,7 @@ from collision_sensor.errors import ConfigError
 from collision_sensor.model.mesh_loading import parse_package_paths
 from collision_sensor.ros.joint_state_merger import (
     DEFAULT_LIMIT_TOLERANCE, LIMIT_POLICIES, MAX_UNKNOWN_NAMES)
+from collision_sensor.ros.scene_markers import SceneLimits
 
 #: Default of ``max_joint_state_bytes``: a JointState of 1000 joints, names of 24 characters,
 #: positions, velocities and efforts is about 60 KiB serialized.
@@ -34,6 +35,8 @@ MAX_JOINT_STATE_BYTES = 64 * 1024
 JOINT_STATES_QOS = ('sensor_data', 'reliable')
 #: The engine's defaults, so that the node and the offline tools agree out of the box.
 _ENGINE = CheckerConfig()
+#: The scene topic's default caps.
+_TOPIC = SceneLimits()
 
 
 @dataclass(frozen=True)
@@ -125,8 +128,23 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
                   'min_distance and near_pairs with every verdict; 0 turns the proximity '
                   'outputs off', '>= 0'),
     ParameterSpec('publish_markers', False,
-                  'publish the boxes of colliding links, and the nearest points of pairs '
-                  'nearer than warning_distance, on ~/markers (visualization_msgs/MarkerArray)'),
+                  'publish the boxes of colliding links, the scene objects, and the nearest points '
+                  'of pairs nearer than warning_distance, on ~/markers '
+                  '(visualization_msgs/MarkerArray)'),
+    ParameterSpec('scene_max_objects', _TOPIC.max_objects,
+                  'objects the scene topic may hold at once; an array that would add more is '
+                  'rejected', '>= 0'),
+    ParameterSpec('scene_max_triangles', _TOPIC.max_triangles,
+                  'triangles of one object from the scene topic, at most', '>= 0'),
+    ParameterSpec('scene_max_total_triangles', _TOPIC.max_total_triangles,
+                  'triangles of all objects from the scene topic together, at most', '>= 0'),
+    ParameterSpec('scene_max_mesh_bytes', _TOPIC.max_mesh_bytes,
+                  'size of a MESH_RESOURCE file the scene topic may make the node read, at most',
+                  '>= 0'),
+    ParameterSpec('scene_mesh_roots', (),
+                  'directories under which MESH_RESOURCE files given as file:// or absolute '
+                  'paths may lie (package:// URIs need none); empty: package:// only',
+                  'each entry an existing directory'),
 )
 
 _SPECS = {spec.name: spec for spec in PARAMETERS}
@@ -152,6 +170,7 @@ class NodeSettings:
     :ivar max_joint_state_bytes: largest serialized joint_states message taken.
     :ivar xacro_args: ``{name: value}`` for a ``.xacro`` urdf_path.
     :ivar warning_distance: metres; 0: no proximity outputs.
+    :ivar scene_limits: the ``scene`` topic's caps and mesh roots.
     """
 
     urdf_path: Optional[str]
@@ -170,6 +189,7 @@ class NodeSettings:
     xacro_args: Dict[str, str] = field(default_factory=dict)
     overload_policy: str = 'newest'
     warning_distance: float = 0.0
+    scene_limits: SceneLimits = field(default_factory=SceneLimits)
 
 
 def default_values() -> Dict[str, Any]:
@@ -187,6 +207,17 @@ def _existing_file(values, name) -> Optional[str]:
         raise ConfigError(f'parameter {name}: file "{path}" not found; give an existing file '
                           'or an empty string')
     return path
+
+
+def _directories(values, name) -> Tuple[str, ...]:
+    roots = []
+    for entry in values[name]:
+        directory = os.path.abspath(os.path.expanduser(entry))
+        if not os.path.isdir(directory):
+            raise ConfigError(f'parameter {name}: directory "{entry}" not found; give existing '
+                              'directories')
+        roots.append(directory)
+    return tuple(roots)
 
 
 def _parse_xacro_args(entries: List[str]) -> Dict[str, str]:
@@ -310,6 +341,12 @@ def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
         max_unknown_joints=_non_negative_int(merged, 'max_unknown_joints'),
         max_joint_state_bytes=_at_least(merged, 'max_joint_state_bytes', 1024),
         warning_distance=_non_negative(merged, 'warning_distance'),
+        scene_limits=SceneLimits(
+            max_objects=_non_negative_int(merged, 'scene_max_objects'),
+            max_triangles=_non_negative_int(merged, 'scene_max_triangles'),
+            max_total_triangles=_non_negative_int(merged, 'scene_max_total_triangles'),
+            max_mesh_bytes=_non_negative_int(merged, 'scene_max_mesh_bytes'),
+            mesh_roots=_directories(merged, 'scene_mesh_roots')),
     )
 
 

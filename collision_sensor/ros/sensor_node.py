@@ -13,6 +13,8 @@ topic               dir  type                                QoS
 joint_states        in   sensor_msgs/JointState              sensor data, or reliable keep-all
 robot_description   in   std_msgs/String                     reliable, transient local, depth 1
                                                              (only when ``urdf_path`` is empty)
+scene               in   visualization_msgs/MarkerArray      reliable, transient local, depth
+                                                             :data:`SCENE_DEPTH`
 contact             out  std_msgs/Bool                       reliable, transient local, depth 100
 colliding_pairs     out  diagnostic_msgs/DiagnosticArray     reliable, transient local, depth 100
 near                out  std_msgs/Bool                       as contact (``warning_distance`` > 0)
@@ -59,6 +61,15 @@ merges, checks and publishes; robot descriptions are built on a loader thread
 executor's thread. One lock keeps the model, the merged state and the counters consistent.
 Only rclpy's public API is used.
 
+Scene: every array on ``scene`` changes the scene all or nothing
+(:mod:`collision_sensor.ros.scene_markers` has the rules; README, "Dynamic scene"). Arrays are
+applied in arrival order on a thread of their own: files are read and trees built there,
+without the lock, so joint states keep getting verdicts meanwhile; only the swap takes the
+lock. Every applied array gives a verdict at once (its header: the time of the change and the
+root frame), besides those of the joint states. A rejected array changes nothing and is named,
+with the fix, in one log line and in the ``scene`` status on ``/diagnostics``. A new robot from
+``robot_description`` gets the objects that came through the topic again.
+
 Input QoS: ``joint_states_qos: sensor_data`` (best effort, keep last 5, rclpy's
 ``qos_profile_sensor_data``) for drivers that publish best effort: under overload the
 middleware drops the oldest samples, and what it reports lost is counted as ``lost_total``.
@@ -76,6 +87,7 @@ import threading
 import time
 from typing import Callable, Dict, Optional
 
+import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, Pose
@@ -91,10 +103,13 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, ColorRGBA, Float64, Header, String
 from visualization_msgs.msg import Marker, MarkerArray
 
-from collision_sensor.errors import CollisionSensorError, JointStateError
+from collision_sensor.engine.dynamic_scene import SceneChangeError
+from collision_sensor.errors import CollisionSensorError, JointStateError, SceneError
+from collision_sensor.model.mesh_loading import SOLID_BOX, SOLID_CYLINDER, SOLID_SPHERE
 from collision_sensor.model.xml_safety import document_bytes
 from collision_sensor.ros.joint_state_merger import JointStateMerger, Problem, joints_out_of_limits
 from collision_sensor.ros.node_parameters import NodeSettings, declare_node_parameters
+from collision_sensor.ros.scene_markers import MarkerError, SceneTopic, marker_error
 from collision_sensor.untrusted_text import listing, printable, quoted
 
 #: Verdicts and the robot description: late joiners get the latest message.
@@ -131,6 +146,23 @@ TEXT_COLOR = ColorRGBA(r=1.0, g=1.0, b=1.0, a=0.9)
 SEGMENT_WIDTH = 0.004       # m, line width of the nearest-point segments
 CONTACT_DIAMETER = 0.02     # m, the contact points' spheres
 TEXT_HEIGHT = 0.02          # m
+#: Scene objects on ~/markers: fixed in the world, attached to a link, colliding.
+WORLD_OBJECT_COLOR = ColorRGBA(r=0.6, g=0.6, b=0.65, a=0.8)
+ATTACHED_OBJECT_COLOR = ColorRGBA(r=0.2, g=0.8, b=0.3, a=0.8)
+COLLIDING_OBJECT_COLOR = ColorRGBA(r=1.0, g=0.1, b=0.1, a=0.9)
+#: A mesh object with more triangles is drawn as its box on ~/markers.
+MARKER_MAX_TRIANGLES = 20_000
+#: The scene topic: reliable and transient local (an array published before the node started
+#: still arrives, if its publisher is transient local too), the last SCENE_DEPTH arrays kept.
+SCENE_DEPTH = 100
+SCENE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=SCENE_DEPTH,
+                       reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: Scene arrays that may wait to be applied; more are dropped and counted (each can hold a
+#: mesh: the wait must not grow without bound).
+MAX_SCENE_BACKLOG = 100
+#: Put on the scene thread's queue: add the topic's objects to a new robot model.
+_READD_SCENE = object()
 #: Joint states that may wait for the checking thread before it answers only the newest (see
 #: :class:`_NewestFirstWorker`): 0.1 s at :data:`MAX_INPUT_RATE`, as the verdict history.
 MAX_BACKLOG = 100
@@ -294,6 +326,10 @@ class _NewestFirstWorker:
             limit = self._max_backlog
             self._handle(batch, limit is not None and len(batch) > limit)
 
+    def backlog(self) -> int:
+        """Return how many messages wait (approximately: another thread may be taking one)."""
+        return self._queue.qsize()
+
     def stop(self) -> None:
         """Stop the thread and wait for it (the messages being checked are finished first)."""
         self._queue.put(self._STOP)
@@ -415,6 +451,11 @@ class CollisionSensorNode(Node):
         self._marker_content = ()    # (colliding links, near pairs) the markers show
         self._near_msgs = (Bool(data=False), Bool(data=True))
         self._marker_time = 0.0
+        self._marker_shapes: Dict[str, tuple] = {}   # object: (its SceneObject, its marker)
+        self._scene_topic: Optional[SceneTopic] = None
+        self._scene_worker: Optional[_NewestFirstWorker] = None
+        self._scene_rejection = ''   # the last rejected array's reason, '' once one applied
+        self._scene_changed = False
         try:
             self._configure()
         except Exception as error:  # noqa: B902 - logged, then raised to the caller as it is
@@ -470,6 +511,15 @@ class CollisionSensorNode(Node):
             event_callbacks=SubscriptionEventCallbacks(
                 message_lost=self._on_message_lost, incompatible_qos=self._on_incompatible_qos,
                 use_default_callbacks=False))
+        # The scene topic, once there is a model to apply it to; arrays published before
+        # arrive now (transient local).
+        self._scene_topic = SceneTopic(settings.scene_limits, settings.package_paths or None)
+        self._scene_worker = _NewestFirstWorker(self._on_scene_arrays, 'scene applier', None)
+        self.create_subscription(
+            MarkerArray, 'scene', self._on_scene, SCENE_QOS,
+            callback_group=MutuallyExclusiveCallbackGroup(),
+            event_callbacks=SubscriptionEventCallbacks(
+                incompatible_qos=self._on_incompatible_scene_qos, use_default_callbacks=False))
         self.ready = True
         self.get_logger().info(
             f'ready: checking {joint_states.topic_name} ({settings.joint_states_qos}) for '
@@ -518,6 +568,7 @@ class CollisionSensorNode(Node):
         summary = (f'{len(checker.joint_names)} joints, {len(checker.link_names)} links with '
                    f'geometry, {len(checker.checked_pairs)} pairs checked')
         self._clear_markers()
+        self._scene_changed = True      # the scene file's objects, on ~/markers
         self._checker, self._merger, self._limits = checker, merger, limits
         self._out_of_limits = out_of_limits
         self._model_source = source
@@ -564,6 +615,8 @@ class CollisionSensorNode(Node):
             self._log_notes(notes)
             if self._worker is None:
                 self._subscribe_joint_states()
+            elif self._scene_topic is not None and self._scene_topic.objects:
+                self._scene_worker.put(_READD_SCENE)
 
     # -- joint states -------------------------------------------------------------------------
 
@@ -738,11 +791,16 @@ class CollisionSensorNode(Node):
         period.check_time_sum += elapsed
         if elapsed > period.check_time_max:
             period.check_time_max = elapsed
+        self._answer(msg, result, positions)
+        totals['verdicts'] += 1
+
+    def _answer(self, msg: JointState, result, positions) -> None:
+        """Publish the verdict answering ``msg``, then (when enabled) the warning zone's
+        outputs and the markers."""
         self._publish_verdict(msg, result)
         records = self._publish_proximity(msg, positions) if self._near_pub is not None else ()
         if self._markers_pub is not None:
             self._publish_markers(msg, result.colliding_pairs, records)
-        totals['verdicts'] += 1
 
     def _update_limits(self, updated, positions, notes) -> None:
         for name in updated:
@@ -798,46 +856,195 @@ class CollisionSensorNode(Node):
                     KeyValue(key='point_a', value=_xyz(record.point_a)),
                     KeyValue(key='point_b', value=_xyz(record.point_b))])
 
+    # -- the scene topic ----------------------------------------------------------------------
+
+    def _on_scene(self, msg: MarkerArray) -> None:
+        """Hand an array to the scene thread (the executor's thread: nothing slow here)."""
+        if self._scene_worker.backlog() >= MAX_SCENE_BACKLOG:
+            with self._lock:
+                self._totals['scene_dropped'] += 1
+            self._warn('scene_dropped', f'scene array dropped: {MAX_SCENE_BACKLOG} arrays wait '
+                       'to be applied already (counted as scene_arrays_dropped_total); publish '
+                       'scene changes more slowly')
+            return
+        self._scene_worker.put(msg)
+
+    def _on_incompatible_scene_qos(self, event) -> None:
+        self._warn('scene_qos', 'a publisher of scene offers a QoS this subscription cannot '
+                   f'match (policy {event.last_policy_kind}); its arrays are never received. '
+                   'Publish scene reliable and transient local')
+
+    def _on_scene_arrays(self, batch: list, _newest_only: bool) -> None:
+        """Apply every array of ``batch`` in order (the scene thread)."""
+        for msg in batch:
+            notes = []
+            try:
+                if msg is _READD_SCENE:
+                    self._readd_scene(notes)
+                else:
+                    self._apply_scene(list(msg.markers), notes)
+            except Exception as error:  # noqa: B902 - one array must never stop the node
+                if not self.context.ok():
+                    return
+                notes.append(('error', None, 'scene array skipped after an internal error: '
+                              f'{printable(repr(error), 300)}'))
+            self._log_notes(notes)
+
+    def _apply_scene(self, markers: list, notes: list) -> None:
+        """Apply one array: convert it and build its trees without the lock, then swap the
+        scene in and answer at once under the lock. A model installed meanwhile is taken and
+        the array prepared again for it."""
+        while True:
+            checker, topic = self._checker, self._scene_topic
+            try:
+                update = topic.update(markers, checker)
+                try:
+                    prepared = checker.prepare_scene_changes(update.changes)
+                except SceneChangeError as error:
+                    raise marker_error(error, update, markers) from None
+            except MarkerError as error:
+                self._reject_scene(str(error), notes)
+                return
+            with self._lock:
+                if self._checker is not checker:
+                    continue    # a new robot model: prepare the array for it
+                checker.commit_scene_changes(prepared)
+                topic.accept(update)
+                self._scene_applied(f'scene array of {len(markers)} markers applied: '
+                                    f'{update.summary}', notes)
+            return
+
+    def _readd_scene(self, notes: list) -> None:
+        """Give a new robot model the objects that came through the topic."""
+        while True:
+            checker, topic = self._checker, self._scene_topic
+            try:
+                prepared = checker.prepare_scene_changes(topic.readd_changes())
+            except SceneError as error:
+                with self._lock:
+                    topic.objects = {}
+                    self._totals['scene_rejected'] += 1
+                notes.append(('error', None, 'the objects from the scene topic do not fit the '
+                              f'new robot model and are dropped: {printable(error, 1000)}; '
+                              'publish them again'))
+                return
+            with self._lock:
+                if self._checker is not checker:
+                    continue
+                checker.commit_scene_changes(prepared)
+                self._scene_applied(f'{len(topic.objects)} objects from the scene topic added '
+                                    'to the new robot model', notes)
+            return
+
+    def _scene_applied(self, text: str, notes: list) -> None:
+        """Count an applied change and answer it at once (call with the lock held)."""
+        self._totals['scene_applied'] += 1
+        self._scene_rejection = ''
+        self._scene_changed = True
+        notes.append(('info', None, printable(text, 500)))
+        merger = self._merger
+        if merger is None or self._last_accepted is None or (
+                self._settings.require_all_joints and not merger.complete):
+            return      # no joint state to answer yet
+        positions = merger.array if merger.complete else merger.positions
+        try:
+            result = self._checker.update(positions)
+        except CollisionSensorError as error:
+            self._totals['engine_errors'] += 1
+            notes.append(('warning', 'engine', f'collision check failed: {printable(error, 500)}'))
+            return
+        header = Header(stamp=self.get_clock().now().to_msg(), frame_id=self._root_frame)
+        self._answer(JointState(header=header), result, positions)
+        self._totals['scene_verdicts'] += 1
+
+    def _reject_scene(self, reason: str, notes: list) -> None:
+        """Count a rejected array, log it once and publish the scene status at once."""
+        text = printable(reason, 1000)
+        with self._lock:
+            self._totals['scene_rejected'] += 1
+            self._scene_rejection = text
+            status = self.scene_status()
+        notes.append(('error', None, f'scene array rejected, scene unchanged: {text}'))
+        self._diagnostics_pub.publish(DiagnosticArray(
+            header=Header(stamp=self.get_clock().now().to_msg()), status=[status]))
+
+    def scene_status(self) -> DiagnosticStatus:
+        """The ``scene`` status on /diagnostics (call with the lock held): the objects, what
+        came through the topic, and the last rejected array's reason until one applies."""
+        checker, topic, totals = self._checker, self._scene_topic, self._totals
+        names = checker.object_names if checker is not None else ()
+        attached = checker.attachments if checker is not None else {}
+        from_topic = topic.objects if topic is not None else {}
+        level, message = DiagnosticStatus.OK, f'{len(names)} objects ({len(from_topic)} from ' \
+            'the scene topic)'
+        if self._scene_rejection:
+            level, message = DiagnosticStatus.WARN, f'last array rejected: {self._scene_rejection}'
+        values = {
+            'objects': listing(names),
+            'objects_count': str(len(names)),
+            'attached': listing((f'{printable(name)} on {printable(link)}'
+                                 for name, (link, _) in attached.items()),
+                                total=len(attached), escape=False),
+            'topic_objects_count': str(len(from_topic)),
+            'topic_triangles': str(sum(item.triangles for item in from_topic.values())),
+            'scene_arrays_applied_total': str(totals['scene_applied']),
+            'scene_arrays_rejected_total': str(totals['scene_rejected']),
+            'scene_arrays_dropped_total': str(totals['scene_dropped']),
+            'scene_verdicts_total': str(totals['scene_verdicts']),
+            'last_rejection': self._scene_rejection,
+        }
+        return DiagnosticStatus(
+            level=level, name=f'{self.get_fully_qualified_name().lstrip("/")}: scene',
+            message=printable(message, 1000), hardware_id=printable(self._root_frame),
+            values=[KeyValue(key=key, value=value) for key, value in values.items()])
+
     # -- markers ------------------------------------------------------------------------------
 
     def _publish_markers(self, msg: JointState, pairs, records=()) -> None:
-        """Boxes of the colliding links and, with ``warning_distance``, the near pairs'
-        nearest points; at most every MARKER_PERIOD while they stay the same pairs."""
-        links = tuple(sorted({name for pair in pairs for name in pair}))
+        """Publish the boxes of the colliding bodies, the scene objects and, with
+        ``warning_distance``, the near pairs' nearest points (call with the lock held): when
+        any of them changes, and at most every MARKER_PERIOD while something collides or is
+        near, or an attached object moves with the robot."""
+        colliding = tuple(sorted({name for pair in pairs for name in pair}))
         near = tuple((r.link_a, r.link_b) for r in records)
-        if not links and not near:
+        checker = self._checker
+        objects = checker.object_names
+        if not colliding and not near and not objects:
             self._clear_markers()
             return
         now = time.monotonic()
-        content = (links, near)
-        if content == self._marker_content and now - self._marker_time < MARKER_PERIOD:
+        moving = colliding or near or checker.attachments
+        content = (colliding, near)
+        if not self._scene_changed and content == self._marker_content and (
+                not moving or now - self._marker_time < MARKER_PERIOD):
             return
-        self._marker_content, self._marker_time = content, now
-        # DELETEALL first: links that stopped colliding lose their boxes in the same message.
+        self._marker_content, self._marker_time, self._scene_changed = content, now, False
+        # DELETEALL first: bodies that stopped colliding lose their boxes in the same message.
+        stamp = msg.header.stamp
         markers = [Marker(action=Marker.DELETEALL)]
-        for index, (name, T_world_box, half) in enumerate(self._checker.collision_boxes(links)):
-            x, y, z, w = quaternion_from_matrix(T_world_box[:3, :3])
-            pose = Pose()
-            pose.position.x, pose.position.y, pose.position.z = (
-                float(v) for v in T_world_box[:3, 3])
-            pose.orientation.x, pose.orientation.y = x, y
-            pose.orientation.z, pose.orientation.w = z, w
-            marker = self._marker(msg, name, index, Marker.CUBE, MARKER_COLOR)
-            marker.pose = pose
+        for index, (name, T_world_box, half) in enumerate(checker.collision_boxes(colliding)):
+            marker = self._marker(name, index, Marker.CUBE, T_world_box, stamp, MARKER_COLOR)
             marker.scale.x, marker.scale.y, marker.scale.z = (2.0 * float(h) for h in half)
             markers.append(marker)
-        markers.extend(self._proximity_markers(msg, records))
+        attached = checker.attachments
+        for index, obj in enumerate(checker.scene_objects):
+            color = (COLLIDING_OBJECT_COLOR if obj.name in colliding else
+                     ATTACHED_OBJECT_COLOR if obj.name in attached else WORLD_OBJECT_COLOR)
+            markers.append(self._object_marker(obj, index, stamp, color))
+        markers.extend(self._proximity_markers(stamp, records))
         self._markers_pub.publish(MarkerArray(markers=markers))
 
-    def _proximity_markers(self, msg: JointState, records) -> list:
+    def _proximity_markers(self, stamp, records) -> list:
         """The near pairs: nearest points joined (LINE_LIST, apart pairs), the contact points
         (SPHERE_LIST) and each pair's distance as text, with the padding it includes."""
-        segments = self._marker(msg, 'proximity', 0, Marker.LINE_LIST, NEAR_COLOR)
+        identity = np.eye(4)
+        segments = self._marker('proximity', 0, Marker.LINE_LIST, identity, stamp, NEAR_COLOR)
         segments.scale.x = SEGMENT_WIDTH
-        contacts = self._marker(msg, 'proximity', 1, Marker.SPHERE_LIST, MARKER_COLOR)
+        contacts = self._marker('proximity', 1, Marker.SPHERE_LIST, identity, stamp,
+                                MARKER_COLOR)
         contacts.scale.x = contacts.scale.y = contacts.scale.z = CONTACT_DIAMETER
         labels = []
-        paddings = getattr(self._checker, 'paddings', {})
+        paddings = self._checker.paddings
         for index, r in enumerate(records):
             a, b = _point(r.point_a), _point(r.point_b)
             if r.distance > 0:
@@ -845,30 +1052,65 @@ class CollisionSensorNode(Node):
             else:
                 contacts.points.append(a)
             padding = paddings.get(r.link_a, 0.0) + paddings.get(r.link_b, 0.0)
-            label = self._marker(msg, 'proximity/distance', index, Marker.TEXT_VIEW_FACING,
-                                 TEXT_COLOR)
+            at = np.eye(4)
+            at[:3, 3] = 0.5 * (r.point_a + r.point_b)
+            label = self._marker('proximity/distance', index, Marker.TEXT_VIEW_FACING, at,
+                                 stamp, TEXT_COLOR)
             label.scale.z = TEXT_HEIGHT
-            label.pose.position = _point(0.5 * (r.point_a + r.point_b))
-            label.pose.orientation.w = 1.0
             label.text = (f'{r.link_a}:{r.link_b} {1e3 * r.distance:.1f} mm'
                           + (f' (padding {1e3 * padding:g} mm)' if padding > 0 else ''))
             labels.append(label)
         return [m for m in (segments, contacts) if m.points] + labels
-
-    def _marker(self, msg: JointState, ns: str, index: int, kind: int,
-                color: ColorRGBA) -> Marker:
-        marker = Marker(ns=ns, id=index, type=kind, action=Marker.ADD, color=color,
+    def _marker(self, ns: str, index: int, kind: int, T_world, stamp, color) -> Marker:
+        x, y, z, w = quaternion_from_matrix(T_world[:3, :3])
+        pose = Pose()
+        pose.position.x, pose.position.y, pose.position.z = (float(v) for v in T_world[:3, 3])
+        pose.orientation.x, pose.orientation.y = x, y
+        pose.orientation.z, pose.orientation.w = z, w
+        marker = Marker(ns=ns, id=index, type=kind, action=Marker.ADD, pose=pose, color=color,
                         frame_locked=False)
         marker.header.frame_id = self._root_frame
-        marker.header.stamp = msg.header.stamp
+        marker.header.stamp = stamp
+        return marker
+
+    def _object_marker(self, obj, index: int, stamp, color) -> Marker:
+        """A scene object's marker (ns ``scene_objects``): its primitive, its triangles, or for
+        a mesh of more than MARKER_MAX_TRIANGLES its box."""
+        cached = self._marker_shapes.get(obj.name)
+        if cached is None or cached[0] is not obj.vertices:
+            solid, size = obj.solid, (1.0, 1.0, 1.0)
+            kind, points, T_object_shape = Marker.TRIANGLE_LIST, [], np.eye(4)
+            if solid is not None and solid.kind in (SOLID_BOX, SOLID_SPHERE, SOLID_CYLINDER):
+                h = solid.size
+                kind, size = {SOLID_BOX: (Marker.CUBE, (2 * h[0], 2 * h[1], 2 * h[2])),
+                              SOLID_SPHERE: (Marker.SPHERE, (2 * h[0],) * 3),
+                              SOLID_CYLINDER: (Marker.CYLINDER, (2 * h[0], 2 * h[0], 2 * h[1]))
+                              }[solid.kind]
+            elif len(obj.faces) <= MARKER_MAX_TRIANGLES:
+                points = [Point(x=x, y=y, z=z)
+                          for x, y, z in obj.vertices[obj.faces.ravel()].tolist()]
+            else:
+                _, T_world_box, half = self._checker.collision_boxes([obj.name])[0]
+                kind, size = Marker.CUBE, tuple(2.0 * float(v) for v in half)
+                T_object_shape = np.linalg.inv(obj.T_world_object) @ T_world_box
+            cached = (obj.vertices, kind, size, points, T_object_shape)
+            self._marker_shapes[obj.name] = cached
+        _, kind, size, points, T_object_shape = cached
+        marker = self._marker('scene_objects', index, kind, obj.T_world_object @ T_object_shape,
+                              stamp, color)
+        marker.scale.x, marker.scale.y, marker.scale.z = (float(v) for v in size)
+        marker.points = points
+        marker.text = obj.name
         return marker
 
     def _clear_markers(self) -> None:
-        if self._marker_content and getattr(self, '_markers_pub', None) is not None:
+        if (self._marker_content or self._marker_shapes) and getattr(
+                self, '_markers_pub', None) is not None:
             marker = Marker(action=Marker.DELETEALL)
             marker.header.frame_id = self._root_frame
             self._markers_pub.publish(MarkerArray(markers=[marker]))
         self._marker_content = ()
+        self._marker_shapes = {}
 
     # -- diagnostics --------------------------------------------------------------------------
 
@@ -876,10 +1118,9 @@ class CollisionSensorNode(Node):
         notes = []
         try:
             with self._lock:
-                status = self.diagnostics_status(notes)
+                status = [self.diagnostics_status(notes), self.scene_status()]
             self._diagnostics_pub.publish(DiagnosticArray(
-                header=Header(stamp=self.get_clock().now().to_msg()),
-                status=[status]))
+                header=Header(stamp=self.get_clock().now().to_msg()), status=status))
         except Exception as error:  # noqa: B902 - diagnostics must never stop the node
             notes.append(('warning', 'internal', 'diagnostics skipped after an internal error: '
                           f'{printable(repr(error), 300)}'))
@@ -992,9 +1233,10 @@ class CollisionSensorNode(Node):
 
     def destroy_node(self):
         """Stop the joint-state thread and the model loader, then destroy the node."""
-        if self._worker is not None:
-            self._worker.stop()
-            self._worker = None
+        for worker in (self._worker, self._scene_worker):
+            if worker is not None:
+                worker.stop()
+        self._worker = self._scene_worker = None
         if self._loader is not None:
             self._loader.close()
             self._loader = None

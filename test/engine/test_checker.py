@@ -704,7 +704,8 @@ def test_a_virtual_joint_places_the_robot_in_the_world(kind, variables):
     assert checker.kinematics.link_names[:2] == ('odom', 'base')
     assert checker.model.root_link == 'odom' and 'odom' not in checker.link_names
     # Self-collision pairs do not depend on the base, robot-vs-scene pairs do.
-    path = checker._pair_paths(checker._n_links)
+    path = checker._pair_rows(checker._engine_tree(), checker._radius, checker._pair_a,
+                              checker._pair_b)[0]
     for p, pair in enumerate(checker.checked_pairs):
         on_scene = bool(set(pair) & set(checker.scene_object_names))
         assert path[p, :len(variables)].all() == on_scene, pair

@@ -1,0 +1,296 @@
+"""Scene changes while the checker runs: objects added, moved, attached and removed.
+
+The scene is a set of named objects. A *world object* is fixed in the world frame (the
+checker's root frame); an *attached object* is fixed to a robot link: its pose is given in
+that link's frame, it moves with the link, and it is never checked against that link nor its
+*touch links* (MoveIt's attached bodies: a part in the gripper touches the fingers). The
+checker (:meth:`CollisionChecker.apply_scene_changes`) takes a sequence of changes::
+
+    AddObject(obj, attach_to=None, touch_links=(), pose=None)   # add, or replace by name
+    MoveObject(name, pose)                                      # pose only
+    RemoveObject(name)
+
+applied in order and all or nothing: every change is validated and every new tree built
+first (:meth:`~CollisionChecker.prepare_scene_changes`, which changes nothing and may run on
+another thread while the checker answers queries), then the result replaces the scene at once
+(:meth:`~CollisionChecker.commit_scene_changes`). On any error the checker is as it was.
+
+What a change costs (the robot's trees are never rebuilt):
+
+- moving an object writes its pose and marks its pairs for re-check (the engine's ``forced``
+  list): the next ``update`` re-checks those pairs and whatever the joints moved, no more;
+- adding an object (or replacing one with another shape) builds that object's tree only
+  (:func:`build_object_block`), then the engine's tables are put together again from the
+  robot's block and the objects' blocks, by concatenation, and every pair that still exists
+  keeps its carried state (status, clearance, travel, witness); pairs of the new object are
+  forced;
+- removing one drops its block and its pairs the same way.
+
+``AddObject`` of a name that exists with the same geometry, link and touch links is a move.
+
+Pairs: every object is checked against every robot link with geometry; attached objects also
+against each other (unless both hang on one link, or either's link is a touch link of the
+other); world objects are never checked against each other (neither moves by itself). The
+checker's exception list (``allowed_collisions``) applies to objects by name.
+"""
+import math
+from dataclasses import dataclass
+from typing import Dict, FrozenSet, Mapping, Optional, Tuple, Union
+
+import numpy as np
+
+from collision_sensor.engine.obb_tree import box_table, build_forest, node_table
+from collision_sensor.errors import SceneError
+from collision_sensor.model.mesh_loading import SOLID_CLOSED_MESH, Solid, is_closed_surface
+from collision_sensor.model.scene import SceneObject
+
+#: Largest |coordinate| (m) of an object's vertices and of its position: as the engine's bound
+#: on joint translations (cpp/kinematics.hpp: PRISMATIC_VALUE_MAX), every coordinate, box and
+#: gap computed from them then stays far from overflow.
+MAX_COORDINATE = 1e6
+#: A pose's rotation must be orthonormal to within this (max |R^T R - I|), with det +1.
+ROTATION_TOLERANCE = 1e-6
+
+
+class SceneChangeError(SceneError):
+    """A change of a batch that cannot apply; the checker is unchanged.
+
+    :ivar index: the change's position in the batch.
+    :ivar reason: what is wrong and the fix, without the position.
+    """
+
+    def __init__(self, index: int, reason: str):
+        self.index, self.reason = index, reason
+        super().__init__(f'scene change {index}: {reason}')
+
+
+@dataclass(frozen=True, eq=False)
+class AddObject:
+    """Add ``obj``, or replace the object of that name.
+
+    :ivar obj: the geometry (``vertices``, ``faces`` in the object frame) and its name.
+    :ivar attach_to: a robot link: the object moves with it; None: fixed in the world.
+    :ivar touch_links: further robot links the attached object may touch (never checked).
+    :ivar pose: (4, 4) the object's pose, in the world frame, or in ``attach_to``'s frame;
+        None: ``obj.T_world_object``.
+    """
+
+    obj: SceneObject
+    attach_to: Optional[str] = None
+    touch_links: Tuple[str, ...] = ()
+    pose: Optional[np.ndarray] = None
+
+
+@dataclass(frozen=True, eq=False)
+class MoveObject:
+    """Give object ``name`` a new pose (in the world, or in its link's frame if attached)."""
+
+    name: str
+    pose: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class RemoveObject:
+    """Remove object ``name``."""
+
+    name: str
+
+
+SceneChange = Union[AddObject, MoveObject, RemoveObject]
+
+
+@dataclass(frozen=True, eq=False)
+class ObjectBlock:
+    """One object's tree and engine rows, built once per shape (the engine's table formats,
+    ``cpp/query.hpp``, ``cpp/traversal.hpp``), with node and triangle indices local to it.
+
+    :ivar boxes: (N, BOX_WIDTH) float64 node boxes in the object frame; node 0 is the root.
+    :ivar nodes: (N, NODE_WIDTH) int64 left, right (-1 for a leaf), first triangle, count.
+    :ivar volume: (N,) float64; ``gain``: (N,) float64 (see ``obb_tree.build_forest``).
+    :ivar tris: (T, 3, 3) float64 triangles in leaf order.
+    :ivar depth: the tree's depth.
+    :ivar solid_row: (SOLID_WIDTH,) float64 what the object fills (``cpp/query.hpp``).
+    :ivar radius: the largest distance of a vertex from the object's origin.
+    """
+
+    boxes: np.ndarray
+    nodes: np.ndarray
+    volume: np.ndarray
+    gain: np.ndarray
+    tris: np.ndarray
+    depth: int
+    solid_row: np.ndarray
+    radius: float
+
+    @property
+    def triangles(self) -> int:
+        """How many triangles the object has."""
+        return len(self.tris)
+
+
+@dataclass(frozen=True, eq=False)
+class PlacedObject:
+    """An object in the scene: geometry, tree, where it is and what it may touch.
+
+    :ivar pose: (4, 4) read-only, ``T_world_object``, or ``T_link_object`` when attached.
+    """
+
+    obj: SceneObject
+    block: ObjectBlock
+    attach_to: Optional[str]
+    touch_links: Tuple[str, ...]
+    pose: np.ndarray
+
+    @property
+    def name(self) -> str:
+        return self.obj.name
+
+
+def solid_row(solid: Optional[Solid], faces: np.ndarray, T_body_element: np.ndarray,
+              mesh_containment: bool, width: int) -> np.ndarray:
+    """The engine's row for one element (``cpp/query.hpp``: SOLID_*): what it fills, in its
+    body's frame. Primitives are solid; a closed mesh is with ``mesh_containment``.
+
+    :param width: the row's length (the engine's SOLID_WIDTH).
+    """
+    row = np.zeros(width)
+    if solid is None and mesh_containment and is_closed_surface(faces):
+        solid = Solid(SOLID_CLOSED_MESH)
+    if solid is not None:
+        row[0] = solid.kind
+        row[1:4] = solid.size
+        row[4:13] = T_body_element[:3, :3].ravel()
+        row[13:16] = T_body_element[:3, 3]
+    return row
+
+
+def build_object_block(obj: SceneObject, config, solid_width: int) -> ObjectBlock:
+    """Build the tree of one object and its engine rows (runs without the interpreter lock
+    for most of its time: the tree is built in C++).
+
+    :param obj: the object, already checked by :func:`check_geometry`.
+    :param config: the checker's :class:`~collision_sensor.engine.checker_config.CheckerConfig`.
+    :param solid_width: the engine's SOLID_WIDTH.
+    """
+    vertices = np.ascontiguousarray(obj.vertices, dtype=np.float64)
+    forest = build_forest([(vertices, obj.faces)], leaf_size=config.leaf_size,
+                          fit=config.obb_fit_code)
+    return ObjectBlock(
+        boxes=box_table(forest.center, forest.axes, forest.half), nodes=node_table(forest),
+        volume=forest.volume, gain=forest.gain, tris=forest.tris,
+        depth=int(forest.depth.max()),
+        solid_row=solid_row(obj.solid, obj.faces, np.eye(4), config.mesh_containment,
+                            solid_width),
+        radius=float(np.sqrt((vertices ** 2).sum(axis=1).max())))
+
+
+def check_geometry(obj, owner: str) -> None:
+    """Raise :class:`SceneError` unless ``obj`` is a :class:`SceneObject` with at least one
+    triangle, finite vertices within :data:`MAX_COORDINATE`, and faces indexing them."""
+    if not isinstance(obj, SceneObject):
+        raise SceneError(f'{owner}: expected a SceneObject, got {type(obj).__name__}; build '
+                         'one with collision_sensor.model.scene.load_scene or SceneObject(...)')
+    vertices, faces = np.asarray(obj.vertices), np.asarray(obj.faces)
+    if vertices.ndim != 2 or vertices.shape[1:] != (3,) or faces.ndim != 2 or (
+            faces.shape[1:] != (3,)) or len(faces) == 0:
+        raise SceneError(f'{owner}: vertices {vertices.shape} and faces {faces.shape} must be '
+                         '(n, 3) and (m, 3) with m >= 1; give at least one triangle')
+    if not np.issubdtype(faces.dtype, np.integer) or faces.min() < 0 or (
+            faces.max() >= len(vertices)):
+        raise SceneError(f'{owner}: faces must be integer indices of its {len(vertices)} '
+                         'vertices; fix the triangle list')
+    if not np.isfinite(vertices).all() or np.abs(vertices).max() > MAX_COORDINATE:
+        raise SceneError(f'{owner}: vertex coordinates must be finite and within '
+                         f'{MAX_COORDINATE:g} m; fix the geometry or its scale')
+
+
+def checked_pose(pose, owner: str) -> np.ndarray:
+    """Return ``pose`` as a read-only (4, 4) float64 rigid transform (a new array).
+
+    :raises SceneError: not (4, 4), not finite, a position beyond :data:`MAX_COORDINATE`, a
+        rotation that is not orthonormal with determinant +1 (to
+        :data:`ROTATION_TOLERANCE`), or a last row other than (0, 0, 0, 1).
+    """
+    try:
+        T = np.array(pose, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise SceneError(f'{owner}: pose is not a (4, 4) array of numbers; give a rigid '
+                         'transform') from None
+    if T.shape != (4, 4):
+        raise SceneError(f'{owner}: pose has shape {T.shape}, not (4, 4); give a rigid '
+                         'transform')
+    # On the 16 numbers as Python floats: a move is cheap (numpy's small-array calls are not).
+    r00, r01, r02, x, r10, r11, r12, y, r20, r21, r22, z, *last = T.ravel().tolist()
+    if not all(map(math.isfinite, (r00, r01, r02, x, r10, r11, r12, y, r20, r21, r22, z))):
+        raise SceneError(f'{owner}: pose is not finite (NaN or infinity); give a finite '
+                         'rigid transform')
+    if max(abs(x), abs(y), abs(z)) > MAX_COORDINATE or last != [0.0, 0.0, 0.0, 1.0]:
+        raise SceneError(f'{owner}: pose position must lie within {MAX_COORDINATE:g} m and the '
+                         'last row be (0, 0, 0, 1); fix the transform')
+    # R^T R - I, entry by entry (symmetric: six of them).
+    error = max(abs(r00 * r00 + r10 * r10 + r20 * r20 - 1.0),
+                abs(r01 * r01 + r11 * r11 + r21 * r21 - 1.0),
+                abs(r02 * r02 + r12 * r12 + r22 * r22 - 1.0),
+                abs(r00 * r01 + r10 * r11 + r20 * r21),
+                abs(r00 * r02 + r10 * r12 + r20 * r22),
+                abs(r01 * r02 + r11 * r12 + r21 * r22))
+    det = (r00 * (r11 * r22 - r12 * r21) - r01 * (r10 * r22 - r12 * r20)
+           + r02 * (r10 * r21 - r11 * r20))
+    if not error <= ROTATION_TOLERANCE or det < 0:
+        raise SceneError(f'{owner}: pose rotation is not a rotation (|R^T R - I| = {error:.3g}, '
+                         f'determinant {det:.3g}); give an orthonormal matrix with '
+                         'determinant +1 (a unit quaternion)')
+    T.setflags(write=False)
+    return T
+
+
+def transform_from_xyz_quaternion(xyz, quaternion, owner: str = 'pose') -> np.ndarray:
+    """Return the (4, 4) transform of a position and a quaternion ``(x, y, z, w)``.
+
+    The quaternion is normalised (as RViz does); one that is zero or not finite is refused.
+
+    :raises SceneError: a value that is not finite, or a quaternion of norm below 1e-6.
+    """
+    x, y, z, w = (float(v) for v in quaternion)
+    position = [float(v) for v in xyz]
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    if not (math.isfinite(norm) and all(map(math.isfinite, position))):
+        raise SceneError(f'{owner}: position {position} or orientation {[x, y, z, w]} is not '
+                         'finite; send finite numbers')
+    if norm < 1e-6:
+        raise SceneError(f'{owner}: orientation quaternion {[x, y, z, w]} is zero; send a unit '
+                         'quaternion, (0, 0, 0, 1) for no rotation')
+    x, y, z, w = x / norm, y / norm, z / norm, w / norm
+    T = np.eye(4)
+    T[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                 [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                 [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+    T[:3, 3] = position
+    return T
+
+
+def same_geometry(a: SceneObject, b: SceneObject) -> bool:
+    """True iff the two objects have equal triangles and solid (only the pose may differ)."""
+    return a is b or (a.solid == b.solid and np.array_equal(a.faces, b.faces)
+                      and np.array_equal(a.vertices, b.vertices))
+
+
+@dataclass(frozen=True, eq=False)
+class PreparedSceneChanges:
+    """Scene changes validated, with their trees built, not yet applied
+    (:meth:`CollisionChecker.prepare_scene_changes`).
+
+    :ivar checker: the checker they were prepared for.
+    :ivar base: the checker's objects they were prepared against (``{name: PlacedObject}``).
+    :ivar objects: the objects after the changes.
+    :ivar structural: some object is added, replaced or removed (the tables change).
+    :ivar moved: objects whose pose alone changed.
+    :ivar rebuilt: objects added or replaced.
+    """
+
+    checker: object
+    base: Mapping[str, PlacedObject]
+    objects: Dict[str, PlacedObject]
+    structural: bool
+    moved: FrozenSet[str]
+    rebuilt: FrozenSet[str]
