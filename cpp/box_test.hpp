@@ -106,14 +106,17 @@ CS_ALWAYS_INLINE bool edge_axis_separates(double ti1, double ti2, double r_i1j, 
     return false;
 }
 
-CS_ALWAYS_INLINE bool finite_scalars(double a0, double a1, double a2, double b0, double b1, double b2,
-                           double r00, double r01, double r02, double r10, double r11,
-                           double r12, double r20, double r21, double r22, double t0, double t1,
-                           double t2) {
-    double acc = (a0 * 0.0 + b0 * 0.0 + t0 * 0.0) + (r00 * 0.0 + r01 * 0.0 + r02 * 0.0);
-    acc += (a1 * 0.0 + b1 * 0.0 + t1 * 0.0) + (r10 * 0.0 + r11 * 0.0 + r12 * 0.0);
-    acc += (a2 * 0.0 + b2 * 0.0 + t2 * 0.0) + (r20 * 0.0 + r21 * 0.0 + r22 * 0.0);
-    return acc == 0.0;
+// finite() on the 18 numbers themselves (registers, in the traversal's inner loop), summed
+// pairwise: a short dependency chain on the way to "separated".
+CS_ALWAYS_INLINE bool finite_scalars(double a0, double a1, double a2, double b0, double b1,
+                                     double b2, double r00, double r01, double r02, double r10,
+                                     double r11, double r12, double r20, double r21, double r22,
+                                     double t0, double t1, double t2) {
+    const double s0 = (a0 * 0.0 + a1 * 0.0) + (a2 * 0.0 + b0 * 0.0);
+    const double s1 = (b1 * 0.0 + b2 * 0.0) + (r00 * 0.0 + r01 * 0.0);
+    const double s2 = (r02 * 0.0 + r10 * 0.0) + (r11 * 0.0 + r12 * 0.0);
+    const double s3 = (r20 * 0.0 + r21 * 0.0) + (r22 * 0.0 + t0 * 0.0);
+    return ((s0 + s1) + (s2 + s3)) + (t1 * 0.0 + t2 * 0.0) == 0.0;
 }
 
 }  // namespace box_detail
