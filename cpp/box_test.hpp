@@ -92,25 +92,31 @@ CS_ALWAYS_INLINE bool beyond_face_planes(const double* x, double h, double thr) 
 //   r_A   = ha[i1] |R[i2, j]| + ha[i2] |R[i1, j]|
 //   r_B   = hb[j1] |R[i, j2]| + hb[j2] |R[i, j1]|
 //   |L|   = sqrt(R[i, j1]^2 + R[i, j2]^2)   (a_i in F_B minus its b_j component)
-CS_ALWAYS_INLINE bool edge_axis_separates(double ti1, double ti2, double r_i1j, double r_i2j, double ha_i1,
-                                double ha_i2, double hb_j1, double hb_j2, double r_ij1,
-                                double r_ij2, double tol) {
+// The four |R| entries come in as abs_*: the caller takes the nine absolute values once.
+CS_ALWAYS_INLINE bool edge_axis_separates(double ti1, double ti2, double r_i1j, double r_i2j,
+                                          double ha_i1, double ha_i2, double hb_j1,
+                                          double hb_j2, double r_ij1, double r_ij2,
+                                          double abs_i1j, double abs_i2j, double abs_ij1,
+                                          double abs_ij2, double tol) {
     const double d = (std::fabs(ti2 * r_i1j - ti1 * r_i2j) -
-                      (ha_i1 * std::fabs(r_i2j) + ha_i2 * std::fabs(r_i1j))) -
-                     (hb_j1 * std::fabs(r_ij2) + hb_j2 * std::fabs(r_ij1));
+                      (ha_i1 * abs_i2j + ha_i2 * abs_i1j)) -
+                     (hb_j1 * abs_ij2 + hb_j2 * abs_ij1);
     if (d > tol * BOX_EPS_PARALLEL)
         return d > tol * (std::sqrt(r_ij1 * r_ij1 + r_ij2 * r_ij2) + BOX_EPS_PARALLEL);
     return false;
 }
 
-CS_ALWAYS_INLINE bool finite_scalars(double a0, double a1, double a2, double b0, double b1, double b2,
-                           double r00, double r01, double r02, double r10, double r11,
-                           double r12, double r20, double r21, double r22, double t0, double t1,
-                           double t2) {
-    double acc = (a0 * 0.0 + b0 * 0.0 + t0 * 0.0) + (r00 * 0.0 + r01 * 0.0 + r02 * 0.0);
-    acc += (a1 * 0.0 + b1 * 0.0 + t1 * 0.0) + (r10 * 0.0 + r11 * 0.0 + r12 * 0.0);
-    acc += (a2 * 0.0 + b2 * 0.0 + t2 * 0.0) + (r20 * 0.0 + r21 * 0.0 + r22 * 0.0);
-    return acc == 0.0;
+// finite() on the 18 numbers themselves (registers, in the traversal's inner loop), summed
+// pairwise: a short dependency chain on the way to "separated".
+CS_ALWAYS_INLINE bool finite_scalars(double a0, double a1, double a2, double b0, double b1,
+                                     double b2, double r00, double r01, double r02, double r10,
+                                     double r11, double r12, double r20, double r21, double r22,
+                                     double t0, double t1, double t2) {
+    const double s0 = (a0 * 0.0 + a1 * 0.0) + (a2 * 0.0 + b0 * 0.0);
+    const double s1 = (b1 * 0.0 + b2 * 0.0) + (r00 * 0.0 + r01 * 0.0);
+    const double s2 = (r02 * 0.0 + r10 * 0.0) + (r11 * 0.0 + r12 * 0.0);
+    const double s3 = (r20 * 0.0 + r21 * 0.0) + (r22 * 0.0 + t0 * 0.0);
+    return ((s0 + s1) + (s2 + s3)) + (t1 * 0.0 + t2 * 0.0) == 0.0;
 }
 
 }  // namespace box_detail
@@ -128,42 +134,66 @@ CS_ALWAYS_INLINE int separating_axis(double a0, double a1, double a2, double b0,
     using std::fabs;
     const double tol = BOX_EPS_REL * (a0 + a1 + a2 + b0 + b1 + b2);
     const double thr_face = tol * (1.0 + BOX_EPS_PARALLEL);
+    // |R|, taken once rather than per use: |r h| = |r| h to the last bit for h >= 0 (rounding
+    // is symmetric in sign), so every margin below is the number it was with |r h|, and the
+    // face axes still decide exactly as the paper's type 1 and type 2.
+    const double q00 = fabs(r00), q01 = fabs(r01), q02 = fabs(r02), q10 = fabs(r10),
+                 q11 = fabs(r11), q12 = fabs(r12), q20 = fabs(r20), q21 = fabs(r21),
+                 q22 = fabs(r22);
     int k;
     // L = e_k: r_A = ha_k, r_B = sum_j |R[k, j]| hb_j.
-    if ((fabs(t0) - ((fabs(r00 * b0) + fabs(r01 * b1)) + fabs(r02 * b2))) - a0 > thr_face)
+    if ((fabs(t0) - ((q00 * b0 + q01 * b1) + q02 * b2)) - a0 > thr_face)
         k = 0;
-    else if ((fabs(t1) - ((fabs(r10 * b0) + fabs(r11 * b1)) + fabs(r12 * b2))) - a1 > thr_face)
+    else if ((fabs(t1) - ((q10 * b0 + q11 * b1) + q12 * b2)) - a1 > thr_face)
         k = 1;
-    else if ((fabs(t2) - ((fabs(r20 * b0) + fabs(r21 * b1)) + fabs(r22 * b2))) - a2 > thr_face)
+    else if ((fabs(t2) - ((q20 * b0 + q21 * b1) + q22 * b2)) - a2 > thr_face)
         k = 2;
     // L = b_j: t . b_j = (R' t)_j, r_A = sum_k |R[k, j]| ha_k, r_B = hb_j.
-    else if ((fabs((r00 * t0 + r10 * t1) + r20 * t2) -
-              ((fabs(r00 * a0) + fabs(r10 * a1)) + fabs(r20 * a2))) - b0 > thr_face)
+    else if ((fabs((r00 * t0 + r10 * t1) + r20 * t2) - ((q00 * a0 + q10 * a1) + q20 * a2)) -
+                 b0 > thr_face)
         k = 3;
-    else if ((fabs((r01 * t0 + r11 * t1) + r21 * t2) -
-              ((fabs(r01 * a0) + fabs(r11 * a1)) + fabs(r21 * a2))) - b1 > thr_face)
+    else if ((fabs((r01 * t0 + r11 * t1) + r21 * t2) - ((q01 * a0 + q11 * a1) + q21 * a2)) -
+                 b1 > thr_face)
         k = 4;
-    else if ((fabs((r02 * t0 + r12 * t1) + r22 * t2) -
-              ((fabs(r02 * a0) + fabs(r12 * a1)) + fabs(r22 * a2))) - b2 > thr_face)
+    else if ((fabs((r02 * t0 + r12 * t1) + r22 * t2) - ((q02 * a0 + q12 * a1) + q22 * a2)) -
+                 b2 > thr_face)
         k = 5;
     // L = e_i x b_j, only where A has edges along e_i (ha[i] > 0).
-    else if (a0 > 0.0 && edge_axis_separates(t1, t2, r10, r20, a1, a2, b1, b2, r01, r02, tol))
+    else if (a0 > 0.0 &&
+             edge_axis_separates(t1, t2, r10, r20, a1, a2, b1, b2, r01, r02,
+                                 q10, q20, q01, q02, tol))
         k = 6;
-    else if (a0 > 0.0 && edge_axis_separates(t1, t2, r11, r21, a1, a2, b2, b0, r02, r00, tol))
+    else if (a0 > 0.0 &&
+             edge_axis_separates(t1, t2, r11, r21, a1, a2, b2, b0, r02, r00,
+                                 q11, q21, q02, q00, tol))
         k = 7;
-    else if (a0 > 0.0 && edge_axis_separates(t1, t2, r12, r22, a1, a2, b0, b1, r00, r01, tol))
+    else if (a0 > 0.0 &&
+             edge_axis_separates(t1, t2, r12, r22, a1, a2, b0, b1, r00, r01,
+                                 q12, q22, q00, q01, tol))
         k = 8;
-    else if (a1 > 0.0 && edge_axis_separates(t2, t0, r20, r00, a2, a0, b1, b2, r11, r12, tol))
+    else if (a1 > 0.0 &&
+             edge_axis_separates(t2, t0, r20, r00, a2, a0, b1, b2, r11, r12,
+                                 q20, q00, q11, q12, tol))
         k = 9;
-    else if (a1 > 0.0 && edge_axis_separates(t2, t0, r21, r01, a2, a0, b2, b0, r12, r10, tol))
+    else if (a1 > 0.0 &&
+             edge_axis_separates(t2, t0, r21, r01, a2, a0, b2, b0, r12, r10,
+                                 q21, q01, q12, q10, tol))
         k = 10;
-    else if (a1 > 0.0 && edge_axis_separates(t2, t0, r22, r02, a2, a0, b0, b1, r10, r11, tol))
+    else if (a1 > 0.0 &&
+             edge_axis_separates(t2, t0, r22, r02, a2, a0, b0, b1, r10, r11,
+                                 q22, q02, q10, q11, tol))
         k = 11;
-    else if (a2 > 0.0 && edge_axis_separates(t0, t1, r00, r10, a0, a1, b1, b2, r21, r22, tol))
+    else if (a2 > 0.0 &&
+             edge_axis_separates(t0, t1, r00, r10, a0, a1, b1, b2, r21, r22,
+                                 q00, q10, q21, q22, tol))
         k = 12;
-    else if (a2 > 0.0 && edge_axis_separates(t0, t1, r01, r11, a0, a1, b2, b0, r22, r20, tol))
+    else if (a2 > 0.0 &&
+             edge_axis_separates(t0, t1, r01, r11, a0, a1, b2, b0, r22, r20,
+                                 q01, q11, q22, q20, tol))
         k = 13;
-    else if (a2 > 0.0 && edge_axis_separates(t0, t1, r02, r12, a0, a1, b0, b1, r20, r21, tol))
+    else if (a2 > 0.0 &&
+             edge_axis_separates(t0, t1, r02, r12, a0, a1, b0, b1, r20, r21,
+                                 q02, q12, q20, q21, tol))
         k = 14;
     else
         return -1;

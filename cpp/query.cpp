@@ -347,16 +347,29 @@ bool Engine::scene_body_outside(int64_t s, int64_t k) {
 
 // First culling against the scene by the volumes spanning several links, top down: link k is
 // culled for object s when its subtree's volume, or an ancestor's, misses s's box. Every link
-// pose must be current.
+// pose must be current. A link whose volume is its parent's (a link without geometry of its
+// own and one child: every link of a chain above the first with geometry) takes the parent's
+// verdict untested: the same two boxes give the same answer.
 void Engine::refresh_culling() {
     subtree_volumes();
     for (int64_t s = 0; s < n_scene_; ++s) {
         int64_t* culled = scene_culled_ + culled_width_ * s;
         for (int64_t k = 0; k < n_links_; ++k) {
             const int64_t p = kin_.parent[k];
-            culled[k] = (p >= 0 && culled[p]) ? 1 : (scene_body_outside(s, k) ? 1 : 0);
+            if (p >= 0 && (culled[p] || same_volume(k, p)))
+                culled[k] = culled[p];
+            else
+                culled[k] = scene_body_outside(s, k) ? 1 : 0;
         }
     }
+}
+
+// True iff the volumes of links k and p (subtree_volumes) are the same box.
+bool Engine::same_volume(int64_t k, int64_t p) const {
+    const double* K = subtree_boxes_ + BOX_WIDTH * k;
+    const double* P = subtree_boxes_ + BOX_WIDTH * p;
+    return std::equal(K + BOX_CENTER, K + BOX_CENTER + 3, P + BOX_CENTER) &&
+           std::equal(K + BOX_HALF, K + BOX_HALF + 3, P + BOX_HALF);
 }
 
 // ----------------------------------------------------------------------------- planning

@@ -147,6 +147,7 @@ class Engine {
     void refresh_culling();
     void subtree_volumes();
     bool scene_body_outside(int64_t s, int64_t k);
+    bool same_volume(int64_t k, int64_t p) const;
     double extension() const;
     void resync_travel(int64_t p);
     void add_travel(int64_t p, int64_t j, double old_value, double new_value);

@@ -3,13 +3,16 @@
 // Two trees, each in its own body frame, are tested from their roots down. When two boxes
 // overlap, one of them is expanded (its two children are tested against the other box); when
 // both are leaves, their triangles are tested exactly. Which side is expanded is the paper's
-// "node expansion consideration"; four rules are offered (the answer never depends on the
+// "node expansion consideration"; five rules are offered (the answer never depends on the
 // rule, only the work done; collision_sensor_bench measures which is fastest):
 //   EXPAND_SAME       always expand the first tree until it reaches a leaf, then the second;
 //   EXPAND_ALTERNATE  alternate sides with the depth of the descent;
 //   EXPAND_LARGER     expand the node with the larger box volume;
 //   EXPAND_PROMISING  expand the node whose volume most exceeds the sum of its children's
-//                     volumes (the paper's "most promising node").
+//                     volumes (the paper's "most promising node");
+//   EXPAND_WIDER      expand the node with the larger half diagonal |half| (its sphere's
+//                     radius): unlike the volume, it sees the size of a flat box (the box of
+//                     a few coplanar triangles has almost none), as FCL's rule does.
 //
 // Data (collision_sensor/obb_tree.py builds it):
 //   boxes : (N, BOX_WIDTH) one row per box: centre, axes (row-major, column k is axis k),
@@ -35,7 +38,8 @@ namespace collision_sensor {
 constexpr int BOX_CENTER = 0, BOX_AXES = 3, BOX_HALF = 12, BOX_RADIUS = 15, BOX_WIDTH = 16;
 constexpr int NODE_LEFT = 0, NODE_RIGHT = 1, NODE_FIRST = 2, NODE_COUNT = 3, NODE_WIDTH = 4;
 constexpr int POSE_WIDTH = 12;
-constexpr int EXPAND_SAME = 0, EXPAND_ALTERNATE = 1, EXPAND_LARGER = 2, EXPAND_PROMISING = 3;
+constexpr int EXPAND_SAME = 0, EXPAND_ALTERNATE = 1, EXPAND_LARGER = 2, EXPAND_PROMISING = 3,
+              EXPAND_WIDER = 4;
 
 // counters[COUNT_*]: work done, for the benchmarks and tests.
 constexpr int COUNT_BOX_TESTS = 0, COUNT_TRIANGLE_TESTS = 1, COUNT_SPHERE_SKIPS = 2,
@@ -433,6 +437,8 @@ inline TreesResult trees_collide(int64_t n_seeds, const double* P, const Forest&
             expand_a = level % 2 == 0;
         else if (expansion == EXPAND_LARGER)
             expand_a = f.volume[na] >= f.volume[nb];
+        else if (expansion == EXPAND_WIDER)
+            expand_a = A[BOX_RADIUS] >= B[BOX_RADIUS];
         else
             expand_a = f.gain[na] >= f.gain[nb];
         // Visit first the child nearer the other box's centre (more likely to meet it: a

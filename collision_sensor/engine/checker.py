@@ -956,8 +956,12 @@ class CollisionChecker:
         # A float64 C-contiguous array of the right length goes to the engine as it is (it
         # copies the values before keeping them); the engine tells anything else apart. This
         # is every joint-state message's path: a Python call costs here about what the
-        # engine's own check of a Panda costs, so it stays flat.
-        code = self._query(positions, full)
+        # engine's own check of a Panda costs, so it stays flat (check and update take the
+        # commonest answer, nothing changed, without even this call).
+        return self._settle(self._query(positions, full), positions, full)
+
+    def _settle(self, code: int, positions: Positions, full: bool) -> CheckResult:
+        """Return the answer for the engine's ``code`` (``cpp/query.hpp``: Engine::query)."""
         if code > 0:
             if code & 1:
                 # The engine reports whether any status changed, so the pair names are
@@ -1011,7 +1015,10 @@ class CollisionChecker:
             in the order of :attr:`joint_names`.
         :raises JointStateError: on unknown names or non-finite values; nothing changes then.
         """
-        return self._run(positions, full=True)
+        code = self._query(positions, True)
+        if code >= 0 and not code & 1 and code >> 1 == self._result.rechecked_pairs:
+            return self._result  # no status changed: the last answer (see _settle)
+        return self._settle(code, positions, True)
 
     def update(self, positions: Positions) -> CheckResult:
         """Check incrementally: re-check only pairs whose relative pose can have changed.
@@ -1024,7 +1031,10 @@ class CollisionChecker:
         ``plan_update`` in ``cpp/query.cpp``).
         Same arguments and errors as :meth:`check`.
         """
-        return self._run(positions, full=False)
+        code = self._query(positions, False)
+        if code >= 0 and not code & 1 and code >> 1 == self._result.rechecked_pairs:
+            return self._result  # no status changed: the last answer (see _settle)
+        return self._settle(code, positions, False)
 
     def check_batch(self, configurations: np.ndarray) -> np.ndarray:
         """Check many configurations from scratch, in one compiled call; return (n, P) bool

@@ -3,13 +3,15 @@
 Two trees, each in its own body frame, are tested from their roots down. When two boxes
 overlap, one of them is expanded (its two children are tested against the other box); when
 both are leaves, their triangles are tested exactly. Which side is expanded is the paper's
-"node expansion consideration"; four rules are offered:
+"node expansion consideration"; five rules are offered:
 
 * ``EXPAND_SAME``: always expand the first tree until it reaches a leaf, then the second;
 * ``EXPAND_ALTERNATE``: alternate sides with the depth of the descent;
 * ``EXPAND_LARGER``: expand the node with the larger box volume;
 * ``EXPAND_PROMISING``: expand the node whose volume most exceeds the sum of its children's
-  volumes (the paper's "most promising node").
+  volumes (the paper's "most promising node");
+* ``EXPAND_WIDER``: expand the node with the larger half diagonal ``|half|`` (the radius of its
+  sphere): unlike the volume, it sees the size of a flat box, as FCL's rule does.
 
 The answer never depends on the rule, only the work done; ``collision_sensor.tools.bench`` measures
 which rule is fastest on real robots and the checker's default follows that measurement.
@@ -30,10 +32,10 @@ import numpy as np
 
 from collision_sensor.engine.compiled import engine
 
-EXPAND_SAME, EXPAND_ALTERNATE, EXPAND_LARGER, EXPAND_PROMISING = 0, 1, 2, 3
+EXPAND_SAME, EXPAND_ALTERNATE, EXPAND_LARGER, EXPAND_PROMISING, EXPAND_WIDER = 0, 1, 2, 3, 4
 EXPANSION_RULES = {
     'same': EXPAND_SAME, 'alternate': EXPAND_ALTERNATE, 'larger': EXPAND_LARGER,
-    'promising': EXPAND_PROMISING,
+    'promising': EXPAND_PROMISING, 'wider': EXPAND_WIDER,
 }
 
 # counters[COUNT_*] (CollisionChecker.counters): work done, for the benchmarks and tests: box

@@ -19,8 +19,10 @@ Why a distance rule rather than orientation predicates alone (Moeller, Guigue-De
 float64, signs of near-zero determinants are noise, so "touching" has no stable answer; a
 distance against a tolerance is continuous in the input, so touching, coplanar and degenerate
 cases all get the same reproducible answer and the branches stay few. Cost: a plane test
-rejects most pairs with 2 cross products; pairs that survive pay for up to 6 point-triangle
-and 9 segment-segment distances, with an early exit at the first contact.
+rejects most pairs with 2 cross products, an edge piercing the other triangle settles most
+contacts, and a gap along one of the nine edge-edge axes (beyond its rounding) most near
+misses; only pairs near touching pay for up to 6 point-triangle and 9 segment-segment
+distances, with an early exit at the first contact.
 """
 import numpy as np
 

@@ -62,7 +62,7 @@ def test_every_box_test_and_expansion_rule_gives_the_same_answers(
     configurations = random_configurations(panda, 300, seed=3)
     expected = [panda.check(q).colliding_pairs for q in configurations]
     for box_test in ('sat', 'paper'):
-        for expansion in ('same', 'alternate', 'larger', 'promising'):
+        for expansion in ('same', 'alternate', 'larger', 'promising', 'wider'):
             checker = CollisionChecker.from_urdf(
                 panda_urdf, srdf=panda_srdf, package_paths=erd_package_paths,
                 config={'box_test': box_test, 'expansion': expansion})

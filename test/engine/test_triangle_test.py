@@ -180,3 +180,21 @@ def test_nan_or_infinite_input_counts_as_contact():
         R[1, 2] = bad
         assert triangles_intersect(P0, R)
         assert triangles_intersect(R, P0)
+
+
+def test_skew_edges_within_and_beyond_the_tolerance():
+    # Closest features two edges, neither plane separating the triangles: the case the
+    # nine edge-edge axes decide. P lies below n . (x - X) = 0, Q above n . (x - X) = h, and
+    # X, X + h n are on their edges, so the distance is h by construction.
+    rng = np.random.default_rng(11)
+    for k in range(400):
+        u, v, n = np.linalg.qr(rng.normal(size=(3, 3)))[0].T
+        X = rng.uniform(-1, 1, size=3) * (1e3 if k % 4 == 0 else 1.0)
+        a, b, s, w = rng.uniform(0.2, 1.0, size=(4, 2))
+        P = np.array([X - a[0] * u, X + b[0] * u, X + s[0] * v - w[0] * n])
+        tol = TRIANGLE_EPS_REL * np.abs(np.vstack([P, P + n])).max()
+        for h, expected in ((0.3 * tol, True), (4.0 * tol, False), (1e-9, False)):
+            Y = X + h * n
+            Q = np.array([Y - a[1] * v, Y + b[1] * v, Y + s[1] * u + w[1] * n])
+            assert triangles_intersect(P, Q) == expected, f'h={h!r}: {literal(P, Q)}'
+            assert triangles_intersect(Q, P) == expected, f'h={h!r}: {literal(Q, P)}'

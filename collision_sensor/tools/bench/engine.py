@@ -96,7 +96,7 @@ def bench_rules(robot, configurations, out):
                '| triangles tested / config |')
     out.append('|---|---|---|---|---|')
     for box_test in ('sat', 'paper'):
-        for expansion in ('same', 'alternate', 'larger', 'promising'):
+        for expansion in ('same', 'alternate', 'larger', 'promising', 'wider'):
             checker = CollisionChecker.from_urdf(
                 robot.urdf, srdf=robot.srdf, package_paths=robot.package_paths,
                 config={'box_test': box_test, 'expansion': expansion})
