@@ -83,13 +83,7 @@ void Engine::seed_nearest(int64_t ia, int64_t ib, const double* pose, double pad
     double x[3], y[3];
     triangle_in_a(forest_.tris, ib, pose, Q);
     const double d = triangle_distance(triangle_at(forest_.tris, ia), Q, x, y) - pad;
-    if (!(d < best.distance)) return;
-    best.distance = d;
-    best.found = true;
-    best.ia = ia;
-    best.ib = ib;
-    std::memcpy(best.x, x, sizeof x);
-    std::memcpy(best.y, y, sizeof y);
+    if (d < best.distance) best.take(d, ia, ib, x, y);
 }
 
 // For each pair, the padded distance (the triangles' distance minus the two bodies'

@@ -25,6 +25,16 @@ struct NearestPoints {
     double x[3], y[3];
     int64_t ia, ib;
     bool found;  // false: nothing nearer than the cutoff
+
+    // Take triangles ia, ib at distance d, nearest points x, y, as the best so far.
+    void take(double d, int64_t tri_a, int64_t tri_b, const double* px, const double* py) {
+        distance = d;
+        found = true;
+        ia = tri_a;
+        ib = tri_b;
+        std::memcpy(x, px, sizeof x);
+        std::memcpy(y, py, sizeof y);
+    }
 };
 
 // A lower bound of the distance between boxes A and B, B in A's box frame (T: R, t as
@@ -251,12 +261,7 @@ inline void trees_distance(int64_t ra, int64_t rb, const double* P, double pad_a
                     const double d =
                         triangle_distance(triangle_at(f.tris, ia), Q, x, y, lb > 0.0) - pad;
                     if (d < best.distance) {
-                        best.distance = d;
-                        best.found = true;
-                        best.ia = ia;
-                        best.ib = ib;
-                        std::memcpy(best.x, x, sizeof x);
-                        std::memcpy(best.y, y, sizeof y);
+                        best.take(d, ia, ib, x, y);
                         aim_slab(best, P, slab, work);
                     }
                 }

@@ -156,18 +156,40 @@ class CollisionChecker:
         self.config = CheckerConfig.from_mapping(config)
         model = self.model = _with_virtual_joint(model, srdf)
         self.kinematics: KinematicTree = build_kinematic_tree(model)
-        kin = self.kinematics
-        link_names = list(kin.link_names)
-        n_links = len(link_names)
         scene = tuple(scene)
-        self._link_index = {name: i for i, name in enumerate(link_names)}
+        self._link_index = {name: i for i, name in enumerate(self.kinematics.link_names)}
         #: Frames a world object's pose may be given in: the root link, and the parent frame of
         #: an SRDF fixed virtual joint (MoveIt's "world" above the robot).
         self.world_frames = frozenset([model.root_link] + [
             joint.parent_frame for joint in (srdf.virtual_joints if srdf is not None else ())
             if joint.type == 'fixed' and joint.child_link == model.root_link])
 
-        # One tree per collision element (the paper's per-link sub-groups), in link frames.
+        # The stages: the robot's trees, link boxes and pairs (built once, never again), the
+        # joints' tables, then the scene's objects and the engine's buffers (rebuilt by every
+        # scene change, see _install).
+        self._robot = self._build_robot_block(srdf, [obj.name for obj in scene])
+        self._build_joint_tables()
+        self._objects: Dict[str, PlacedObject] = {}
+        # Each pair's (path, reach, reach_ext) rows (see _pair_rows), kept across scene changes.
+        self._rows: Dict[Pair, Tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._views: Optional[Dict[str, np.ndarray]] = None
+        self._result = CheckResult(False, (), 0)
+        self._results: Dict[bytes, Tuple[Pair, ...]] = {}
+        try:
+            prepared = self.prepare_scene_changes([AddObject(obj) for obj in scene])
+        except SceneChangeError as error:
+            raise SceneError(f'scene: {error.reason}') from None
+        self._install(prepared)
+
+    def _build_robot_block(self, srdf: Optional[Srdf], object_names: List[str]
+                           ) -> '_RobotBlock':
+        """Build one OBB tree per collision element (the paper's per-link sub-groups, in link
+        frames, grown by the link's padding), each link's box over its elements (sec. 2.1:
+        computed once) and the self-collision pairs; set :attr:`link_names` and the exception
+        list. Everything here is what the engine reads that no scene change alters."""
+        model, kin = self.model, self.kinematics
+        link_names = list(kin.link_names)
+        n_links = len(link_names)
         meshes, owners, solids = [], [], []
         for element in model.elements:
             meshes.append((_transformed(element.T_link_element, element.vertices),
@@ -186,10 +208,9 @@ class CollisionChecker:
             n_links, dtype=np.int64)
         elem_end = np.cumsum(counts).astype(np.int64)
         elem_start = (elem_end - counts).astype(np.int64)
-        padding = self._link_padding(link_names, [obj.name for obj in scene])
+        padding = self._link_padding(link_names, object_names)
         _grow_boxes(forest.half, forest.roots, padding[owners])
 
-        # Each link's box over all its sub-groups, in the link frame (sec. 2.1: computed once).
         center, axes, half = np.zeros((n_links, 3)), np.tile(np.eye(3), (n_links, 1, 1)), \
             np.zeros((n_links, 3))
         vertex_radius = np.zeros(n_links)
@@ -208,11 +229,10 @@ class CollisionChecker:
         self.link_names: Tuple[str, ...] = tuple(
             name for b, name in enumerate(link_names) if counts[b] > 0)
         self._base_exclusions: Dict[Pair, str] = self._exception_list(
-            srdf, link_names, [obj.name for obj in scene])
+            srdf, link_names, object_names)
         robot = list(self.link_names)
         robot_pairs = [sorted_pair(a, b) for i, a in enumerate(robot) for b in robot[i + 1:]]
-        # The robot's block: everything the engine reads that no scene change alters.
-        self._robot = _RobotBlock(
+        return _RobotBlock(
             boxes=box_table(forest.center, forest.axes, forest.half),
             nodes=node_table(forest), volume=forest.volume, gain=forest.gain,
             tris=forest.tris, roots=forest.roots, depth=int(forest.depth.max(initial=1)),
@@ -220,17 +240,20 @@ class CollisionChecker:
             body_boxes=box_table(center, axes, half), radius=vertex_radius, padding=padding,
             pairs=tuple(sorted(pair for pair in robot_pairs
                                if pair not in self._base_exclusions)))
-        del forest, meshes
 
+    def _build_joint_tables(self) -> None:
+        """Set the joints' names, limits and mimic set, and for each variable the links whose
+        pose depends on it and whether it drives a slider (the incremental rule's inputs)."""
+        kin = self.kinematics
+        n_links = len(kin.link_names)
         self.joint_names: Tuple[str, ...] = tuple(kin.joint_names)
         self._joint_index = {name: j for j, name in enumerate(self.joint_names)}
         self._derived_joints = frozenset(
-            joint.name for joint in model.joints
+            joint.name for joint in self.model.joints
             if joint.mimic is not None and joint.type != 'fixed')
         self.joint_limits: Dict[str, Tuple[float, float]] = {
             name: (float(kin.lower[j]), float(kin.upper[j]))
             for j, name in enumerate(self.joint_names)}
-        # Each variable's links (whose pose depends on it), and whether it drives a slider.
         n_joints = len(self.joint_names)
         depends = np.zeros((n_joints, n_links), dtype=bool)
         joint_prismatic = np.zeros(n_joints, dtype=np.int64)
@@ -242,18 +265,6 @@ class CollisionChecker:
                 joint_prismatic[kin.q_index[i]] += kin.joint_type[i] == JOINT_PRISMATIC
         self._link_depends = depends
         self._joint_prismatic = joint_prismatic
-
-        self._objects: Dict[str, PlacedObject] = {}
-        # Each pair's (path, reach, reach_ext) rows (see _pair_rows), kept across scene changes.
-        self._rows: Dict[Pair, Tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
-        self._views: Optional[Dict[str, np.ndarray]] = None
-        self._result = CheckResult(False, (), 0)
-        self._results: Dict[bytes, Tuple[Pair, ...]] = {}
-        try:
-            prepared = self.prepare_scene_changes([AddObject(obj) for obj in scene])
-        except SceneChangeError as error:
-            raise SceneError(f'scene: {error.reason}') from None
-        self._install(prepared)
 
     @classmethod
     def from_urdf(cls, urdf, srdf=None, package_paths: Optional[Mapping[str, str]] = None,
