@@ -837,9 +837,31 @@ class CollisionChecker:
         self.excluded_pairs: Dict[Pair, str] = excluded
         self.scene_object_names: Tuple[str, ...] = tuple(objects)
         self._objects, self._rows, self._object_pairs = objects, rows, object_pairs
+        self._keep_views_of_trees(float_views, int_views, placed, node_start, tri_start)
         self._tri_starts = tri_starts
         self._results = {}
         self._result = self._result_from_status(0)
+
+    def _keep_views_of_trees(self, float_views, int_views, placed, node_start, tri_start):
+        """Point the robot's block and every object's block at their rows of the engine's
+        buffers, in place of their own arrays: nothing is held twice (scenario 4). Node tables
+        of objects stay their own (the buffer holds them shifted); the next scene change
+        reads the trees from these views, which keep the previous buffers alive until then."""
+        robot = self._robot
+        n_nodes, n_tris = len(robot.boxes), len(robot.tris)
+        self._robot = robot._replace(
+            boxes=float_views['boxes'][:n_nodes], nodes=int_views['nodes'][:n_nodes],
+            volume=float_views['volume'][:n_nodes], gain=float_views['gain'][:n_nodes],
+            tris=float_views['tris'][:n_tris])
+        objects = dict(self._objects)    # a new mapping: prepared changes compare the old one
+        for p, n0, n1, t0, t1 in zip(placed, node_start[:-1], node_start[1:], tri_start[:-1],
+                                     tri_start[1:]):
+            block = dataclasses.replace(
+                p.block, boxes=float_views['boxes'][n0:n1],
+                volume=float_views['volume'][n0:n1], gain=float_views['gain'][n0:n1],
+                tris=float_views['tris'][t0:t1])
+            objects[p.name] = dataclasses.replace(p, block=block)
+        self._objects = objects
 
     def _scene_pairs(self, attached: Sequence[PlacedObject], world: Sequence[PlacedObject]):
         """Return the checked pairs (sorted), the exception list and ``{object: its pairs'
