@@ -21,12 +21,12 @@ from dataclasses import dataclass, field
 from typing import Any, Dict, List, Mapping, Optional, Tuple
 
 from collision_sensor.engine.checker_config import BOX_TESTS, OBB_FITS, CheckerConfig
+from collision_sensor.engine.scene_markers import SceneLimits
 from collision_sensor.engine.traversal import EXPANSION_RULES
 from collision_sensor.errors import ConfigError
 from collision_sensor.model.mesh_loading import parse_package_paths
 from collision_sensor.ros.joint_state_merger import (
     DEFAULT_LIMIT_TOLERANCE, LIMIT_POLICIES, MAX_UNKNOWN_NAMES)
-from collision_sensor.ros.scene_markers import SceneLimits
 
 #: Default of ``max_joint_state_bytes``: a JointState of 1000 joints, names of 24 characters,
 #: positions, velocities and efforts is about 60 KiB serialized.

@@ -62,7 +62,7 @@ executor's thread. One lock keeps the model, the merged state and the counters c
 Only rclpy's public API is used.
 
 Scene: every array on ``scene`` changes the scene all or nothing
-(:mod:`collision_sensor.ros.scene_markers` has the rules; README, "Dynamic scene"). Arrays are
+(:mod:`collision_sensor.engine.scene_markers` has the rules; README, "Dynamic scene"). Arrays are
 applied in arrival order on a thread of their own: files are read and trees built there,
 without the lock, so joint states keep getting verdicts meanwhile; only the swap takes the
 lock. Every applied array gives a verdict at once (its header: the time of the change and the
@@ -104,12 +104,12 @@ from std_msgs.msg import Bool, ColorRGBA, Float64, Header, String
 from visualization_msgs.msg import Marker, MarkerArray
 
 from collision_sensor.engine.dynamic_scene import SceneChangeError
+from collision_sensor.engine.scene_markers import MarkerError, SceneTopic, marker_error
 from collision_sensor.errors import CollisionSensorError, JointStateError, SceneError
 from collision_sensor.model.mesh_loading import SOLID_BOX, SOLID_CYLINDER, SOLID_SPHERE
 from collision_sensor.model.xml_safety import document_bytes
 from collision_sensor.ros.joint_state_merger import JointStateMerger, Problem, joints_out_of_limits
 from collision_sensor.ros.node_parameters import NodeSettings, declare_node_parameters
-from collision_sensor.ros.scene_markers import MarkerError, SceneTopic, marker_error
 from collision_sensor.untrusted_text import listing, printable, quoted
 
 #: Verdicts and the robot description: late joiners get the latest message.

@@ -22,8 +22,8 @@ from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
 
 from collision_sensor import CollisionChecker  # noqa: E402
 from collision_sensor.engine.dynamic_scene import AddObject  # noqa: E402
+from collision_sensor.engine.scene_markers import SceneTopic  # noqa: E402
 from collision_sensor.ros.node import CollisionSensorNode, quaternion_from_matrix  # noqa: E402
-from collision_sensor.ros.scene_markers import SceneTopic  # noqa: E402
 from ros_helpers import RosHarness, reliable  # noqa: E402
 from test_checker import SMALL_ROBOT  # noqa: E402
 from test_dynamic_scene import SceneOracle  # noqa: E402

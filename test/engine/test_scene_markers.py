@@ -1,4 +1,4 @@
-"""The scene topic's rules (collision_sensor.ros.scene_markers), without ROS: markers are plain
+"""The scene topic's rules (collision_sensor.engine.scene_markers), without ROS: markers are plain
 objects with the fields of visualization_msgs/Marker."""
 import os
 from types import SimpleNamespace
@@ -10,10 +10,10 @@ import trimesh
 from collision_sensor import CollisionChecker
 from collision_sensor.engine.dynamic_scene import AddObject, MoveObject, RemoveObject
 from collision_sensor.engine.dynamic_scene import SceneChangeError
-from collision_sensor.model.mesh_loading import SOLID_BOX, SOLID_CYLINDER, SOLID_SPHERE
-from collision_sensor.ros.scene_markers import (
+from collision_sensor.engine.scene_markers import (
     ADD, CUBE, CYLINDER, DELETE, DELETEALL, MESH_RESOURCE, SPHERE, TRIANGLE_LIST, MarkerError,
     SceneLimits, SceneTopic, marker_error)
+from collision_sensor.model.mesh_loading import SOLID_BOX, SOLID_CYLINDER, SOLID_SPHERE
 from test_checker import SMALL_ROBOT
 
 ROBOT_LINKS = ('base', 'upper', 'lower', 'slider', 'tool')
