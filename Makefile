@@ -1,4 +1,5 @@
-# The two commands: `make demo` and `make test`. Each creates .venv when it is missing and
+# The two commands: `make demo` and `make test` (`make demo DEMO_ARGS=--dynamic`: the dynamic
+# scene; DEMO_ARGS go to collision_sensor_demo). Each creates .venv when it is missing and
 # installs the package with its `ros` and `test` extras (editable, so tests run this tree);
 # the stamp makes a second run reinstall nothing until setup.py, setup.cfg, package.xml or the
 # engine's C++ sources (cpp/, compiled into the extension at install) change.
@@ -20,7 +21,7 @@ $(STAMP): setup.py setup.cfg package.xml pyproject.toml $(wildcard cpp/*.cpp cpp
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/collision_sensor_demo
+	$(BIN)/collision_sensor_demo $(DEMO_ARGS)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest test

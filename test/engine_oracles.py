@@ -11,6 +11,11 @@ import numpy as np
 import fcl
 import pinocchio as pin
 
+from collision_sensor import CollisionChecker
+from collision_sensor.engine.dynamic_scene import AddObject, MoveObject
+from collision_sensor.engine.obb_tree import build_forest
+from collision_sensor.model.exception_list import sorted_pair
+
 #: pinocchio's root joint for an SRDF virtual joint, by type.
 ROOT_JOINTS = {'floating': pin.JointModelFreeFlyer, 'planar': pin.JointModelPlanar}
 
@@ -205,3 +210,63 @@ def distance_to_body(checker, x, name):
     tris = body_triangles(checker, name)
     d, _, _ = triangle_distance(np.broadcast_to(x, (len(tris), 3, 3)).copy(), tris)
     return float(d.min())
+
+
+class SceneOracle:
+    """The scene as this test keeps it, its pairs by the documented rules, and its colliding
+    pairs by python-fcl (:class:`FclOracle` for the robot: pinocchio's link poses)."""
+
+    def __init__(self, urdf, config):
+        self.robot = CollisionChecker.from_urdf(urdf, config=config)
+        self.fcl = FclOracle(self.robot, urdf)
+        self.objects = {}   # name: (obj, attach_to, touch_links, pose)
+
+    def apply(self, change):
+        if isinstance(change, AddObject):
+            obj = change.obj
+            self.objects[obj.name] = (obj, change.attach_to, tuple(change.touch_links),
+                                      obj.T_world_object if change.pose is None
+                                      else change.pose)
+            self.fcl.models[obj.name] = [FclOracle._bvh(obj.vertices, obj.faces)]
+            # The contact rule lets one vertex decide containment; for a tessellated
+            # primitive partly in the sliver of another's true shape, which one matters. The
+            # engine takes its tree's first triangle's first vertex (as FclOracle does).
+            tree = build_forest([(obj.vertices, obj.faces)], leaf_size=1)
+            self.fcl.vertices[obj.name] = [tree.tris[0, 0]]
+            if obj.solid is not None:
+                self.fcl.solids[obj.name] = [(FclOracle._primitive(obj.solid), np.eye(4))]
+            else:
+                self.fcl.solids.pop(obj.name, None)
+        elif isinstance(change, MoveObject):
+            obj, link, touch, _ = self.objects[change.name]
+            self.objects[change.name] = (obj, link, touch, change.pose)
+        else:
+            del self.objects[change.name]
+
+    def pairs(self):
+        """Robot pairs as the robot alone has them; each object against every link with
+        geometry but its own and its touch links; attached objects against each other unless
+        on one link or touching; world objects never against each other."""
+        pairs = set(self.robot.checked_pairs)
+        links = self.robot.link_names
+        for name, (_, link, touch, _) in self.objects.items():
+            pairs.update(sorted_pair(name, other) for other in links
+                         if other != link and other not in touch)
+            for other, (_, other_link, other_touch, _) in self.objects.items():
+                if other == name or (link is None and other_link is None):
+                    continue
+                if link is not None and other_link is not None and (
+                        link == other_link or other_link in touch or link in other_touch):
+                    continue
+                pairs.add(sorted_pair(name, other))
+        return tuple(sorted(pairs))
+
+    def colliding_pairs(self, q):
+        poses = self.fcl.poses(q)
+        for name, (_, link, _, pose) in self.objects.items():
+            poses[name] = pose if link is None else poses[link] @ pose
+        return self.fcl.colliding_among(self.pairs(), poses)
+
+    def changes_from_scratch(self):
+        return [AddObject(obj, link, touch, pose)
+                for obj, link, touch, pose in self.objects.values()]

@@ -43,7 +43,8 @@ from typing import Dict, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 
 from collision_sensor.engine.dynamic_scene import (
-    AddObject, MoveObject, RemoveObject, SceneChange, transform_from_xyz_quaternion)
+    AddObject, MoveObject, RemoveObject, SceneChange, SceneChangeError,
+    transform_from_xyz_quaternion)
 from collision_sensor.errors import CollisionSensorError, SceneError
 from collision_sensor.model import mesh_loading
 from collision_sensor.model.package_lookup import find_package
@@ -65,10 +66,11 @@ class MarkerError(SceneError):
     """A marker of a scene array that cannot apply; the array changes nothing.
 
     :ivar index: the marker's position in the array.
+    :ivar reason: what is wrong and the fix.
     """
 
     def __init__(self, index: int, marker, reason: str):
-        self.index = index
+        self.index, self.reason = index, reason
         name = _marker_label(marker)
         super().__init__(f'marker {index} ({name}): {reason}')
 
@@ -198,8 +200,8 @@ class SceneTopic:
             raise MarkerError(len(markers) - 1, markers[-1], f'the topic\'s objects would have '
                               f'{total} triangles, more than scene_max_total_triangles '
                               f'{limits.max_total_triangles}; delete some or decimate them')
-        summary = (f'{added} added, {moved} moved, {removed} removed; {len(objects)} objects '
-                   f'from the topic ({total} triangles)')
+        summary = (f'{added} added or replaced, {moved} moved, {removed} removed; '
+                   f'{len(objects)} objects from the topic ({total} triangles)')
         return TopicUpdate(tuple(changes), tuple(sources), objects, summary)
 
     def accept(self, update: TopicUpdate) -> None:
@@ -409,3 +411,18 @@ def marker_error(error: SceneError, update: TopicUpdate, markers: Sequence) -> M
     ``error.index`` of ``update`` (a :class:`~collision_sensor.engine.dynamic_scene.SceneChangeError`)."""
     index = update.sources[error.index]
     return MarkerError(index, markers[index], error.reason)
+
+
+def apply_array(topic: SceneTopic, checker, markers: Sequence) -> TopicUpdate:
+    """Apply one array to ``checker`` at once (prepare and commit), as the node does in two
+    steps; the offline tools replay recorded arrays so.
+
+    :raises MarkerError: the array changes nothing then.
+    """
+    update = topic.update(markers, checker)
+    try:
+        checker.commit_scene_changes(checker.prepare_scene_changes(update.changes))
+    except SceneChangeError as error:
+        raise marker_error(error, update, markers) from None
+    topic.accept(update)
+    return update

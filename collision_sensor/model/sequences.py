@@ -22,6 +22,13 @@ rosbag2 (a bag directory with ``metadata.yaml``, or a bare ``*.mcap`` / ``*.db3`
     same time as the previous frame updates that frame. Joints that are not asked for are
     ignored.
 
+    Scene changes: ``visualization_msgs/msg/MarkerArray`` messages on ``/scene`` (the node's
+    ``scene`` topic, as ``ros2 bag record`` stores it; :data:`SCENE_TOPIC`), if the bag has
+    that topic. Each becomes a :class:`SceneEvent` at its first marker's ``header.stamp`` (the
+    log time when that is zero, or the array is empty); replaying, an array applies before the
+    frames at or after its time, in the order recorded (the node's rules:
+    :mod:`collision_sensor.scene_markers`). A CSV file holds no scene changes: record a bag.
+
 Errors are :class:`~collision_sensor.errors.SequenceError` and name the file, the line (CSV) or
 message (bag) and the fix.
 """
@@ -39,25 +46,42 @@ import numpy as np
 from collision_sensor.errors import SequenceError
 
 JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
+MARKER_ARRAY_TYPE = 'visualization_msgs/msg/MarkerArray'
 DEFAULT_TOPIC = '/joint_states'
+SCENE_TOPIC = '/scene'
 FORMATS = ('csv', 'mcap', 'sqlite3')
 _NS_PER_S = 1_000_000_000
 
 
 @dataclass(frozen=True)
+class SceneEvent:
+    """One recorded change of the scene: a ``scene`` array, applied before the frames at or
+    after ``time``.
+
+    :ivar time: seconds, on the frames' clock.
+    :ivar markers: the array's markers (objects with the fields of visualization_msgs/Marker).
+    """
+
+    time: float
+    markers: tuple
+
+
+@dataclass(frozen=True)
 class JointSequence:
-    """Joint positions over time.
+    """Joint positions over time, and the scene's changes meanwhile.
 
     :ivar joint_names: (J,) joint names, the column order of ``positions``.
     :ivar times: (n,) float64 seconds, strictly increasing.
     :ivar positions: (n, J) float64 joint positions.
     :ivar source: where the sequence came from (a file name), for messages.
+    :ivar scene: :class:`SceneEvent` in time order (equal times in recorded order).
     """
 
     joint_names: tuple
     times: np.ndarray
     positions: np.ndarray
     source: str = ''
+    scene: tuple = ()
 
     def __post_init__(self):
         names = tuple(str(name) for name in self.joint_names)
@@ -79,11 +103,15 @@ class JointSequence:
             raise SequenceError(
                 f'{where}: frame {row}: time {times[row]!r} is not after {times[row - 1]!r}; '
                 'times must strictly increase')
+        event_times = [event.time for event in self.scene]
+        if not all(math.isfinite(t) for t in event_times) or event_times != sorted(event_times):
+            raise SequenceError(f'{where}: scene event times must be finite and in order')
         times.setflags(write=False)
         positions.setflags(write=False)
         object.__setattr__(self, 'joint_names', names)
         object.__setattr__(self, 'times', times)
         object.__setattr__(self, 'positions', positions)
+        object.__setattr__(self, 'scene', tuple(self.scene))
 
     def __len__(self) -> int:
         return len(self.times)
@@ -105,7 +133,21 @@ class JointSequence:
                 f'it has {list(self.joint_names)}')
         columns = [self.joint_names.index(name) for name in joint_names]
         return JointSequence(tuple(joint_names), self.times, self.positions[:, columns],
-                             self.source)
+                             self.source, self.scene)
+
+    def scene_before(self) -> list:
+        """Return, for each frame i, the scene events to apply before it: those with a time
+        up to ``times[i]`` not yet applied; the events after the last frame go with it.
+
+        :return: n lists of :class:`SceneEvent`.
+        """
+        out, k = [], 0
+        for i, t in enumerate(self.times.tolist()):
+            start = k
+            while k < len(self.scene) and (self.scene[k].time <= t or i == len(self) - 1):
+                k += 1
+            out.append(list(self.scene[start:k]))
+        return out
 
     def __eq__(self, other):
         if not isinstance(other, JointSequence):
@@ -131,12 +173,14 @@ def _format_from_path(path: str) -> str:
 
 
 def read_sequence(path, topic: str = DEFAULT_TOPIC,
-                  joint_names: Optional[Sequence[str]] = None) -> JointSequence:
+                  joint_names: Optional[Sequence[str]] = None,
+                  scene_topic: str = SCENE_TOPIC) -> JointSequence:
     """Read a sequence from a CSV file or a rosbag2 bag (see the module docstring).
 
     :param path: a ``.csv`` file, a bag directory holding ``metadata.yaml``, or a bare
         ``.mcap`` / ``.db3`` file.
     :param topic: the JointState topic in a bag (ignored for CSV).
+    :param scene_topic: the MarkerArray topic of scene changes in a bag (none if absent).
     :param joint_names: the joints expected, in the order wanted for the columns. For CSV the
         columns must be exactly these; for a bag every one must appear (others are ignored).
         ``None`` takes the file's own joints in the order they first appear.
@@ -149,14 +193,14 @@ def read_sequence(path, topic: str = DEFAULT_TOPIC,
             raise SequenceError(
                 f'{path}: a directory without metadata.yaml is not a rosbag2 bag; give a bag '
                 'directory, a .mcap/.db3 file or a .csv file')
-        return _read_bag(path, topic, joint_names)
+        return _read_bag(path, topic, joint_names, scene_topic)
     if not os.path.exists(path):
         raise SequenceError(f'{path}: no such file; check the path')
     suffix = Path(path).suffix.lower()
     if suffix == '.csv':
         return _read_csv(path, joint_names)
     if suffix in ('.mcap', '.db3'):
-        return _read_bag(path, topic, joint_names)
+        return _read_bag(path, topic, joint_names, scene_topic)
     raise SequenceError(
         f'{path}: unknown sequence format "{suffix}"; use a .csv file, a rosbag2 bag '
         'directory, or a .mcap/.db3 file')
@@ -167,7 +211,8 @@ def write_sequence(seq: JointSequence, path, fmt: Optional[str] = None,
     """Write a sequence as CSV or as a rosbag2 bag of JointState messages.
 
     ``fmt`` defaults from the extension: ``.csv`` -> csv, ``.mcap`` -> mcap, ``.db3`` ->
-    sqlite3, no extension -> mcap. A path ending in ``.mcap`` or ``.db3`` receives a bare
+    sqlite3, no extension -> mcap. Scene events go to a bag's :data:`SCENE_TOPIC`, each
+    logged at its time. A path ending in ``.mcap`` or ``.db3`` receives a bare
     storage file (readable without ``metadata.yaml``); any other path for a bag receives a
     rosbag2 directory (``metadata.yaml`` and ``<name>.mcap`` or ``<name>.db3``).
 
@@ -181,6 +226,9 @@ def write_sequence(seq: JointSequence, path, fmt: Optional[str] = None,
     fmt = fmt or _format_from_path(path)
     if fmt not in FORMATS:
         raise SequenceError(f'{path}: unknown format "{fmt}"; use one of {list(FORMATS)}')
+    if fmt == 'csv' and seq.scene:
+        raise SequenceError(f'{path}: a CSV file holds no scene changes; write a bag (.mcap) '
+                            f'to keep the {len(seq.scene)} scene events')
     try:
         if fmt == 'csv':
             _write_csv(seq, path)
@@ -318,6 +366,15 @@ def _write_bag(seq: JointSequence, path: str, fmt: str, topic: str) -> None:
                     velocity=empty, effort=empty)
                 writer.write(connection, stamp_ns,
                              typestore.serialize_cdr(message, JOINT_STATE_TYPE))
+            if seq.scene:
+                scene = writer.add_connection(SCENE_TOPIC, MARKER_ARRAY_TYPE,
+                                              typestore=typestore)
+                for event in seq.scene:
+                    stamp_ns = int(round(event.time * _NS_PER_S))
+                    array = typestore.types[MARKER_ARRAY_TYPE](markers=[
+                        _bag_marker(typestore, marker, stamp_ns) for marker in event.markers])
+                    writer.write(scene, stamp_ns,
+                                 typestore.serialize_cdr(array, MARKER_ARRAY_TYPE))
         finally:
             writer.close()
         if bare_file:
@@ -330,7 +387,44 @@ def _write_bag(seq: JointSequence, path: str, fmt: str, topic: str) -> None:
             shutil.rmtree(scratch, ignore_errors=True)
 
 
-def _read_bag(path: str, topic: str, joint_names: Optional[Sequence[str]]) -> JointSequence:
+def _bag_marker(typestore, marker, stamp_ns: int):
+    """A rosbags visualization_msgs/Marker from ``marker``'s fields, stamped ``stamp_ns``."""
+    t = typestore.types
+    vector = t['geometry_msgs/msg/Vector3']
+    point = t['geometry_msgs/msg/Point']
+    pose = marker.pose
+    sec, nanosec = divmod(stamp_ns, _NS_PER_S)
+    return t['visualization_msgs/msg/Marker'](
+        header=t['std_msgs/msg/Header'](
+            stamp=t['builtin_interfaces/msg/Time'](sec=sec, nanosec=nanosec),
+            frame_id=marker.header.frame_id),
+        ns=marker.ns, id=int(marker.id), type=int(marker.type), action=int(marker.action),
+        pose=t['geometry_msgs/msg/Pose'](
+            position=point(x=float(pose.position.x), y=float(pose.position.y),
+                           z=float(pose.position.z)),
+            orientation=t['geometry_msgs/msg/Quaternion'](
+                x=float(pose.orientation.x), y=float(pose.orientation.y),
+                z=float(pose.orientation.z), w=float(pose.orientation.w))),
+        scale=vector(x=float(marker.scale.x), y=float(marker.scale.y),
+                     z=float(marker.scale.z)),
+        color=t['std_msgs/msg/ColorRGBA'](r=0.6, g=0.6, b=0.65, a=1.0),
+        lifetime=t['builtin_interfaces/msg/Duration'](sec=0, nanosec=0), frame_locked=False,
+        points=[point(x=float(p.x), y=float(p.y), z=float(p.z))
+                for p in getattr(marker, 'points', ())],
+        colors=[], texture_resource='',
+        texture=t['sensor_msgs/msg/CompressedImage'](
+            header=t['std_msgs/msg/Header'](
+                stamp=t['builtin_interfaces/msg/Time'](sec=0, nanosec=0), frame_id=''),
+            format='', data=np.zeros(0, dtype=np.uint8)),
+        uv_coordinates=[], text=getattr(marker, 'text', ''),
+        mesh_resource=getattr(marker, 'mesh_resource', ''),
+        mesh_file=t['visualization_msgs/msg/MeshFile'](filename='',
+                                                        data=np.zeros(0, dtype=np.uint8)),
+        mesh_use_embedded_materials=False)
+
+
+def _read_bag(path: str, topic: str, joint_names: Optional[Sequence[str]],
+              scene_topic: str = SCENE_TOPIC) -> JointSequence:
     from rosbags.rosbag2 import Reader
 
     typestore = _typestore()
@@ -352,6 +446,7 @@ def _read_bag(path: str, topic: str, joint_names: Optional[Sequence[str]]) -> Jo
                 stamp = msg.header.stamp.sec * _NS_PER_S + msg.header.stamp.nanosec
                 messages.append((index, stamp or log_time, list(msg.name),
                                  np.asarray(msg.position, dtype=np.float64)))
+            scene = _read_scene(path, reader, typestore, scene_topic)
     except SequenceError:
         raise
     except Exception as err:  # rosbags raises several families for broken bags
@@ -359,7 +454,27 @@ def _read_bag(path: str, topic: str, joint_names: Optional[Sequence[str]]) -> Jo
                             '(mcap or sqlite3) and not truncated') from None
     if not messages:
         raise SequenceError(f'{path}: topic "{topic}" has no messages; record some first')
-    return _merge_joint_states(path, topic, messages, joint_names)
+    seq = _merge_joint_states(path, topic, messages, joint_names)
+    return JointSequence(seq.joint_names, seq.times, seq.positions, seq.source, scene)
+
+
+def _read_scene(path, reader, typestore, scene_topic) -> tuple:
+    """The bag's scene arrays as :class:`SceneEvent`, in time order (see the module doc)."""
+    connections = [c for c in reader.connections if c.topic == scene_topic]
+    wrong = [c.msgtype for c in connections if c.msgtype != MARKER_ARRAY_TYPE]
+    if wrong:
+        raise SequenceError(f'{path}: topic "{scene_topic}" has type {wrong[0]}, expected '
+                            f'{MARKER_ARRAY_TYPE}; pass another scene topic')
+    if not connections:
+        return ()       # (an empty list would make rosbags read every topic)
+    events = []
+    for _, log_time, raw in reader.messages(connections=connections):
+        markers = tuple(typestore.deserialize_cdr(raw, MARKER_ARRAY_TYPE).markers)
+        stamp = (markers[0].header.stamp.sec * _NS_PER_S + markers[0].header.stamp.nanosec
+                 if markers else 0)
+        events.append(SceneEvent((stamp or log_time) / _NS_PER_S, markers))
+    events.sort(key=lambda event: event.time)    # stable: equal times keep the bag's order
+    return tuple(events)
 
 
 def _merge_joint_states(path, topic, messages, joint_names) -> JointSequence:

@@ -25,6 +25,12 @@ matched to its frame by its header stamp.
 DDS stays on this machine and out of the way: ``FASTDDS_BUILTIN_TRANSPORTS=SHM`` and a random
 ``ROS_DOMAIN_ID`` (1-100) unless they are set (the Makefile sets 42). The node inherits both.
 
+``--dynamic`` plays the dynamic scene instead (``config/sequences/moving_part``, a bag of
+joint states and ``scene`` arrays, :func:`collision_sensor.demo_cell.moving_part`): each
+scene array is published on the node's ``scene`` topic before the frames it precedes and
+acknowledged by the node's verdict on it; a line says what it changed (an object appearing,
+attached to a link, dropped, removed; plain moves are counted, not printed).
+
 Exit status: 0 done, 1 the node failed (did not come up, died, gave no verdict), 2 bad
 arguments or sequence, 130 interrupted. ``--describe-panda`` keeps the first demo: the Panda's
 kinematic tree, collision elements and a few link poses (needs example-robot-data).
@@ -47,6 +53,7 @@ from collision_sensor.errors import CollisionSensorError
 
 PROG = 'collision_sensor_demo'
 DEFAULT_SEQUENCE = 'paper_experiment'
+DYNAMIC_SEQUENCE = 'moving_part'
 NAMESPACE = '/collision_sensor_demo'
 NODE_NAME = 'collision_sensor'          # the node's default name
 START_TIMEOUT = None    # s for the node to be ready; None: as long as the node process lives
@@ -181,10 +188,16 @@ class CheckTime:
 
 @dataclass
 class Verdicts:
-    """Verdicts and check times received by the listener, shared with the main thread."""
+    """Verdicts and check times received by the listener, shared with the main thread.
+
+    ``pairs`` holds the verdicts on frames (their header is the frame's, frame_id empty);
+    ``scene_verdicts`` counts those the node gives on applying a scene array (header frame_id:
+    the robot's root frame).
+    """
 
     status_name: str
     pairs: List[Tuple[int, Tuple[Pair, ...]]] = field(default_factory=list)
+    scene_verdicts: int = 0
     check_time: CheckTime = field(default_factory=CheckTime)
     condition: threading.Condition = field(default_factory=threading.Condition)
 
@@ -192,7 +205,10 @@ class Verdicts:
         stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         pairs = tuple(tuple(status.name.split(':', 1)) for status in msg.status)
         with self.condition:
-            self.pairs.append((stamp_ns, pairs))
+            if msg.header.frame_id:
+                self.scene_verdicts += 1
+            else:
+                self.pairs.append((stamp_ns, pairs))
             self.condition.notify_all()
 
     def on_diagnostics(self, msg) -> None:
@@ -206,6 +222,32 @@ class Verdicts:
         """Wait until ``predicate()`` holds (under the lock); False after ``timeout`` s."""
         with self.condition:
             return self.condition.wait_for(predicate, timeout)
+
+
+def scene_lines(t: float, markers, shown: Dict[str, str]) -> List[str]:
+    """Return the lines for one scene array at time ``t`` (s): what it changed, one per object
+    that appears, is attached, dropped or removed. ``shown`` maps each object to its last
+    state printed (updated); plain moves print nothing."""
+    lines = []
+    for marker in markers:
+        name = marker.ns if marker.id == 0 else f'{marker.ns}/{marker.id}'
+        if marker.action == 3:      # DELETEALL
+            state, name = 'removed with everything from the topic', '*'
+            shown.clear()
+        elif marker.action == 2:
+            state = 'removed'
+            shown.pop(name, None)
+        else:
+            frame = marker.header.frame_id
+            touch = f', may touch {marker.text}' if frame and marker.text else ''
+            state = (f'attached to {frame}{touch}' if frame
+                     else 'dropped in the world' if shown.get(name, '').startswith('attached')
+                     else 'in the world')
+            if shown.get(name) == state:
+                continue
+            shown[name] = state
+        lines.append(f'  {t:7.3f} s  scene    {name}: {state}')
+    return lines
 
 
 def pairs_text(pairs: Sequence[Pair]) -> str:
@@ -376,9 +418,21 @@ def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast
         offsets = frame_offsets(seq.times, rate)
         start = time.monotonic()
         previous: Tuple[Pair, ...] = ()
+        shown: Dict[str, str] = {}
         for index in range(n):
             if not fast:
                 player.sleep_until(start + offsets[index])
+            for event in player.scene_events_before(index):
+                answered = verdicts.scene_verdicts
+                player.publish_scene(event)
+                for line in scene_lines(event.time - t0, event.markers, shown):
+                    say(line)
+                # The node answers a scene change once it has a joint state to answer.
+                if index and not verdicts.wait(lambda: verdicts.scene_verdicts > answered,
+                                               verdict_timeout):
+                    raise DemoError(f'collision_sensor_node gave no verdict on the scene '
+                                    f'array at {event.time - t0:.3f} s within '
+                                    f'{verdict_timeout:g} s')
             player.publish_frame(index)
             if not verdicts.wait(lambda: len(verdicts.pairs) > index, verdict_timeout):
                 status = node.exited()
@@ -402,6 +456,9 @@ def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast
         for line in summary_lines(seq, [pairs for _, pairs in verdicts.pairs[:n]], played,
                                   verdicts.check_time):
             say(line)
+        if seq.scene:
+            say(f'  scene arrays:        {len(seq.scene)} published, {verdicts.scene_verdicts} '
+                'answered by a verdict at once')
         return 0
     finally:
         if player is not None:
@@ -427,9 +484,14 @@ def build_parser() -> argparse.ArgumentParser:
                     'sequence into it and print the contacts it reports.',
         epilog='DDS: FASTDDS_BUILTIN_TRANSPORTS=SHM and a random ROS_DOMAIN_ID unless set. '
                'Exit status: 0 done, 1 the node failed, 2 bad arguments, 130 interrupted.')
-    parser.add_argument('--sequence', default=DEFAULT_SEQUENCE, metavar='NAME|PATH',
-                        help='a bundled sequence (paper_experiment, into_drum_clear, random) '
-                             'or a CSV file or bag of the demo arm (default %(default)s)')
+    parser.add_argument('--sequence', default=None, metavar='NAME|PATH',
+                        help='a bundled sequence (paper_experiment, into_drum_clear, random, '
+                             'moving_part) or a CSV file or bag of the demo arm (default '
+                             f'{DEFAULT_SEQUENCE}, with --dynamic {DYNAMIC_SEQUENCE})')
+    parser.add_argument('--dynamic', action='store_true',
+                        help='the dynamic scene: a crate on a conveyor picked up, carried and '
+                             'dropped, a fixture in the way (objects on the node\'s scene '
+                             f'topic); plays {DYNAMIC_SEQUENCE}')
     timing = parser.add_mutually_exclusive_group()
     timing.add_argument('--rate', type=float, metavar='HZ',
                         help='publish at a fixed rate instead of the recorded timing')
@@ -466,7 +528,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     from collision_sensor.model.sequences import read_sequence
     from collision_sensor.tools.offline_check import bundled_sequence_path
     try:
-        seq = read_sequence(bundled_sequence_path(args.sequence))
+        name = args.sequence or (DYNAMIC_SEQUENCE if args.dynamic else DEFAULT_SEQUENCE)
+        seq = read_sequence(bundled_sequence_path(name))
     except CollisionSensorError as err:
         return _error(str(err), 2)
     if len(seq) == 0:

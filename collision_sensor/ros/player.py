@@ -25,6 +25,16 @@ recorded (default)
     do better). Best-effort subscriptions (``qos_profile_sensor_data``) never acknowledge and
     may lose any frame; the player warns when one is matched.
 
+Scene changes: a bag's ``scene`` arrays (:data:`~collision_sensor.model.sequences.SCENE_TOPIC`,
+``--scene-topic``) are published on the relative topic ``scene`` (reliable, transient local,
+as the node subscribes it), each just before the first frame at or after its time (the last
+ones with the last frame). Two topics keep no order between them, so with
+``--as-fast-as-possible`` the player keeps it by the node's answers on ``colliding_pairs``
+(relative, remap it with the node's) and its ``scene`` status on ``/diagnostics`` (that of the
+node in the player's namespace): before an array it waits for the verdicts on every frame
+published so far, after it for the node's verdict on the array, or before the first frame
+(nothing to answer with yet) for the status counting the array as applied or rejected.
+
 The sequence is read before ROS starts, so a bad file fails fast with one line
 ``collision_sensor_play: error: ...`` on stderr and exit status 2.
 """
@@ -36,18 +46,24 @@ from typing import List, Optional, Sequence
 import numpy as np
 import rclpy
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Point
 from sensor_msgs.msg import JointState
+from visualization_msgs.msg import Marker, MarkerArray
 
 from collision_sensor.errors import CollisionSensorError, SequenceError
-from collision_sensor.model.sequences import DEFAULT_TOPIC, JointSequence, read_sequence
+from collision_sensor.model.sequences import (
+    DEFAULT_TOPIC, SCENE_TOPIC, JointSequence, SceneEvent, read_sequence)
+from collision_sensor.ros.sensor_node import SCENE_QOS
 from collision_sensor.tools.progress import MODES, ProgressBar
 
 PROG = 'collision_sensor_play'
 TOPIC = 'joint_states'
+SCENE = 'scene'
 QUEUE_DEPTH = 1000
 ACK_TIMEOUT = 1.0        # s per wait; waiting goes on while subscribers are matched
 SLOW_WARNING = 5.0       # s without an acknowledgement before the player says so
@@ -56,6 +72,12 @@ _POLL = 0.05             # s between checks of the context while sleeping
 
 PLAYBACK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=QUEUE_DEPTH,
                           reliability=ReliabilityPolicy.RELIABLE)
+#: The node's verdicts, each one (the player counts them to keep scene arrays in order).
+VERDICT_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+DIAGNOSTICS_DEPTH = 100
+#: The scene status's counts that together count the arrays the node has handled.
+SCENE_COUNTS = ('scene_arrays_applied_total', 'scene_arrays_rejected_total',
+                'scene_arrays_dropped_total')
 
 
 def frame_offsets(times: np.ndarray, rate: Optional[float] = None) -> np.ndarray:
@@ -81,6 +103,29 @@ def loop_period(offsets: np.ndarray) -> float:
     return float(offsets[-1] + np.median(np.diff(offsets)))
 
 
+def marker_message(marker) -> Marker:
+    """Return an rclpy Marker with the fields the node reads taken from ``marker`` (a rosbags
+    message read from a bag, or any object with visualization_msgs/Marker's fields)."""
+    msg = Marker(ns=str(marker.ns), id=int(marker.id), type=int(marker.type),
+                 action=int(marker.action), text=str(getattr(marker, 'text', '')),
+                 mesh_resource=str(getattr(marker, 'mesh_resource', '')))
+    msg.header.frame_id = str(marker.header.frame_id)
+    position, orientation = marker.pose.position, marker.pose.orientation
+    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (
+        float(position.x), float(position.y), float(position.z))
+    msg.pose.orientation.x, msg.pose.orientation.y = float(orientation.x), float(orientation.y)
+    msg.pose.orientation.z, msg.pose.orientation.w = float(orientation.z), float(orientation.w)
+    msg.scale.x, msg.scale.y, msg.scale.z = (float(marker.scale.x), float(marker.scale.y),
+                                             float(marker.scale.z))
+    color = getattr(marker, 'color', None)
+    if color is not None:
+        msg.color.r, msg.color.g, msg.color.b, msg.color.a = (
+            float(color.r), float(color.g), float(color.b), float(color.a))
+    msg.points = [Point(x=float(p.x), y=float(p.y), z=float(p.z))
+                  for p in getattr(marker, 'points', ())]
+    return msg
+
+
 def _stamp_from_seconds(seconds: float):
     from builtin_interfaces.msg import Time
     nanoseconds = int(round(seconds * 1e9))
@@ -98,13 +143,64 @@ class SequencePlayer:
         self.context = context if context is not None else rclpy.get_default_context()
         self.node = Node('sequence_player', context=self.context)
         self.publisher = self.node.create_publisher(JointState, TOPIC, PLAYBACK_QOS)
+        self.scene_publisher = (self.node.create_publisher(MarkerArray, SCENE, SCENE_QOS)
+                                if seq.scene else None)
+        # The node's verdicts on frames (header frame_id empty) and on scene arrays (its root
+        # frame), counted while scene arrays are played as fast as possible.
+        self.frame_verdicts = self.scene_verdicts = 0
+        #: Arrays the node has applied or rejected, from its scene status (None: none seen).
+        self.scene_handled: Optional[int] = None
+        self._executor = None
+        if seq.scene:
+            self.node.create_subscription(DiagnosticArray, 'colliding_pairs', self._on_verdict,
+                                          VERDICT_QOS)
+            self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
+                                          DIAGNOSTICS_DEPTH)
+            self._executor = SingleThreadedExecutor(context=self.context)
+            self._executor.add_node(self.node)
         self.stamp = stamp
         self.published = 0
         self._names = list(seq.joint_names)
+        self._scene_before = seq.scene_before()
 
     def destroy(self) -> None:
-        """Destroy the node (and its publisher)."""
+        """Destroy the node (and its publishers)."""
+        if self._executor is not None:
+            self._executor.shutdown()
         self.node.destroy_node()
+
+    def _on_verdict(self, msg: DiagnosticArray) -> None:
+        if msg.header.frame_id:
+            self.scene_verdicts += 1
+        else:
+            self.frame_verdicts += 1
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        namespace = self.node.get_namespace().strip('/')
+        for status in msg.status:
+            node, _, kind = status.name.rpartition(': ')
+            if kind != 'scene' or node.rpartition('/')[0] != namespace:
+                continue
+            values = {item.key: item.value for item in status.values}
+            try:
+                handled = sum(int(values[key]) for key in SCENE_COUNTS)
+            except (KeyError, ValueError):
+                continue
+            self.scene_handled = max(handled, self.scene_handled or 0)
+
+    def wait_for_verdicts(self, condition) -> None:
+        """Spin the player's node until ``condition()`` holds (the node's verdicts counted)."""
+        waited, warned = 0.0, False
+        while not condition():
+            self._ok()
+            self._executor.spin_once(timeout_sec=_POLL)
+            waited += _POLL
+            if waited >= SLOW_WARNING and not warned:
+                self.node.get_logger().warning(
+                    f'no verdict on colliding_pairs for {waited:.0f} s: is the node running, '
+                    'and its colliding_pairs remapped as the player\'s (the node in the '
+                    'player\'s namespace)?')
+                warned = True
 
     def _ok(self) -> None:
         if not self.context.ok():
@@ -140,6 +236,32 @@ class SequencePlayer:
                     f'subscriber "{info.node_namespace.rstrip("/")}/{info.node_name}" is '
                     'best-effort: it may miss frames; subscribe with reliable QoS')
 
+    def publish_scene(self, event: SceneEvent) -> None:
+        """Publish one recorded scene array on ``scene``."""
+        self.scene_publisher.publish(MarkerArray(
+            markers=[marker_message(marker) for marker in event.markers]))
+
+    def play_scene_event(self, event: SceneEvent, fast: bool) -> None:
+        """Publish a scene array; as fast as possible, in order with the frames (module doc)."""
+        if not fast:
+            self.publish_scene(event)
+            return
+        if self.published:
+            self.wait_for_verdicts(lambda: self.frame_verdicts >= self.published)
+            answered = self.scene_verdicts
+            self.publish_scene(event)
+            self.wait_for_verdicts(lambda: self.scene_verdicts > answered)
+            return
+        # Before the first frame: the node's periodic status gives the count to wait beyond.
+        self.wait_for_verdicts(lambda: self.scene_handled is not None)
+        handled = self.scene_handled
+        self.publish_scene(event)
+        self.wait_for_verdicts(lambda: self.scene_handled > handled)
+
+    def scene_events_before(self, index: int) -> list:
+        """The scene events due before frame ``index`` (see JointSequence.scene_before)."""
+        return self._scene_before[index]
+
     def publish_frame(self, index: int) -> None:
         """Publish frame ``index`` of the sequence."""
         msg = JointState()
@@ -152,11 +274,13 @@ class SequencePlayer:
         self.publisher.publish(msg)
         self.published += 1
 
-    def wait_for_acknowledgement(self) -> None:
-        """Block until every matched reliable subscription acknowledged all frames so far."""
+    def wait_for_acknowledgement(self, publisher=None) -> None:
+        """Block until every matched reliable subscription acknowledged all frames so far (or
+        all messages of ``publisher``)."""
         waited = 0.0
         warned = False
-        while not self.publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT)):
+        publisher = publisher or self.publisher
+        while not publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT)):
             self._ok()
             waited += ACK_TIMEOUT
             if waited >= SLOW_WARNING and not warned:
@@ -184,6 +308,8 @@ class SequencePlayer:
                         self._ok()
                     else:
                         self.sleep_until(start + offsets[index])
+                    for event in self.scene_events_before(index):
+                        self.play_scene_event(event, fast)
                     self.publish_frame(index)
                     if fast:
                         self.wait_for_acknowledgement()
@@ -225,6 +351,9 @@ def build_parser() -> argparse.ArgumentParser:
                              'exactly these; the message lists them in this order')
     parser.add_argument('--bag-topic', default=DEFAULT_TOPIC,
                         help='JointState topic to read from a bag (default %(default)s)')
+    parser.add_argument('--scene-topic', default=SCENE_TOPIC,
+                        help='MarkerArray topic of scene changes to read from a bag, '
+                             'published on "scene" (default %(default)s)')
     parser.add_argument('--progress', choices=MODES, default='auto',
                         help='progress bar on stderr: auto (on a terminal), always, never')
     return parser
@@ -258,7 +387,8 @@ def main(argv: Optional[Sequence[str]] = None, context=None) -> int:
         if not joints:
             return _error('--joints: give joint names separated by commas')
     try:
-        seq = read_sequence(args.sequence, topic=args.bag_topic, joint_names=joints)
+        seq = read_sequence(args.sequence, topic=args.bag_topic, joint_names=joints,
+                            scene_topic=args.scene_topic)
     except SequenceError as err:
         return _error(str(err))
     subscribers = args.wait_for_subscribers

@@ -64,11 +64,16 @@ Only rclpy's public API is used.
 Scene: every array on ``scene`` changes the scene all or nothing
 (:mod:`collision_sensor.engine.scene_markers` has the rules; README, "Dynamic scene"). Arrays are
 applied in arrival order on a thread of their own: files are read and trees built there,
-without the lock, so joint states keep getting verdicts meanwhile; only the swap takes the
-lock. Every applied array gives a verdict at once (its header: the time of the change and the
-root frame), besides those of the joint states. A rejected array changes nothing and is named,
-with the fix, in one log line and in the ``scene`` status on ``/diagnostics``. A new robot from
-``robot_description`` gets the objects that came through the topic again.
+without the lock, so joint states keep getting verdicts meanwhile (with the scene as it was);
+only the swap takes the lock. The order of arrays and joint states is the order the node
+applies and checks them, not the order of publishing (two topics): a replay that must keep a
+recorded order waits for each answer (``collision_sensor_play --as-fast-as-possible`` does).
+Every array is answered at once: by the ``scene`` status on ``/diagnostics`` (its counts of
+arrays applied and rejected), and, once a joint state completes the state, by a verdict (its
+header: the time and the root frame) besides those of the joint states. A rejected array
+changes nothing (its verdict is the scene as it was) and is named, with the fix, in one log
+line and in that status. A new robot from ``robot_description`` gets the objects that came
+through the topic again.
 
 Input QoS: ``joint_states_qos: sensor_data`` (best effort, keep last 5, rclpy's
 ``qos_profile_sensor_data``) for drivers that publish best effort: under overload the
@@ -501,6 +506,15 @@ class CollisionSensorNode(Node):
         # executor take joint states while the diagnostics timer or a model install runs.
         # Middleware-reported losses are counted, and a publisher that can never be heard is
         # named.
+        # The scene topic, once there is a model to apply it to; arrays published before
+        # arrive now (transient local).
+        self._scene_topic = SceneTopic(settings.scene_limits, settings.package_paths or None)
+        self._scene_worker = _NewestFirstWorker(self._on_scene_arrays, 'scene applier', None)
+        self.create_subscription(
+            MarkerArray, 'scene', self._on_scene, SCENE_QOS,
+            callback_group=MutuallyExclusiveCallbackGroup(),
+            event_callbacks=SubscriptionEventCallbacks(
+                incompatible_qos=self._on_incompatible_scene_qos, use_default_callbacks=False))
         self._worker = _NewestFirstWorker(
             self._on_joint_states, 'joint_states checker',
             None if settings.overload_policy == 'every' else MAX_BACKLOG)
@@ -511,15 +525,6 @@ class CollisionSensorNode(Node):
             event_callbacks=SubscriptionEventCallbacks(
                 message_lost=self._on_message_lost, incompatible_qos=self._on_incompatible_qos,
                 use_default_callbacks=False))
-        # The scene topic, once there is a model to apply it to; arrays published before
-        # arrive now (transient local).
-        self._scene_topic = SceneTopic(settings.scene_limits, settings.package_paths or None)
-        self._scene_worker = _NewestFirstWorker(self._on_scene_arrays, 'scene applier', None)
-        self.create_subscription(
-            MarkerArray, 'scene', self._on_scene, SCENE_QOS,
-            callback_group=MutuallyExclusiveCallbackGroup(),
-            event_callbacks=SubscriptionEventCallbacks(
-                incompatible_qos=self._on_incompatible_scene_qos, use_default_callbacks=False))
         self.ready = True
         self.get_logger().info(
             f'ready: checking {joint_states.topic_name} ({settings.joint_states_qos}) for '
@@ -937,11 +942,19 @@ class CollisionSensorNode(Node):
             return
 
     def _scene_applied(self, text: str, notes: list) -> None:
-        """Count an applied change and answer it at once (call with the lock held)."""
+        """Count an applied change, answer it and publish the scene status at once (call with
+        the lock held)."""
         self._totals['scene_applied'] += 1
         self._scene_rejection = ''
         self._scene_changed = True
-        notes.append(('info', None, printable(text, 500)))
+        notes.append(('info', 'scene_applied', printable(text, 500)))   # at most 1 a second
+        self._answer_scene(notes)
+        self._diagnostics_pub.publish(DiagnosticArray(
+            header=Header(stamp=self.get_clock().now().to_msg()), status=[self.scene_status()]))
+
+    def _answer_scene(self, notes: list) -> None:
+        """Publish the verdict at the current joint state, its header the time and the root
+        frame (call with the lock held); nothing before a joint state completes the state."""
         merger = self._merger
         if merger is None or self._last_accepted is None or (
                 self._settings.require_all_joints and not merger.complete):
@@ -964,6 +977,7 @@ class CollisionSensorNode(Node):
             self._totals['scene_rejected'] += 1
             self._scene_rejection = text
             status = self.scene_status()
+            self._answer_scene(notes)    # the scene as it was: every array is answered
         notes.append(('error', None, f'scene array rejected, scene unchanged: {text}'))
         self._diagnostics_pub.publish(DiagnosticArray(
             header=Header(stamp=self.get_clock().now().to_msg()), status=[status]))

@@ -15,7 +15,9 @@ rewrites, under DIR (default: this source tree),
   mesh URIs) and its never-colliding adjacent pairs;
 - ``config/scara.urdf``: the SCARA, each link split into several ``<collision>`` elements;
 - ``config/demo_scene.yaml``: washer cabinet, drum, open door, floor;
-- ``config/sequences/*.csv`` and the bag ``config/sequences/paper_experiment/``.
+- ``config/sequences/*.csv`` and the bag ``config/sequences/paper_experiment/``;
+- the bag ``config/sequences/moving_part/``: the dynamic scene (:func:`moving_part`), joint
+  states and the node's ``scene`` arrays.
 
 The output is deterministic: the same bytes on every run (vertices are rounded to 1 um before
 the float32 STL encoding; CSV values to 1e-6).
@@ -622,6 +624,91 @@ def random_configurations(count: int = 300, seed: int = 1998, rate: float = 10.0
                          np.round(positions, SEQUENCE_DECIMALS) + 0.0, 'demo_cell')
 
 
+# --- the dynamic scene: a part on a conveyor, picked up, carried, dropped; a fixture --------
+
+CRATE_SIZE = 0.12
+CRATE_IN_TOOL = (0.20, 0.0, 0.0)   # the crate's centre in the tool frame, once picked up
+FIXTURE = (0.10, 1.2)              # diameter and length of the post that appears
+
+
+def _tool_pose(q) -> np.ndarray:
+    """(4, 4) pose of tool_link for the arm's joint values ``q`` (ARM_JOINTS, no rpy)."""
+    T = np.eye(4)
+    for (_, _, _, xyz, axis, _), value in zip(ARM_JOINTS, q):
+        step = np.eye(4)
+        step[:3, 3] = xyz
+        k = np.asarray(axis, dtype=float)
+        K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+        R = np.eye(4)
+        R[:3, :3] = np.eye(3) + math.sin(value) * K + (1.0 - math.cos(value)) * K @ K
+        T = T @ step @ R
+    return T
+
+
+def _scene_marker(ns, kind=1, action=0, frame='', T=None, scale=(1.0, 1.0, 1.0), text=''):
+    """A marker of the node's scene topic (visualization_msgs/Marker's fields; kind 1 CUBE,
+    3 CYLINDER; action 0 ADD, 3 DELETEALL)."""
+    from types import SimpleNamespace as Fields
+    T = np.eye(4) if T is None else T
+    w = math.sqrt(max(0.0, 1.0 + T[0, 0] + T[1, 1] + T[2, 2])) / 2.0
+    if w > 1e-6:
+        x, y, z = ((T[2, 1] - T[1, 2]) / (4 * w), (T[0, 2] - T[2, 0]) / (4 * w),
+                   (T[1, 0] - T[0, 1]) / (4 * w))
+    else:   # a half turn: about the axis of the largest diagonal entry
+        i = int(np.argmax(np.diag(T)[:3]))
+        x, y, z = [math.sqrt(max(0.0, (1.0 + T[i, i]) / 2.0)) if j == i else
+                   T[i, j] / (2.0 * math.sqrt(max(1e-300, (1.0 + T[i, i]) / 2.0)))
+                   for j in range(3)]
+    values = [round(float(v), SEQUENCE_DECIMALS) + 0.0 for v in (*T[:3, 3], x, y, z, w)]
+    return Fields(
+        header=Fields(frame_id=frame), ns=ns, id=0, type=kind, action=action,
+        pose=Fields(position=Fields(x=values[0], y=values[1], z=values[2]),
+                    orientation=Fields(x=values[3], y=values[4], z=values[5], w=values[6])),
+        scale=Fields(x=scale[0], y=scale[1], z=scale[2]), points=(), mesh_resource='',
+        text=text)
+
+
+def moving_part() -> JointSequence:
+    """The paper's dynamic scene: objects that move by command or by being attached.
+
+    A crate comes along a conveyor into the tool (contact with the world object), is picked
+    up (attached to tool_link, touching wrist_pitch_link: that contact is no longer checked,
+    while the crate in the hand touches the washer's top), carried aside and lowered, dropped
+    there (a world object again), and removed; a fixture appears in the arm's way home (contact)
+    and is moved away.
+    """
+    from collision_sensor.model.sequences import SceneEvent
+    crate = (CRATE_SIZE,) * 3
+    cabinet_x = WASHER_XYZ[0] - 0.05     # the crate's centre on the conveyor, at the washer
+
+    def place(xyz):
+        T = np.eye(4)
+        T[:3, 3] = xyz
+        return T
+
+    aside = (-1.4, 0.0, 0.0, 0.0, 0.0, 0.0)
+    lowered = (-1.4, 0.9, 0.4, 0.0, -0.3, 0.0)
+    seq = _path(HOME, [(2.4, [HOME]), (2.0, [aside]), (1.6, [lowered]), (0.2, [lowered]),
+                       (1.2, [aside]), (2.0, [HOME]), (0.6, [HOME])])
+    held = place(CRATE_IN_TOOL)
+    events = [SceneEvent(0.1 * k, (_scene_marker('crate', T=place(
+        (cabinet_x, 0.9 * (1.0 - k / 20.0), _tool_pose(HOME)[2, 3])), scale=crate),))
+        for k in range(21)]
+    events.append(SceneEvent(2.4, (_scene_marker('crate', frame='tool_link', T=held,
+                                                 scale=crate, text='wrist_pitch_link'),)))
+    drop = 2.4 + 2.0 + 1.6 + 0.2
+    events.append(SceneEvent(drop, (_scene_marker('crate', T=_tool_pose(lowered) @ held,
+                                                  scale=crate),)))
+    home_start = drop + 1.2
+    post = dict(kind=3, scale=(FIXTURE[0], FIXTURE[0], FIXTURE[1]))
+    events.append(SceneEvent(home_start, (_scene_marker(
+        'fixture', T=place((0.25, -0.25, FIXTURE[1] / 2)), **post),)))
+    events.append(SceneEvent(home_start + 1.4, (_scene_marker(
+        'fixture', T=place((0.25, -0.9, FIXTURE[1] / 2)), **post),)))
+    events.append(SceneEvent(float(seq.times[-1]) - 0.2, (_scene_marker('', action=3),)))
+    return JointSequence(seq.joint_names, seq.times, seq.positions, seq.source, tuple(events))
+
+
 def bundled_sequences() -> Dict[str, JointSequence]:
     """Return the bundled sequences by file stem."""
     return {'paper_experiment': paper_experiment(), 'into_drum_clear': into_drum_clear(),
@@ -672,11 +759,12 @@ def generate(output_dir: Optional[str] = None) -> list:
                          '# generated by "python -m collision_sensor.tools.demo_cell"; time in s, '
                          'joints in rad\n' + body)
         written.append(path)
-    bag = os.path.join(sequence_dir, 'paper_experiment')
-    if os.path.isdir(bag):
-        shutil.rmtree(bag)
-    write_sequence(paper_experiment(), bag, fmt='mcap')
-    written += [os.path.join(bag, name) for name in sorted(os.listdir(bag))]
+    for name, seq in (('paper_experiment', paper_experiment()), ('moving_part', moving_part())):
+        bag = os.path.join(sequence_dir, name)
+        if os.path.isdir(bag):
+            shutil.rmtree(bag)
+        write_sequence(seq, bag, fmt='mcap')
+        written += [os.path.join(bag, entry) for entry in sorted(os.listdir(bag))]
     return sorted(written)
 
 

@@ -7,6 +7,11 @@ order; ``--full`` uses ``checker.check`` instead. The robot defaults to the bund
     collision_sensor_check paper_experiment --plot contacts.png
     collision_sensor_check run.mcap --urdf my_robot.urdf --package-path my_robot=~/ws/src/my_robot
 
+A bag's scene changes (``visualization_msgs/MarkerArray`` on ``/scene``, ``--scene-topic``)
+are applied before the frames they precede, by the node's rules
+(:mod:`collision_sensor.scene_markers`): objects added, moved, attached and removed while the
+robot moves. A recorded array the node would reject stops the run with its reason (status 2).
+
 With ``--max-distance D`` (default 0.1 m; 0 turns it off) each frame also gets the smallest
 distance between the checked pairs nearer than D (``CollisionChecker.proximity``: <= 0 in
 collision), in the JSON lines, the summary and under the timeline of ``--plot``. Padding is a
@@ -29,8 +34,10 @@ from typing import Dict, List, Optional, Sequence, TextIO, Tuple
 import numpy as np
 
 from collision_sensor.errors import ConfigError
+from collision_sensor.engine.scene_markers import MarkerError, SceneTopic, apply_array
 from collision_sensor.model.mesh_loading import parse_package_paths
-from collision_sensor.model.sequences import DEFAULT_TOPIC, JointSequence, read_sequence
+from collision_sensor.model.sequences import (
+    DEFAULT_TOPIC, SCENE_TOPIC, JointSequence, read_sequence)
 from collision_sensor.model.xacro_expansion import parse_xacro_args
 from collision_sensor.tools.command_line import run_command
 from collision_sensor.tools.progress import MODES, ProgressBar
@@ -38,7 +45,7 @@ from collision_sensor.tools.progress import MODES, ProgressBar
 PROG = 'collision_sensor_check'
 DEFAULT_MAX_DISTANCE = 0.1
 EXIT_CLEAR, EXIT_COLLISION, EXIT_ERROR = 0, 1, 2
-BUNDLED_SEQUENCES = ('paper_experiment', 'into_drum_clear', 'random')
+BUNDLED_SEQUENCES = ('paper_experiment', 'into_drum_clear', 'random', 'moving_part')
 
 Pair = Tuple[str, str]
 
@@ -74,20 +81,34 @@ class PairSpan:
 
 def run_sequence(checker, seq: JointSequence, incremental: bool = True,
                  progress: Optional[ProgressBar] = None,
-                 max_distance: float = 0.0) -> List[FrameResult]:
-    """Check every frame of ``seq`` in order.
+                 max_distance: float = 0.0,
+                 scene: Optional[SceneTopic] = None) -> List[FrameResult]:
+    """Check every frame of ``seq`` in order, its scene events applied as they come.
 
     The first frame is checked once from scratch before timing starts, so the per-frame times
-    measure the steady state (not one-off compilation).
+    measure the steady state (not one-off compilation). The scene events due before a frame
+    (``seq.scene_before``) are applied to ``checker`` before it, outside the timed check, as
+    the node applies ``scene`` arrays (:func:`~collision_sensor.scene_markers.apply_array`).
     :param seq: columns in ``checker.joint_names`` order.
     :param max_distance: with a value > 0, each frame's nearest pair closer than this (m) is
         measured too (``checker.proximity``, outside the timed check).
+    :param scene: the topic state the events go through (default: a new one, default caps).
+    :raises MarkerError: a recorded array the node would reject (naming its time).
     """
     check = checker.update if incremental else checker.check
+    scene = scene if scene is not None else SceneTopic()
+    events = seq.scene_before()
     if len(seq):
         checker.check(seq.positions[0])
     results = []
     for index, (t, q) in enumerate(zip(seq.times.tolist(), seq.positions)):
+        for event in events[index]:
+            try:
+                apply_array(scene, checker, event.markers)
+            except MarkerError as error:
+                raise MarkerError(error.index, event.markers[error.index],
+                                  f'{error.reason} (in the scene array recorded at '
+                                  f'{event.time:.3f} s)') from None
         start = time.perf_counter()
         result = check(q)
         elapsed = time.perf_counter() - start
@@ -168,6 +189,9 @@ def summary(results: Sequence[FrameResult], seq: JointSequence, checker,
              f'frames in collision: {len(colliding)} of {n}'
              + (f' ({100.0 * len(colliding) / n:.1f} %)' if n else ''),
              f'time in collision:   {in_contact:.3f} s of {seq.duration:.3f} s']
+    if seq.scene:
+        lines.append(f'scene changes:       {len(seq.scene)} arrays replayed, '
+                     f'{len(checker.object_names)} objects at the end')
     spans = pair_spans(results)
     if spans:
         width = max(len(f'{a} -- {b}') for a, b in (s.pair for s in spans))
@@ -309,6 +333,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--config', metavar='YAML', help='YAML mapping of checker settings')
     parser.add_argument('--topic', default=DEFAULT_TOPIC,
                         help='JointState topic in a bag (default %(default)s)')
+    parser.add_argument('--scene-topic', default=SCENE_TOPIC,
+                        help='MarkerArray topic of scene changes in a bag, replayed as the '
+                             'node applies its scene topic (default %(default)s)')
     parser.add_argument('--json', metavar='FILE',
                         help='write one JSON line per frame: {"index", "time", '
                              '"in_collision", "pairs", "min_distance", "nearest_pair"} (the '
@@ -345,12 +372,13 @@ def _run(args) -> int:
                                          scene=scene, config=_load_config(args.config),
                                          xacro_args=parse_xacro_args(args.xacro_arg) or None)
     seq = read_sequence(bundled_sequence_path(args.sequence), topic=args.topic,
-                        joint_names=checker.joint_names)
+                        joint_names=checker.joint_names, scene_topic=args.scene_topic)
 
     label = os.path.basename(os.path.normpath(seq.source))
     with ProgressBar(len(seq), label=label, mode=args.progress) as progress:
         results = run_sequence(checker, seq, incremental=not args.full, progress=progress,
-                               max_distance=args.max_distance)
+                               max_distance=args.max_distance,
+                               scene=SceneTopic(package_paths=package_paths or None))
 
     to_stdout = args.json == '-'
     if args.json:

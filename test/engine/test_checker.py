@@ -5,7 +5,6 @@
 * brute force over all triangle pairs on small generated robots and scenes;
 * ``update`` against a from-scratch ``check`` along long random walks.
 """
-import textwrap
 
 import numpy as np
 import pytest
@@ -15,6 +14,7 @@ from collision_sensor.engine.sampling import random_configurations, sampling_bou
 from collision_sensor.engine.triangle_test import triangles_intersect
 from collision_sensor.model.mesh_loading import SOLID_BOX, SOLID_SPHERE
 from engine_oracles import FclOracle
+from small_robot import SMALL_ROBOT, SMALL_SCENE
 
 N_FCL_CONFIGURATIONS = 10_000
 
@@ -71,53 +71,6 @@ def test_every_box_test_and_expansion_rule_gives_the_same_answers(
 
 
 # ---------------------------------------------------------------- brute force, small robots
-
-SMALL_ROBOT = textwrap.dedent('''\
-    <robot name="small">
-      <link name="base">
-        <collision><geometry><box size="0.4 0.4 0.1"/></geometry></collision>
-      </link>
-      <link name="upper">
-        <collision><origin xyz="0 0 0.25"/>
-          <geometry><cylinder radius="0.05" length="0.5"/></geometry></collision>
-        <collision><origin xyz="0 0 0.5"/><geometry><sphere radius="0.08"/></geometry></collision>
-      </link>
-      <link name="lower">
-        <collision><origin xyz="0 0 0.2"/>
-          <geometry><box size="0.06 0.06 0.4"/></geometry></collision>
-      </link>
-      <link name="slider"/>
-      <link name="tool">
-        <collision><geometry><box size="0.1 0.02 0.15"/></geometry></collision>
-      </link>
-      <joint name="shoulder" type="revolute">
-        <parent link="base"/><child link="upper"/><origin xyz="0 0 0.05" rpy="0 0 0"/>
-        <axis xyz="0 1 0"/><limit lower="-2.5" upper="2.5" effort="1" velocity="1"/>
-      </joint>
-      <joint name="elbow" type="continuous">
-        <parent link="upper"/><child link="lower"/><origin xyz="0 0 0.5" rpy="0 0 0"/>
-        <axis xyz="0 1 0"/>
-      </joint>
-      <joint name="extend" type="prismatic">
-        <parent link="lower"/><child link="slider"/><origin xyz="0 0 0.4" rpy="0 0 0"/>
-        <axis xyz="0 0 1"/><limit lower="-0.3" upper="0.1" effort="1" velocity="1"/>
-      </joint>
-      <joint name="wrist" type="revolute">
-        <parent link="slider"/><child link="tool"/><origin xyz="0 0 0" rpy="0 0.3 0"/>
-        <axis xyz="1 0 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/>
-      </joint>
-    </robot>
-    ''')
-
-SMALL_SCENE = {'objects': [
-    {'name': 'pillar', 'cylinder': {'radius': 0.08, 'length': 1.2},
-     'pose': {'xyz': [0.45, 0.0, 0.6], 'rpy': [0.0, 0.0, 0.0]}},
-    {'name': 'shelf', 'box': {'size': [0.3, 0.6, 0.03]},
-     'pose': {'xyz': [-0.4, 0.1, 0.7], 'rpy': [0.2, 0.0, 0.4]}},
-    {'name': 'ball', 'sphere': {'radius': 0.12},
-     'pose': {'xyz': [0.0, 0.0, 1.25]}},
-]}
-
 
 def _any_triangle_pair_meets(A, B, chunk=200_000):
     """Return True iff some triangle of A (n, 3, 3) meets some triangle of B (m, 3, 3): all

@@ -12,9 +12,9 @@ from collision_sensor.engine.dynamic_scene import AddObject, MoveObject, RemoveO
 from collision_sensor.engine.dynamic_scene import SceneChangeError
 from collision_sensor.engine.scene_markers import (
     ADD, CUBE, CYLINDER, DELETE, DELETEALL, MESH_RESOURCE, SPHERE, TRIANGLE_LIST, MarkerError,
-    SceneLimits, SceneTopic, marker_error)
+    SceneLimits, SceneTopic, apply_array, marker_error)
 from collision_sensor.model.mesh_loading import SOLID_BOX, SOLID_CYLINDER, SOLID_SPHERE
-from test_checker import SMALL_ROBOT
+from small_robot import SMALL_ROBOT
 
 ROBOT_LINKS = ('base', 'upper', 'lower', 'slider', 'tool')
 
@@ -46,13 +46,7 @@ def checker(robot):
 
 
 def apply(topic, checker, markers):
-    update = topic.update(markers, checker)
-    try:
-        checker.apply_scene_changes(update.changes)
-    except SceneChangeError as error:
-        raise marker_error(error, update, markers) from None
-    topic.accept(update)
-    return update
+    return apply_array(topic, checker, markers)
 
 
 def test_shapes_names_and_poses(checker, tmp_path):
@@ -84,7 +78,7 @@ def test_shapes_names_and_poses(checker, tmp_path):
     assert np.abs(objects['ball'].vertices).max() == pytest.approx(1.0)   # radius 0.5, x 2
     np.testing.assert_allclose(objects['soup'].vertices[4], (1, 0, 3))
     assert len(objects['soup'].faces) == 2
-    assert update.summary.startswith('5 added, 0 moved, 0 removed')
+    assert update.summary.startswith('5 added or replaced, 0 moved, 0 removed')
 
 
 def test_add_with_the_same_shape_only_moves(checker):
