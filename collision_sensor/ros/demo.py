@@ -26,10 +26,11 @@ DDS stays on this machine and out of the way: ``FASTDDS_BUILTIN_TRANSPORTS=SHM``
 ``ROS_DOMAIN_ID`` (1-100) unless they are set (the Makefile sets 42). The node inherits both.
 
 ``--dynamic`` plays the dynamic scene instead (``config/sequences/moving_part``, a bag of
-joint states and ``scene`` arrays, :func:`collision_sensor.demo_cell.moving_part`): each
-scene array is published on the node's ``scene`` topic before the frames it precedes and
-acknowledged by the node's verdict on it; a line says what it changed (an object appearing,
-attached to a link, dropped, removed; plain moves are counted, not printed).
+joint states and ``scene`` arrays, :func:`collision_sensor.tools.demo_cell.moving_part`):
+each scene array is published on the node's ``scene`` topic before the frames it precedes, and
+the next frame waits for the node's answer to it (as ``collision_sensor_play`` keeps the order);
+a line says what it changed (an object appearing, attached to a link, dropped, removed; plain
+moves are counted, not printed).
 
 Exit status: 0 done, 1 the node failed (did not come up, died, gave no verdict), 2 bad
 arguments or sequence, 130 interrupted. ``--describe-panda`` keeps the first demo: the Panda's
@@ -423,16 +424,12 @@ def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast
             if not fast:
                 player.sleep_until(start + offsets[index])
             for event in player.scene_events_before(index):
-                answered = verdicts.scene_verdicts
-                player.publish_scene(event)
+                # In order with the frames: the node answers each array before the next frame.
+                if not player.play_scene_event(event, in_order=True, timeout=verdict_timeout):
+                    raise DemoError(f'collision_sensor_node did not answer the scene array at '
+                                    f'{event.time - t0:.3f} s within {verdict_timeout:g} s')
                 for line in scene_lines(event.time - t0, event.markers, shown):
                     say(line)
-                # The node answers a scene change once it has a joint state to answer.
-                if index and not verdicts.wait(lambda: verdicts.scene_verdicts > answered,
-                                               verdict_timeout):
-                    raise DemoError(f'collision_sensor_node gave no verdict on the scene '
-                                    f'array at {event.time - t0:.3f} s within '
-                                    f'{verdict_timeout:g} s')
             player.publish_frame(index)
             if not verdicts.wait(lambda: len(verdicts.pairs) > index, verdict_timeout):
                 status = node.exited()

@@ -188,11 +188,14 @@ class SequencePlayer:
                 continue
             self.scene_handled = max(handled, self.scene_handled or 0)
 
-    def wait_for_verdicts(self, condition) -> None:
-        """Spin the player's node until ``condition()`` holds (the node's verdicts counted)."""
+    def wait_for_verdicts(self, condition, timeout: Optional[float] = None) -> bool:
+        """Spin the player's node until ``condition()`` holds (the node's answers counted);
+        return False if ``timeout`` (s) passed first."""
         waited, warned = 0.0, False
         while not condition():
             self._ok()
+            if timeout is not None and waited >= timeout:
+                return False
             self._executor.spin_once(timeout_sec=_POLL)
             waited += _POLL
             if waited >= SLOW_WARNING and not warned:
@@ -201,6 +204,7 @@ class SequencePlayer:
                     'and its colliding_pairs remapped as the player\'s (the node in the '
                     'player\'s namespace)?')
                 warned = True
+        return True
 
     def _ok(self) -> None:
         if not self.context.ok():
@@ -241,22 +245,27 @@ class SequencePlayer:
         self.scene_publisher.publish(MarkerArray(
             markers=[marker_message(marker) for marker in event.markers]))
 
-    def play_scene_event(self, event: SceneEvent, fast: bool) -> None:
-        """Publish a scene array; as fast as possible, in order with the frames (module doc)."""
-        if not fast:
+    def play_scene_event(self, event: SceneEvent, in_order: bool,
+                         timeout: Optional[float] = None) -> bool:
+        """Publish a scene array; ``in_order``, wait for the node's answers that keep it in
+        order with the frames (module doc). Return False if one did not come within
+        ``timeout`` (s; each wait)."""
+        if not in_order:
             self.publish_scene(event)
-            return
+            return True
         if self.published:
-            self.wait_for_verdicts(lambda: self.frame_verdicts >= self.published)
+            if not self.wait_for_verdicts(lambda: self.frame_verdicts >= self.published,
+                                          timeout):
+                return False
             answered = self.scene_verdicts
             self.publish_scene(event)
-            self.wait_for_verdicts(lambda: self.scene_verdicts > answered)
-            return
+            return self.wait_for_verdicts(lambda: self.scene_verdicts > answered, timeout)
         # Before the first frame: the node's periodic status gives the count to wait beyond.
-        self.wait_for_verdicts(lambda: self.scene_handled is not None)
+        if not self.wait_for_verdicts(lambda: self.scene_handled is not None, timeout):
+            return False
         handled = self.scene_handled
         self.publish_scene(event)
-        self.wait_for_verdicts(lambda: self.scene_handled > handled)
+        return self.wait_for_verdicts(lambda: self.scene_handled > handled, timeout)
 
     def scene_events_before(self, index: int) -> list:
         """The scene events due before frame ``index`` (see JointSequence.scene_before)."""

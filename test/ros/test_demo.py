@@ -12,6 +12,7 @@ import time
 
 import pytest
 
+from collision_sensor.model.sequences import read_sequence
 from collision_sensor.ros import demo
 from collision_sensor.ros.console_scripts import console_script
 from collision_sensor.tools import offline_check
@@ -80,6 +81,33 @@ def test_a_clear_sequence_played_as_fast_as_possible(tmp_path, capsys):
     frames, _ = offline('into_drum_clear', tmp_path, capsys)
     assert f'frames in collision: 0 of {len(frames)}' in run.stdout
     assert 'pairs in contact:    none' in run.stdout and 'result: clear' in run.stdout
+
+
+def test_the_dynamic_scene_reports_the_contacts_of_the_offline_check(tmp_path, capsys):
+    """``make demo DEMO_ARGS=--dynamic``: objects come, are attached, dropped and removed
+    through the node's scene topic, in order with the frames."""
+    run = run_demo('--dynamic', '--as-fast-as-possible')
+    assert run.returncode == 0, run.stdout + run.stderr
+    out = run.stdout
+    frames, spans = offline('moving_part', tmp_path, capsys)
+    n, hits = len(frames), sum(f['in_collision'] for f in frames)
+    assert re.search(rf'frames in collision: {hits} of {n}\b', out), out
+    for span in spans:
+        name = f'{span.pair[0]} -- {span.pair[1]}'
+        assert re.search(rf'{re.escape(name)}\s+first\s+{span.first - frames[0]["time"]:.3f} s'
+                         rf'\s+last\s+{span.last - frames[0]["time"]:.3f} s\s+{span.frames} '
+                         'frames', out), name
+    assert {span.pair for span in spans} >= {('crate', 'tool_link'), ('crate', 'washer_cabinet')}
+    for line in ('crate: attached to tool_link, may touch wrist_pitch_link',
+                 'crate: dropped in the world', 'fixture: in the world',
+                 '*: removed with everything from the topic'):
+        assert line in out, line
+    # Every array after the first frame is answered by a verdict of its own.
+    seq = read_sequence(offline_check.bundled_sequence_path('moving_part'))
+    after_first = sum(len(events) for events in seq.scene_before()[1:])
+    assert 0 < after_first < len(seq.scene)
+    assert re.search(rf'scene arrays:\s+{len(seq.scene)} published, {after_first} answered by '
+                     'a verdict at once', out), out
 
 
 def test_a_node_that_does_not_come_up_in_time_is_a_clear_error():
