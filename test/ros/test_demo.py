@@ -147,9 +147,9 @@ class Matched:
 
 def test_a_slow_start_is_waited_for_with_progress_lines():
     said = []
-    seconds = demo.wait_until_ready(FakeNode(ready_after=0.6), Matched(), Matched(), None,
-                                    said.append, progress_period=0.2)
-    assert seconds >= 0.6 and len(said) >= 2
+    seconds = demo.wait_until_ready(FakeNode(ready_after=2.0), Matched(), Matched(), None,
+                                    said.append, progress_period=0.1)
+    assert seconds >= 2.0 and len(said) >= 2
     assert all(line.startswith('still waiting for collision_sensor_node to be ready')
                for line in said)
 

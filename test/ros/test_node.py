@@ -196,12 +196,23 @@ class Probe:
         return found[0]
 
 
-def logged(ros, capfd, text, timeout=3.0):
+def logged(ros, capfd, text, timeout=15.0):
     """Spin until the node has logged ``text`` (it logs after it published the verdict, once
-    its lock is released); return everything it logged meanwhile."""
-    seen = []
-    ros.spin_until(lambda: seen.append(capfd.readouterr().err) or text in ''.join(seen), timeout)
-    return ''.join(seen)
+    its lock is released); return everything captured on stderr since the last read.
+
+    Polling peeks at the capture file through a descriptor of its own: ``readouterr`` reads
+    and then truncates that file, so a line the node's thread writes in between would be lost.
+    """
+    seen = ['']
+
+    def peek():
+        with open('/proc/self/fd/2', 'rb') as stream:
+            seen[0] = stream.read().decode(errors='replace')
+        return text in seen[0]
+
+    ros.spin_until(peek, timeout)
+    capfd.readouterr()
+    return seen[0]
 
 
 def pairs_of(msg: DiagnosticArray):
@@ -569,10 +580,10 @@ def test_out_of_limit_joints_clamped_on_request(ros, panda, panda_urdf, panda_sr
     reference = panda.check(dict(poses['hit'], panda_joint4=-0.0698))
     assert probe.send(joint_state(dict(poses['hit'], panda_joint4=9.2e18))) == (
         reference.in_collision, tuple(reference.colliding_pairs))
-    text = 'clamped to them (joint_limit_policy clamp): panda_joint4'
-    assert text in logged(ros, capfd, text)
     _, values = probe.next_diagnostics(lambda v: v['clamped_total'] != '0')
     assert values['clamped_total'] == '1'
+    text = 'clamped to them (joint_limit_policy clamp): panda_joint4'
+    assert text in logged(ros, capfd, text)
 
 
 def test_out_of_limit_joints_accepted_on_request_are_checked_and_reported(
