@@ -174,3 +174,57 @@ def test_sequence_rejects_non_increasing_times_and_nan():
         JointSequence(('a',), np.array([0.0, 1.0]), np.array([[0.0], [np.nan]]))
     with pytest.raises(SequenceError, match='shape'):
         JointSequence(('a', 'b'), np.array([0.0, 1.0]), np.zeros((2, 1)))
+
+
+# --- scene changes in bags --------------------------------------------------------------------
+
+def _cube(ns, x, frame=''):
+    from types import SimpleNamespace as Fields
+    return Fields(header=Fields(frame_id=frame), ns=ns, id=0, type=1, action=0,
+                  pose=Fields(position=Fields(x=x, y=0.0, z=0.5),
+                              orientation=Fields(x=0.0, y=0.0, z=0.0, w=1.0)),
+                  scale=Fields(x=0.1, y=0.2, z=0.3), points=(), mesh_resource='', text='b c')
+
+
+@pytest.mark.parametrize('name', ['s.mcap', 's.db3'])
+def test_scene_events_round_trip_through_a_bag(tmp_path, seq, name):
+    from collision_sensor.model.sequences import SceneEvent
+    events = (SceneEvent(0.5, (_cube('crate', 0.25),)),
+              SceneEvent(0.7, (_cube('crate', 0.5, frame='tool'), _cube('post', -1.0))),
+              SceneEvent(2.0, (_cube('post', 1.0),)))     # after the last frame (1.28 s)
+    with_scene = JointSequence(seq.joint_names, seq.times, seq.positions, 'seeded', events)
+    write_sequence(with_scene, tmp_path / name)
+    back = read_sequence(tmp_path / name)
+    assert [event.time for event in back.scene] == [0.5, 0.7, 2.0]
+    markers = [m for event in back.scene for m in event.markers]
+    assert [(m.ns, m.header.frame_id, m.pose.position.x, m.text) for m in markers] == [
+        ('crate', '', 0.25, 'b c'), ('crate', 'tool', 0.5, 'b c'), ('post', '', -1.0, 'b c'),
+        ('post', '', 1.0, 'b c')]
+    assert (markers[0].scale.x, markers[0].scale.y, markers[0].scale.z) == (0.1, 0.2, 0.3)
+    # Each event goes before the first frame at or after its time; the late one with the last.
+    before = back.scene_before()
+    assert [len(events) for events in before] == [1] + [0] * 9 + [1] + [0] * 28 + [1]
+    assert back.select(['elbow']).scene == back.scene
+
+
+def test_a_csv_file_holds_no_scene_changes(tmp_path, seq):
+    from collision_sensor.model.sequences import SceneEvent
+    with_scene = JointSequence(seq.joint_names, seq.times, seq.positions, 'seeded',
+                               (SceneEvent(0.5, (_cube('crate', 0.0),)),))
+    with pytest.raises(SequenceError, match='a CSV file holds no scene changes; write a bag'):
+        write_sequence(with_scene, tmp_path / 's.csv')
+
+
+def test_scene_events_out_of_order_are_refused(seq):
+    from collision_sensor.model.sequences import SceneEvent
+    with pytest.raises(SequenceError, match='scene event times must be finite and in order'):
+        JointSequence(seq.joint_names, seq.times, seq.positions, 'seeded',
+                      (SceneEvent(1.0, ()), SceneEvent(0.5, ())))
+
+
+def test_a_scene_topic_of_another_type_is_named(tmp_path, seq):
+    write_sequence(seq, tmp_path / 's.mcap')
+    with pytest.raises(SequenceError, match='topic "/joint_states" has type '
+                                            'sensor_msgs/msg/JointState, expected '
+                                            'visualization_msgs/msg/MarkerArray'):
+        read_sequence(tmp_path / 's.mcap', scene_topic='/joint_states')

@@ -41,12 +41,23 @@ def offline(name, tmp_path, capsys):
     return frames, offline_check.pair_spans(results)
 
 
+def assert_summary_lists(out, frames, spans):
+    """The demo's summary has the offline check's frames in collision and pair spans."""
+    n, hits = len(frames), sum(f['in_collision'] for f in frames)
+    assert re.search(rf'frames in collision: {hits} of {n}\b', out), out
+    for span in spans:
+        name = f'{span.pair[0]} -- {span.pair[1]}'
+        assert re.search(rf'{re.escape(name)}\s+first\s+{span.first - frames[0]["time"]:.3f} s'
+                         rf'\s+last\s+{span.last - frames[0]["time"]:.3f} s\s+{span.frames} '
+                         'frames', out), name
+
+
 def test_make_demo_reports_the_contacts_of_the_offline_check(tmp_path, capsys):
     run = run_demo()    # what `make demo` runs: the paper's experiment at its recorded timing
     assert run.returncode == 0, run.stdout + run.stderr
     out = run.stdout
     frames, spans = offline('paper_experiment', tmp_path, capsys)
-    n, hits = len(frames), sum(f['in_collision'] for f in frames)
+    n = len(frames)
 
     assert 'robot loaded from urdf_path' in out    # the node's own log line, echoed
     # The node said it was ready (trees built, query run once) before the demo played.
@@ -65,12 +76,7 @@ def test_make_demo_reports_the_contacts_of_the_offline_check(tmp_path, capsys):
         assert entered[0] == pytest.approx(span.first - frames[0]['time'], abs=1e-3)
     # The summary.
     assert f'frames:              {n} played' in out and f'{n} verdicts' in out
-    assert re.search(rf'frames in collision: {hits} of {n}\b', out), out
-    for span in spans:
-        name = f'{span.pair[0]} -- {span.pair[1]}'
-        assert re.search(rf'{re.escape(name)}\s+first\s+{span.first - frames[0]["time"]:.3f} s'
-                         rf'\s+last\s+{span.last - frames[0]["time"]:.3f} s\s+{span.frames} '
-                         'frames', out), name
+    assert_summary_lists(out, frames, spans)
     assert re.search(r'node check time \(/diagnostics\): mean \d+\.\d+ ms', out), out
     assert 'result: COLLISION' in out
 
@@ -90,13 +96,7 @@ def test_the_dynamic_scene_reports_the_contacts_of_the_offline_check(tmp_path, c
     assert run.returncode == 0, run.stdout + run.stderr
     out = run.stdout
     frames, spans = offline('moving_part', tmp_path, capsys)
-    n, hits = len(frames), sum(f['in_collision'] for f in frames)
-    assert re.search(rf'frames in collision: {hits} of {n}\b', out), out
-    for span in spans:
-        name = f'{span.pair[0]} -- {span.pair[1]}'
-        assert re.search(rf'{re.escape(name)}\s+first\s+{span.first - frames[0]["time"]:.3f} s'
-                         rf'\s+last\s+{span.last - frames[0]["time"]:.3f} s\s+{span.frames} '
-                         'frames', out), name
+    assert_summary_lists(out, frames, spans)
     assert {span.pair for span in spans} >= {('crate', 'tool_link'), ('crate', 'washer_cabinet')}
     for line in ('crate: attached to tool_link, may touch wrist_pitch_link',
                  'crate: dropped in the world', 'fixture: in the world',
