@@ -38,9 +38,12 @@ void expect_shape(const char* name, const Array<T>& a, std::initializer_list<py:
     }
     if (!ok) {
         std::string want, got;
-        for (py::ssize_t d : dims) want += (want.empty() ? "" : ", ") + (d < 0 ? std::string("n") : std::to_string(d));
-        for (py::ssize_t i = 0; i < a.ndim(); ++i) got += (i ? ", " : "") + std::to_string(a.shape(i));
-        throw py::value_error(std::string(name) + ": expected shape (" + want + "), got (" + got + ")");
+        for (py::ssize_t d : dims)
+            want += (want.empty() ? "" : ", ") + (d < 0 ? std::string("n") : std::to_string(d));
+        for (py::ssize_t i = 0; i < a.ndim(); ++i)
+            got += (i ? ", " : "") + std::to_string(a.shape(i));
+        throw py::value_error(std::string(name) + ": expected shape (" + want + "), got (" + got +
+                              ")");
     }
 }
 

@@ -48,7 +48,8 @@ constexpr int AXIS_OF_BIT[8] = {0, 0, 1, 1, 2, 2, 2, 2};
 
 // True iff none of the inputs is NaN or infinite: x * 0 is NaN exactly for those. Called
 // only on the way to answering "separated", so the overlapping path pays nothing for it.
-CS_ALWAYS_INLINE bool finite(const double* ha, const double* hb, const double* R, const double* t) {
+CS_ALWAYS_INLINE bool finite(const double* ha, const double* hb, const double* R,
+                             const double* t) {
     double acc = 0.0;
     for (int k = 0; k < 3; ++k) {
         acc += ha[k] * 0.0 + hb[k] * 0.0 + t[k] * 0.0;
@@ -126,10 +127,10 @@ CS_ALWAYS_INLINE bool finite_scalars(double a0, double a1, double a2, double b0,
 // the edge-edge axis e_i x b_j. Takes the 18 numbers themselves (registers, in the traversal's
 // inner loop). The traversal keeps the axis of a node pair it pruned, and an incremental
 // re-check tries that axis alone first (traversal.hpp: axis_gap, the same arithmetic).
-CS_ALWAYS_INLINE int separating_axis(double a0, double a1, double a2, double b0, double b1, double b2,
-                           double r00, double r01, double r02, double r10, double r11,
-                           double r12, double r20, double r21, double r22, double t0, double t1,
-                           double t2) {
+CS_ALWAYS_INLINE int separating_axis(double a0, double a1, double a2, double b0, double b1,
+                                     double b2, double r00, double r01, double r02, double r10,
+                                     double r11, double r12, double r20, double r21, double r22,
+                                     double t0, double t1, double t2) {
     using box_detail::edge_axis_separates;
     using std::fabs;
     const double tol = BOX_EPS_REL * (a0 + a1 + a2 + b0 + b1 + b2);

@@ -44,7 +44,8 @@ Engine::Engine(double* F, int64_t f_size, int64_t* I, int64_t i_size) {
     Shape fs[N_FLOAT_SLOTS], is[N_INT_SLOTS];
     for (int k = 0; k < N_FLOAT_SLOTS; ++k) {
         const Layout l = layout_entry(I, H_LAYOUTS, k);
-        if (l.offset < 0 || l.size < 0 || l.offset + l.size > f_size || l.d0 * l.d1 * l.d2 != l.size)
+        if (l.offset < 0 || l.size < 0 || l.offset + l.size > f_size ||
+            l.d0 * l.d1 * l.d2 != l.size)
             throw std::invalid_argument(std::string("packed float array '") +
                                         FLOAT_SLOT_NAMES[k] + "' lies outside its buffer");
         fp[k] = F + l.offset;
@@ -52,7 +53,8 @@ Engine::Engine(double* F, int64_t f_size, int64_t* I, int64_t i_size) {
     }
     for (int k = 0; k < N_INT_SLOTS; ++k) {
         const Layout l = layout_entry(I, H_I_LAYOUT, k);
-        if (l.offset < 0 || l.size < 0 || l.offset + l.size > i_size || l.d0 * l.d1 * l.d2 != l.size)
+        if (l.offset < 0 || l.size < 0 || l.offset + l.size > i_size ||
+            l.d0 * l.d1 * l.d2 != l.size)
             throw std::invalid_argument(std::string("packed int array '") + INT_SLOT_NAMES[k] +
                                         "' lies outside its buffer");
         ip[k] = I + l.offset;
@@ -81,7 +83,8 @@ Engine::Engine(double* F, int64_t f_size, int64_t* I, int64_t i_size) {
     check_shape("tris", fs[tris], -1, 3, 3);
     check_shape("subtree_boxes", fs[subtree_boxes], L1, BOX_WIDTH, 1);
     check_shape("padding", fs[padding], n_bodies_, 1, 1);
-    check_shape("elem_solid", fs[elem_solid], std::max<int64_t>(is[roots].size, 1), SOLID_WIDTH, 1);
+    check_shape("elem_solid", fs[elem_solid], std::max<int64_t>(is[roots].size, 1), SOLID_WIDTH,
+                1);
     check_shape("clearance", fs[clearance], n_pairs_, 1, 1);
     check_shape("q_eval", fs[q_eval], n_pairs_, n_joints_, 1);
     check_shape("reach", fs[reach], n_pairs_, n_joints_, 1);
@@ -166,7 +169,8 @@ Engine::Engine(double* F, int64_t f_size, int64_t* I, int64_t i_size) {
         if (!(padding_[b] >= 0.0 && padding_[b] < INF))
             throw std::invalid_argument("packed array 'padding': not a finite value >= 0");
     for (int64_t i = 0; i < n_links_; ++i) {
-        if (kin_.parent[i] >= i || (i > 0 && kin_.parent[i] < 0) || (i == 0 && kin_.parent[0] >= 0))
+        const int64_t parent = kin_.parent[i];
+        if (parent >= i || (i > 0 && parent < 0) || (i == 0 && parent >= 0))
             throw std::invalid_argument("packed array 'parent': links are not parents first");
         if (kin_.joint_type[i] < JOINT_FIXED || kin_.joint_type[i] > JOINT_FLOATING)
             throw std::invalid_argument("packed array 'joint_type': unknown joint type");
@@ -257,10 +261,10 @@ void Engine::write_pair_pose(int64_t a, int64_t b, double* pose) const {
 double Engine::clearance_margin(int64_t a, int64_t b, const double* pose) const {
     const double* A = body_boxes_ + BOX_WIDTH * a;
     const double* B = body_boxes_ + BOX_WIDTH * b;
-    const double ca = std::sqrt(A[BOX_CENTER] * A[BOX_CENTER] + A[BOX_CENTER + 1] * A[BOX_CENTER + 1] +
-                                A[BOX_CENTER + 2] * A[BOX_CENTER + 2]);
-    const double cb = std::sqrt(B[BOX_CENTER] * B[BOX_CENTER] + B[BOX_CENTER + 1] * B[BOX_CENTER + 1] +
-                                B[BOX_CENTER + 2] * B[BOX_CENTER + 2]);
+    const double* ac = A + BOX_CENTER;
+    const double* bc = B + BOX_CENTER;
+    const double ca = std::sqrt(ac[0] * ac[0] + ac[1] * ac[1] + ac[2] * ac[2]);
+    const double cb = std::sqrt(bc[0] * bc[0] + bc[1] * bc[1] + bc[2] * bc[2]);
     const double t = std::sqrt(pose[9] * pose[9] + pose[10] * pose[10] + pose[11] * pose[11]);
     return CLEARANCE_EPS_REL * (t + ca + cb + A[BOX_RADIUS] + B[BOX_RADIUS]);
 }

@@ -233,7 +233,8 @@ inline AxisGap axis_gap(int64_t k, const double* A, const double* B, const doubl
 }
 
 // Triangle row ib (body b), taken to body a's frame by the pose.
-CS_ALWAYS_INLINE void triangle_in_a(const double* tris, int64_t ib, const double* pose, Triangle& Q) {
+CS_ALWAYS_INLINE void triangle_in_a(const double* tris, int64_t ib, const double* pose,
+                                    Triangle& Q) {
     const double* t = tris + 9 * ib;
     for (int k = 0; k < 3; ++k)
         for (int i = 0; i < 3; ++i)
@@ -297,7 +298,8 @@ inline LeafResult leaves_collide(const double* tris, int64_t first_a, int64_t co
 }
 
 // True iff box m's centre is nearer the point x than box n's (same body frame).
-CS_ALWAYS_INLINE bool closer(const Forest& f, int64_t m, int64_t n, double x0, double x1, double x2) {
+CS_ALWAYS_INLINE bool closer(const Forest& f, int64_t m, int64_t n, double x0, double x1,
+                             double x2) {
     const double* bm = f.box(m);
     const double* bn = f.box(n);
     const double a0 = bm[0] - x0, a1 = bm[1] - x1, a2 = bm[2] - x2;
