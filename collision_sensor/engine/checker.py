@@ -174,7 +174,7 @@ class CollisionChecker:
         self._rows: Dict[Pair, Tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._views: Optional[Dict[str, np.ndarray]] = None
         self._result = CheckResult(False, (), 0)
-        self._results: Dict[bytes, Tuple[Pair, ...]] = {}
+        self._results: Dict[bytes, CheckResult] = {}
         try:
             prepared = self.prepare_scene_changes([AddObject(obj) for obj in scene])
         except SceneChangeError as error:
@@ -997,12 +997,12 @@ class CollisionChecker:
         """Return the answer for the engine's ``code`` (``cpp/query.hpp``: Engine::query)."""
         if code > 0:
             if code & 1:
-                # The engine reports whether any status changed, so the pair names are
-                # gathered only then (and found again by the statuses' bytes).
-                hits = self._results.get(self._status.tobytes())
-                if hits is None:
-                    hits = self._pair_names_now()
-                result = self._result = CheckResult(bool(hits), hits, code >> 1)
+                # The engine reports whether any status changed, so the answer is looked up
+                # (by the statuses' bytes) or made only then.
+                result = self._results.get(self._status.tobytes())
+                if result is None or result.rechecked_pairs != code >> 1:
+                    result = self._result_from_status(code >> 1)
+                self._result = result
                 return result
             if code >> 1 != self._result.rechecked_pairs:
                 result = self._result
@@ -1163,20 +1163,20 @@ class CollisionChecker:
         records.sort(key=lambda r: (r.distance, r.link_a, r.link_b))
         return records
 
-    def _pair_names_now(self) -> Tuple[Pair, ...]:
-        """The colliding pairs' names for the current statuses (kept for reuse: the same pair
-        set comes back again and again, mostly none or one or two pairs)."""
+    def _result_from_status(self, rechecked: int) -> CheckResult:
+        """The answer for the current statuses. Answers are kept for reuse, by statuses: the
+        same pair set comes back again and again (mostly none, one or two pairs), and every
+        ``check`` re-checks the same number of pairs, so its answer object itself recurs."""
+        key = self._status.tobytes()
+        known = self._results.get(key)
+        if known is not None:
+            return CheckResult(known.in_collision, known.colliding_pairs, rechecked)
         names = self.checked_pairs
         hits = tuple([names[p] for p in np.flatnonzero(self._status)])
+        result = CheckResult(bool(hits), hits, rechecked)
         if len(self._results) < RESULT_CACHE_SIZE:
-            self._results[self._status.tobytes()] = hits
-        return hits
-
-    def _result_from_status(self, rechecked: int) -> CheckResult:
-        hits = self._results.get(self._status.tobytes())
-        if hits is None:
-            hits = self._pair_names_now()
-        return CheckResult(bool(hits), hits, rechecked)
+            self._results[key] = result
+        return result
 
     # ------------------------------------------------------------------ inspection
     @property
