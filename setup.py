@@ -2,8 +2,8 @@
 
 The engine is C++17 (``cpp/``), compiled here into one extension module,
 ``collision_sensor.engine._engine``, with pybind11: under ``pip install``, ``make`` and
-``colcon build`` alike. pybind11 because it builds from a plain setup.py (``Pybind11Extension``), which colcon's
-ament_python runs as it is; nanobind wants CMake.
+``colcon build`` alike. pybind11 because it builds from a plain setup.py
+(``Pybind11Extension``), which colcon's ament_python runs as it is; nanobind wants CMake.
 """
 import hashlib
 import os

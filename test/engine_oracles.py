@@ -112,7 +112,8 @@ class FclOracle:
     def _bvh(vertices, faces):
         model = fcl.BVHModel()
         model.beginModel(len(vertices), len(faces))
-        model.addSubModel(np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int32))
+        model.addSubModel(np.asarray(vertices, dtype=np.float64),
+                          np.asarray(faces, dtype=np.int32))
         model.endModel()
         return model
 

@@ -12,7 +12,8 @@ Arguments shared by every test here (coal's convention: ``[R, T] = [R1'R2, R1'(T
 
 Box A is centred at the origin of F_A and axis-aligned there. Each test returns True iff a
 separating plane exists with a clear gap, False when the closed boxes meet (touching counts as
-overlap). The tests are C++ (``cpp/box_test.hpp``); the functions here call them for one pair or many.
+overlap). The tests are C++ (``cpp/box_test.hpp``); the functions here call them for one pair
+or many.
 
 Tolerance rule (``tolerances.BOX_EPS_REL``, ``BOX_EPS_PARALLEL``), the same in both tests: with
 ``s = ha[0] + ha[1] + ha[2] + hb[0] + hb[1] + hb[2]`` and ``tol = BOX_EPS_REL * s``, the boxes

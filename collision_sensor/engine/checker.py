@@ -865,7 +865,8 @@ class CollisionChecker:
 
     def _scene_pairs(self, attached: Sequence[PlacedObject], world: Sequence[PlacedObject]):
         """Return the checked pairs (sorted), the exception list and ``{object: its pairs'
-        indices}`` for a scene of these objects (see :mod:`collision_sensor.engine.dynamic_scene`)."""
+        indices}`` for a scene of these objects (see
+        :mod:`collision_sensor.engine.dynamic_scene`)."""
         excluded = dict(self._base_exclusions)
         pairs = list(self._robot.pairs)
         for i, placed in enumerate(attached):

@@ -162,6 +162,7 @@ def _converted(config):
         elif key in ('leaf_size', 'primitive_sections'):
             minimum = 1 if key == 'leaf_size' else 3
             if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-                raise ConfigError(f'setting {key}: expected an integer >= {minimum}, got {value!r}')
+                raise ConfigError(f'setting {key}: expected an integer >= {minimum}, '
+                                  f'got {value!r}')
             out[key] = value
     return out

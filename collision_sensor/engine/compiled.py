@@ -42,7 +42,8 @@ def source_digest(paths) -> str:
 
 
 def load_engine():
-    """Import and return ``collision_sensor.engine._engine``; raise EngineBuildError with the fix."""
+    """Import and return ``collision_sensor.engine._engine``; raise EngineBuildError with the
+    fix."""
     try:
         from collision_sensor.engine import _engine
     except ImportError as error:

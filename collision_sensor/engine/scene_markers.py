@@ -408,7 +408,8 @@ def _points(index, marker, limits: SceneLimits) -> np.ndarray:
 
 def marker_error(error: SceneError, update: TopicUpdate, markers: Sequence) -> MarkerError:
     """The :class:`MarkerError` for ``error``, raised by the checker on change
-    ``error.index`` of ``update`` (a :class:`~collision_sensor.engine.dynamic_scene.SceneChangeError`)."""
+    ``error.index`` of ``update`` (a
+    :class:`~collision_sensor.engine.dynamic_scene.SceneChangeError`)."""
     index = update.sources[error.index]
     return MarkerError(index, markers[index], error.reason)
 

@@ -124,7 +124,8 @@ class RobotModel:
     ``links`` has the root first and every parent before its children; ``joints`` is in the
     order of their child link; ``elements`` is grouped by link in ``links`` order, then by index.
     ``joint_document_order`` names the joints in the order the URDF lists them (the order of the
-    configuration vector, see :mod:`collision_sensor.engine.kinematics`); empty means ``joints`` order.
+    configuration vector, see :mod:`collision_sensor.engine.kinematics`); empty means
+    ``joints`` order.
     ``held_joints`` is always empty: multi-DOF joints are driven now (kept for callers that
     read it); ``warnings`` what was tolerated, one readable line each.
     """
@@ -150,7 +151,8 @@ def load_urdf(urdf, package_paths=None, *, primitive_sections: int = 32,
         against the xacro file's directory.
     :param xacro_args: ``{name: value}`` for the xacro file's ``$(arg name)``.
     :param package_paths: mapping ``{package_name: directory}`` used first to resolve
-        ``package://`` mesh URIs (see :mod:`collision_sensor.model.mesh_loading` for the full order).
+        ``package://`` mesh URIs (see :mod:`collision_sensor.model.mesh_loading` for the full
+        order).
     :param primitive_sections: sections around cylinders and spheres when tessellating them.
     :return: the validated model.
     :raises RobotDescriptionError: unsafe or broken XML, or an invalid or unsupported tree.

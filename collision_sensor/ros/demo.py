@@ -6,9 +6,10 @@ With no arguments it
    its SRDF and the washer scene; ``joint_states_qos: reliable``), in the namespace
    ``/collision_sensor_demo``, and waits until it is ready: its ``ready:`` log line (the robot
    loaded, its trees built, the query run once) and its joint_states subscription matched.
-   However long that takes (a large robot's trees, a busy machine) the demo waits, saying so every :data:`PROGRESS_PERIOD` seconds, as long as the
-   node process lives; it fails, with the node's output above, only if the node exits, or
-   after ``--timeout`` seconds when one is given;
+   However long that takes (a large robot's trees, a busy machine) the demo waits, saying so
+   every :data:`PROGRESS_PERIOD` seconds, as long as the node process lives; it fails, with
+   the node's output above, only if the node exits, or after ``--timeout`` seconds when one is
+   given;
 2. plays the paper's experiment (``config/sequences/paper_experiment.csv``) into it with the
    player's :class:`~collision_sensor.ros.player.SequencePlayer`, at the recorded timing, header
    stamps set to the recorded times;

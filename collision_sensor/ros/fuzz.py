@@ -224,7 +224,8 @@ class NodeUnderTest:
             '-p', f'urdf_path:={robot.urdf}', '-p', f'srdf_path:={robot.srdf}',
             '-p', f'package_paths:=[{package_paths}]', '-p', 'joint_states_qos:=reliable',
             '-p', f'joint_limit_policy:={policy}', '-p', 'stale_timeout:=0.0',
-            '-p', 'overload_policy:=every', '-p', f'max_joint_state_bytes:={MAX_JOINT_STATE_BYTES}']
+            '-p', 'overload_policy:=every',
+            '-p', f'max_joint_state_bytes:={MAX_JOINT_STATE_BYTES}']
         env = dict(os.environ, PYTHONUNBUFFERED='1')
         env.pop('RCUTILS_CONSOLE_OUTPUT_FORMAT', None)    # the default format, checked below
         self.lines: List[str] = []

@@ -1,8 +1,9 @@
 """``collision_sensor_node``: the console script, which stops cleanly on a signal at any moment.
 
-The node itself is :class:`collision_sensor.ros.sensor_node.CollisionSensorNode` (also importable
-from here). This module stays light on purpose: the console script imports it before ``main``
-runs, while importing the node pulls in rclpy, the engine and the message packages (about a second).
+The node itself is :class:`collision_sensor.ros.sensor_node.CollisionSensorNode` (also
+importable from here). This module stays light on purpose: the console script imports it
+before ``main`` runs, while importing the node pulls in rclpy, the engine and the message
+packages (about a second).
 
 How a stop works, in every phase, with exit status 0, no traceback and no core dump:
 

@@ -19,9 +19,10 @@ of its own, so for every message:
 - the node's RSS (``/proc/<pid>/status``) after the warm-up and at the end.
 
 The highest rate of those tried that had no drop is reported. ``--executor`` sets
-``COLLISION_SENSOR_EXECUTOR`` for the node (see :func:`collision_sensor.ros.sensor_node.make_executor`)
-to compare executors. This is a benchmark, not a test: it asserts nothing. DDS stays in
-shared memory (``FASTDDS_BUILTIN_TRANSPORTS=SHM``) in ``ROS_DOMAIN_ID`` (a random one if unset).
+``COLLISION_SENSOR_EXECUTOR`` for the node (see
+:func:`collision_sensor.ros.sensor_node.make_executor`) to compare executors. This is a
+benchmark, not a test: it asserts nothing. DDS stays in shared memory
+(``FASTDDS_BUILTIN_TRANSPORTS=SHM``) in ``ROS_DOMAIN_ID`` (a random one if unset).
 """
 import argparse
 import os
@@ -47,8 +48,9 @@ N_CONFIGURATIONS = 1000     # distinct configurations, cycled through by every r
 
 
 def _node_command(params_file: str, namespace: str):
-    return console_command('collision_sensor_node') + ['--ros-args', '--params-file', params_file, '-r', f'__ns:={namespace}',
-                      '--log-level', 'warn']
+    return console_command('collision_sensor_node') + [
+        '--ros-args', '--params-file', params_file, '-r', f'__ns:={namespace}',
+        '--log-level', 'warn']
 
 
 def _write_params(directory: str, robot) -> str:

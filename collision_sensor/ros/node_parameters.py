@@ -128,8 +128,8 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
                   'min_distance and near_pairs with every verdict; 0 turns the proximity '
                   'outputs off', '>= 0'),
     ParameterSpec('publish_markers', False,
-                  'publish the boxes of colliding links, the scene objects, and the nearest points '
-                  'of pairs nearer than warning_distance, on ~/markers '
+                  'publish the boxes of colliding links, the scene objects, and the nearest '
+                  'points of pairs nearer than warning_distance, on ~/markers '
                   '(visualization_msgs/MarkerArray)'),
     ParameterSpec('scene_max_objects', _TOPIC.max_objects,
                   'objects the scene topic may hold at once; an array that would add more is '

@@ -44,9 +44,10 @@ middleware reports lost before the node took them (``lost_total``).
 
 Start-up: the robot is loaded, all its collision trees built and the query run once before
 the node subscribes to ``joint_states``; then it logs one line starting ``ready:``. With the
-robot from ``robot_description`` the same happens when the first description has been built. Names and texts from the network reach logs and ``/diagnostics``
-only through :mod:`collision_sensor.untrusted_text` (escaped, bounded), and no log line is
-written while the node's lock is held.
+robot from ``robot_description`` the same happens when the first description has been built.
+Names and texts from the network reach logs and ``/diagnostics`` only through
+:mod:`collision_sensor.untrusted_text` (escaped, bounded), and no log line is written while the
+node's lock is held.
 
 Failure policy: bad configuration raises :class:`~collision_sensor.ConfigError` (or another
 :class:`~collision_sensor.CollisionSensorError`) from the constructor after logging the reason,

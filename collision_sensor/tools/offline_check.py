@@ -191,7 +191,8 @@ def summary(results: Sequence[FrameResult], seq: JointSequence, checker,
              f'time in collision:   {in_contact:.3f} s of {seq.duration:.3f} s']
     if seq.scene:
         lines.append(f'scene changes:       {len(seq.scene)} arrays replayed, '
-                     f'{len(checker.object_names)} objects at the end')
+                     f'{len(checker.object_names)} objects at the end (the scene file\'s '
+                     'included)')
     spans = pair_spans(results)
     if spans:
         width = max(len(f'{a} -- {b}') for a, b in (s.pair for s in spans))

@@ -476,9 +476,9 @@ def test_exception_list_from_srdf_adjacency_and_config(panda_urdf, panda_srdf,
     assert plain.excluded_pairs[('panda_hand', 'panda_link7')] == 'adjacent'
     assert ('panda_hand', 'panda_link7') not in plain.checked_pairs
     assert ('panda_leftfinger', 'panda_rightfinger') in plain.checked_pairs
-    with_srdf = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
-                                           package_paths=erd_package_paths,
-                                           config={'allowed_collisions': ['panda_link0:panda_link6']})
+    with_srdf = CollisionChecker.from_urdf(
+        panda_urdf, srdf=panda_srdf, package_paths=erd_package_paths,
+        config={'allowed_collisions': ['panda_link0:panda_link6']})
     assert ('panda_leftfinger', 'panda_rightfinger') not in with_srdf.checked_pairs
     assert with_srdf.excluded_pairs[('panda_link0', 'panda_link6')] == 'allowed_collisions'
     no_adjacent = CollisionChecker.from_urdf(panda_urdf, package_paths=erd_package_paths,

@@ -18,8 +18,8 @@ from collision_sensor.engine.dynamic_scene import (
     AddObject, MoveObject, RemoveObject, checked_pose, transform_from_xyz_quaternion)
 from collision_sensor.engine.sampling import random_configurations, sampling_bounds
 from collision_sensor.errors import SceneError
-from collision_sensor.model.mesh_loading import (box_mesh, box_solid, cylinder_mesh, cylinder_solid,
-                                           sphere_mesh, sphere_solid)
+from collision_sensor.model.mesh_loading import (
+    box_mesh, box_solid, cylinder_mesh, cylinder_solid, sphere_mesh, sphere_solid)
 from collision_sensor.model.robot_model import load_urdf, transform_from_xyz_rpy
 from collision_sensor.model.scene import SceneObject
 from engine_oracles import FclOracle, SceneOracle

@@ -6,9 +6,9 @@
   pairs. One ``computeCollisions`` call per configuration: FK, placements, every pair.
 - python-fcl: :class:`FclCell`, one ``fcl.BVHModel`` (OBBRSS) per collision element and scene
   object, built from the triangles our loader produced; one ``fcl.collide`` per pair from
-  Python, as :class:`collision_sensor.tools.bench.peers.FclPeer` does, stopping at a link pair's first
-  colliding sub-group. It is placed either with our kinematics' poses (FK not counted) or with
-  pinocchio's FK (:class:`PinocchioFkFcl`, FK counted).
+  Python, as :class:`collision_sensor.tools.bench.peers.FclPeer` does, stopping at a link
+  pair's first colliding sub-group. It is placed either with our kinematics' poses (FK not
+  counted) or with pinocchio's FK (:class:`PinocchioFkFcl`, FK counted).
 
 A peer that is not installed raises ImportError here; callers report it as missing.
 """

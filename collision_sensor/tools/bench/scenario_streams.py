@@ -39,8 +39,8 @@ def run(settings, cells) -> Section:
         'the first step (untimed). Peers check every step in full (pinocchio+coal with its own '
         'FK; python-fcl placed with our poses, FK not counted). Every pass of every '
         f'implementation starts after an untimed run over its first {WARM_ITEMS} steps (the '
-        'whole path for the one-call runs), with its data in the caches. Per call: one Python call '
-        'per step, as the node makes for each joint-state message; each pays a fixed cost of '
+        'whole path for the one-call runs), with its data in the caches. Per call: one Python '
+        'call per step, as the node makes for each joint-state message; each pays a fixed cost of '
         'entering compiled code (row 0). In a path: the whole stream in one compiled call '
         '(`update_batch` against `check_batch`, for a whole recorded path), the engine\'s '
         'own work per step; the target is judged on it.')
