@@ -91,6 +91,24 @@ struct PyEngine {
         return engine->query(data, full);
     }
 
+    // T: any object; only a C-contiguous float64 (4, 4) array is taken (checked as query
+    // checks q), anything else answers MOVE_REFUSED.
+    int64_t move_world_body(int64_t b, py::handle T, double max_coordinate,
+                            double rotation_tolerance) {
+        if (!py::isinstance<py::array>(T)) return cs::MOVE_REFUSED;
+        const auto* array = py::detail::array_proxy(T.ptr());
+        const auto* descr = py::detail::array_descriptor_proxy(array->descr);
+        constexpr int required = py::detail::npy_api::NPY_ARRAY_C_CONTIGUOUS_ |
+                                 py::detail::npy_api::NPY_ARRAY_ALIGNED_;
+        if (descr->type_num != py::detail::npy_api::NPY_DOUBLE_ || array->nd != 2 ||
+            array->dimensions[0] != 4 || array->dimensions[1] != 4 ||
+            (array->flags & required) != required)
+            return cs::MOVE_REFUSED;
+        const double* data = reinterpret_cast<const double*>(array->data);
+        std::lock_guard<std::mutex> hold(engine->lock());
+        return engine->move_world_body(b, data, max_coordinate, rotation_tolerance);
+    }
+
     int64_t batch(const Array<double>& Q, bool full, Array<uint8_t> statuses,
                   Array<int64_t> codes) {
         expect_shape("Q", Q, {-1, engine->n_joints()});
@@ -230,6 +248,7 @@ PYBIND11_MODULE(_engine, m) {
     m.attr("INT_SLOTS") = py::tuple(int_slots);
     m.attr("HEADER_SIZE") = cs::HEADER_SIZE;
     m.attr("NOT_AN_ARRAY") = NOT_AN_ARRAY;
+    m.attr("MOVE_REFUSED") = cs::MOVE_REFUSED;
     m.attr("SOLID_WIDTH") = cs::SOLID_WIDTH;
     m.attr("LAYOUT_WIDTH") = cs::LAYOUT_WIDTH;
     m.attr("N_SCALARS") = cs::N_SCALARS;
@@ -266,6 +285,11 @@ PYBIND11_MODULE(_engine, m) {
              "changed, or -1 - j "
              "when q[j] is not usable: not finite, or beyond the engine's range (nothing "
              "changed then).")
+        .def("move_world_body", &PyEngine::move_world_body, py::arg("b"), py::arg("T"),
+             py::arg("max_coordinate"), py::arg("rotation_tolerance"),
+             "Give world object b the pose T ((4, 4) C-contiguous float64) and force its pairs, "
+             "if T is a rigid transform within range; return 0, or MOVE_REFUSED (nothing "
+             "changed then, also for anything but such an array).")
         .def("batch", &PyEngine::batch, py::arg("Q"), py::arg("full"),
              py::arg("statuses").noconvert(), py::arg("codes").noconvert(),
              "query() on each row of Q; statuses (n, P) uint8 and codes (n,) written; return n, "

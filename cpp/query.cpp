@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 namespace collision_sensor {
 
@@ -220,6 +221,20 @@ Engine::Engine(double* F, int64_t f_size, int64_t* I, int64_t i_size) {
     for (int64_t b = 0; b < n_bodies_; ++b)
         for (int64_t e = body_elem_start_[b]; e < body_elem_end_[b]; ++e)
             if (elem_solid_[SOLID_WIDTH * e] != SOLID_NONE) body_solid_[b] = 1;
+    // |centre| + radius of each body box, for clearance_margin.
+    body_reach_.assign(n_bodies_, 0.0);
+    for (int64_t b = 0; b < n_bodies_; ++b) {
+        const double* B = body_boxes_ + BOX_WIDTH * b;
+        const double* c = B + BOX_CENTER;
+        body_reach_[b] = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) + B[BOX_RADIUS];
+    }
+    // Each body's pairs as body b (every world object's pairs: move_world_body forces them).
+    body_pairs_start_.assign(n_bodies_ + 1, 0);
+    for (int64_t p = 0; p < n_pairs_; ++p) ++body_pairs_start_[pair_b_[p] + 1];
+    for (int64_t b = 0; b < n_bodies_; ++b) body_pairs_start_[b + 1] += body_pairs_start_[b];
+    body_pairs_.assign(n_pairs_, 0);
+    std::vector<int64_t> next(body_pairs_start_.begin(), body_pairs_start_.end() - 1);
+    for (int64_t p = 0; p < n_pairs_; ++p) body_pairs_[next[pair_b_[p]]++] = p;
 }
 
 // ----------------------------------------------------------------------------- poses
@@ -259,14 +274,8 @@ void Engine::write_pair_pose(int64_t a, int64_t b, double* pose) const {
 
 // CLEARANCE_EPS_REL times a bound of every coordinate the pair's tests see.
 double Engine::clearance_margin(int64_t a, int64_t b, const double* pose) const {
-    const double* A = body_boxes_ + BOX_WIDTH * a;
-    const double* B = body_boxes_ + BOX_WIDTH * b;
-    const double* ac = A + BOX_CENTER;
-    const double* bc = B + BOX_CENTER;
-    const double ca = std::sqrt(ac[0] * ac[0] + ac[1] * ac[1] + ac[2] * ac[2]);
-    const double cb = std::sqrt(bc[0] * bc[0] + bc[1] * bc[1] + bc[2] * bc[2]);
     const double t = std::sqrt(pose[9] * pose[9] + pose[10] * pose[10] + pose[11] * pose[11]);
-    return CLEARANCE_EPS_REL * (t + ca + cb + A[BOX_RADIUS] + B[BOX_RADIUS]);
+    return CLEARANCE_EPS_REL * (t + body_reach_[a] + body_reach_[b]);
 }
 
 // ----------------------------------------------------------------------------- culling
@@ -336,6 +345,19 @@ bool Engine::boxes_apart(const double* A, const double* B, const double* P) cons
     box_in_frame(A, B, P, T);
     if (header_[H_BOX_METHOD] == BOX_TEST_PAPER) return paper_separates(A, B, T);
     return sat_axis(A, B, T) >= 0;
+}
+
+// boxes_apart, and when apart their gap (box_pair_gap) into gap, the two sharing the work.
+bool Engine::boxes_apart_gap(const double* A, const double* B, const double* P,
+                             double* gap) const {
+    const Spheres s = spheres(A, B, P);
+    double T[12];
+    box_in_frame(A, B, P, T);
+    if (!s.apart && (header_[H_BOX_METHOD] == BOX_TEST_PAPER ? !paper_separates(A, B, T)
+                                                               : sat_axis(A, B, T) < 0))
+        return false;
+    *gap = std::max(std::sqrt(s.dd) - s.radii, face_gap(A, B, T));
+    return true;
 }
 
 // True iff scene object s's box is disjoint from the volume of link k's subtree.
@@ -743,8 +765,15 @@ int64_t Engine::recheck_pairs(int64_t n, bool full, bool* changed) {
                 const double* A = body_boxes_ + BOX_WIDTH * a;
                 const double* B = body_boxes_ + BOX_WIDTH * b;
                 // A body of one sub-group has its tree's root box as body box: the traversal
-                // tests that first, so the body box is only worth testing for several trees.
-                if (single || !boxes_apart(A, B, pose)) {
+                // tests that first, so the body box is only worth testing for several trees,
+                // or for a tracked pair without a front to resume (new, forced by a scene
+                // change, or last found apart at body level): apart, it needs no traversal
+                // and no front, its clearance is the body boxes' gap.
+                const bool fresh = track && front_state_[2 * p] == 0;
+                double box_gap = 0.0;
+                const bool apart = fresh ? boxes_apart_gap(A, B, pose, &box_gap)
+                                         : !single && boxes_apart(A, B, pose);
+                if (!apart) {
                     const double margin = track ? clearance_margin(a, b, pose) : 0.0;
                     const TreesResult r = trees_of_pair(p, track, A[BOX_RADIUS] + B[BOX_RADIUS],
                                                         front_travel_[p], margin, a, b, pose,
@@ -758,7 +787,7 @@ int64_t Engine::recheck_pairs(int64_t n, bool full, bool* changed) {
                         hit = true;  // no triangle witness: the re-check descends again
                     }
                 } else if (track) {
-                    gap = box_pair_gap(A, B, pose);
+                    gap = fresh ? box_gap : box_pair_gap(A, B, pose);
                 }
                 if (track && !hit) gap -= clearance_margin(a, b, pose);
             }
@@ -773,6 +802,36 @@ int64_t Engine::recheck_pairs(int64_t n, bool full, bool* changed) {
 }
 
 // ----------------------------------------------------------------------------- entry points
+
+int64_t Engine::move_world_body(int64_t b, const double* T, double max_coordinate,
+                                double rotation_tolerance) {
+    if (b < n_links_ || b >= n_bodies_ || !is_scene_[b]) return MOVE_REFUSED;
+    for (int k = 0; k < 12; ++k)
+        if (!std::isfinite(T[k])) return MOVE_REFUSED;
+    const double x = T[3], y = T[7], z = T[11];
+    if (std::max({std::fabs(x), std::fabs(y), std::fabs(z)}) > max_coordinate ||
+        T[12] != 0.0 || T[13] != 0.0 || T[14] != 0.0 || T[15] != 1.0)
+        return MOVE_REFUSED;
+    const double r00 = T[0], r01 = T[1], r02 = T[2], r10 = T[4], r11 = T[5], r12 = T[6],
+                 r20 = T[8], r21 = T[9], r22 = T[10];
+    const double error = std::max({std::fabs(r00 * r00 + r10 * r10 + r20 * r20 - 1.0),
+                                   std::fabs(r01 * r01 + r11 * r11 + r21 * r21 - 1.0),
+                                   std::fabs(r02 * r02 + r12 * r12 + r22 * r22 - 1.0),
+                                   std::fabs(r00 * r01 + r10 * r11 + r20 * r21),
+                                   std::fabs(r00 * r02 + r10 * r12 + r20 * r22),
+                                   std::fabs(r01 * r02 + r11 * r12 + r21 * r22)});
+    const double det = r00 * (r11 * r22 - r12 * r21) - r01 * (r10 * r22 - r12 * r20) +
+                       r02 * (r10 * r21 - r11 * r20);
+    if (!(error <= rotation_tolerance) || det < 0.0) return MOVE_REFUSED;
+    std::memcpy(T_world_body_ + 16 * b, T, 16 * sizeof(double));
+    for (int64_t k = body_pairs_start_[b]; k < body_pairs_start_[b + 1]; ++k) {
+        const int64_t p = body_pairs_[k];
+        if (!forced_[p]) forced_list_.push_back(p);
+        forced_[p] = 1;
+    }
+    if (header_[H_FORCED] == 0) header_[H_FORCED] = FORCED_LISTED;
+    return 0;
+}
 
 int64_t Engine::query(const double* q, bool full) {
     const int64_t bad = unusable_variable(kin_, q, n_joints_);
@@ -801,6 +860,7 @@ int64_t Engine::run(const double* q, bool full) {
         n = n_pairs_;
         if (forced) {  // every pair is re-checked from scratch anyway
             for (int64_t p = 0; p < n_pairs_; ++p) forced_[p] = 0;
+            forced_list_.clear();
             header_[H_FORCED] = 0;
         }
     } else {
@@ -815,9 +875,13 @@ int64_t Engine::run(const double* q, bool full) {
 
 // Append the forced pairs not yet in todo[:n] to it, dropping their fronts; clear the flags.
 // Return the new length. pending is all zero on entry and on return (plan_update's contract).
+// With H_FORCED at FORCED_LISTED every forced pair is in forced_list_: only those are visited.
 int64_t Engine::add_forced(int64_t n) {
     for (int64_t t = 0; t < n; ++t) pending_[todo_[t]] = 1;
-    for (int64_t p = 0; p < n_pairs_; ++p) {
+    const bool listed = header_[H_FORCED] == FORCED_LISTED;
+    const int64_t count = listed ? int64_t(forced_list_.size()) : n_pairs_;
+    for (int64_t k = 0; k < count; ++k) {
+        const int64_t p = listed ? forced_list_[k] : k;
         if (!forced_[p]) continue;
         forced_[p] = 0;
         front_state_[2 * p] = 0;
@@ -827,6 +891,7 @@ int64_t Engine::add_forced(int64_t n) {
         }
     }
     for (int64_t t = 0; t < n; ++t) pending_[todo_[t]] = 0;
+    forced_list_.clear();
     header_[H_FORCED] = 0;
     return n;
 }

@@ -70,9 +70,13 @@ enum IntSlot : int { CS_INT_SLOTS(CS_SLOT_ENUM) N_INT_SLOTS };
 // scalars[S_*]; header[H_*], then the float layout (N_FLOAT_SLOTS, LAYOUT_WIDTH), then the
 // int layout. layout[k] = (offset, size, d0, d1, d2).
 constexpr int S_TOLERANCE = 0, S_EXTENSION = 1, N_SCALARS = 2;
-// H_FORCED: nonzero when some forced[p] is set (the checker sets both after a scene change).
+// H_FORCED: nonzero when some forced[p] is set (the checker sets both after a scene change);
+// FORCED_LISTED when only Engine::move_world_body set them (it lists the pairs it forces).
 constexpr int H_N_LINKS = 0, H_BOX_METHOD = 1, H_EXPANSION = 2, H_CHECKED_ONCE = 3,
               H_RESYNC_COUNTDOWN = 4, H_FORCED = 5, H_LAYOUTS = 6;
+constexpr int64_t FORCED_LISTED = 2;
+//: Engine::move_world_body's answer when it changed nothing.
+constexpr int64_t MOVE_REFUSED = -1;
 constexpr int LAYOUT_WIDTH = 5;
 constexpr int H_I_LAYOUT = H_LAYOUTS + N_FLOAT_SLOTS * LAYOUT_WIDTH;
 constexpr int HEADER_SIZE = H_I_LAYOUT + N_INT_SLOTS * LAYOUT_WIDTH;
@@ -128,6 +132,13 @@ class Engine {
     // (world frame) into distance (P,) (INF when not below max_distance; <= 0 when in
     // contact) and points (P, 6) (on body pair_a, on body pair_b). Returns query()'s code.
     int64_t proximity(const double* q, double max_distance, double* distance, double* points);
+    // Give body b, an object fixed in the world, the pose T (4, 4, row-major) and force its
+    // pairs (see run), if T is a rigid transform: finite, its position within max_coordinate
+    // of the origin on each axis, last row (0, 0, 0, 1), |R^T R - I| <= rotation_tolerance
+    // entrywise and det R >= 0 (dynamic_scene.py: checked_pose, the same arithmetic). Returns
+    // 0, or MOVE_REFUSED when b is no such body or T no such transform (nothing changed then).
+    int64_t move_world_body(int64_t b, const double* T, double max_coordinate,
+                            double rotation_tolerance);
 
     int64_t n_joints() const { return n_joints_; }
     int64_t n_pairs() const { return n_pairs_; }
@@ -155,6 +166,7 @@ class Engine {
     double clearance_margin(int64_t a, int64_t b, const double* pose) const;
     void write_pair_pose(int64_t a, int64_t b, double* pose) const;
     bool boxes_apart(const double* A, const double* B, const double* P) const;
+    bool boxes_apart_gap(const double* A, const double* B, const double* P, double* gap) const;
     bool contained(int64_t a, int64_t b, const double* pose) const;
     bool inside_solid(int64_t e, const double* x) const;
     bool contained_vertex(int64_t a, int64_t b, const double* pose, double* x) const;
@@ -176,6 +188,10 @@ class Engine {
     const double* elem_solid_;
     std::vector<uint8_t> body_solid_;  // 1 where a body has a solid element
     std::vector<int64_t> elem_tris_;   // (E, 2): each tree's triangle range (its leaves')
+    std::vector<double> body_reach_;   // |body box centre| + its radius, per body
+    // body_pairs_[body_pairs_start_[b]:body_pairs_start_[b + 1]]: the pairs whose body b is b.
+    std::vector<int64_t> body_pairs_start_, body_pairs_;
+    std::vector<int64_t> forced_list_;  // the pairs move_world_body forced (see H_FORCED)
     // distance.cpp's work rows (distance.hpp: DistanceWork), sized on the first proximity call.
     std::vector<double> placed_rows_, support_rows_;
     std::vector<int64_t> placed_stamp_, support_stamp_;

@@ -23,8 +23,9 @@ from collision_sensor.engine.bounding_volumes import fit_obb
 from collision_sensor.engine.checker_config import CheckerConfig
 from collision_sensor.engine.compiled import engine
 from collision_sensor.engine.dynamic_scene import (
-    AddObject, MoveObject, PlacedObject, PreparedSceneChanges, RemoveObject, SceneChange,
-    SceneChangeError, build_object_block, check_geometry, checked_pose, same_geometry, solid_row)
+    MAX_COORDINATE, ROTATION_TOLERANCE, AddObject, MoveObject, PlacedObject, PreparedSceneChanges,
+    RemoveObject, SceneChange, SceneChangeError, build_object_block, check_geometry, checked_pose,
+    same_geometry, solid_row)
 from collision_sensor.engine.kinematics import (JOINT_FIXED, JOINT_FLOATING, JOINT_PLANAR,
                                                 JOINT_PRISMATIC, KinematicTree,
                                                 build_kinematic_tree)
@@ -170,6 +171,9 @@ class CollisionChecker:
         self._robot = self._build_robot_block(srdf, [obj.name for obj in scene])
         self._build_joint_tables()
         self._objects: Dict[str, PlacedObject] = {}
+        # Counts committed scene changes and moves: prepared changes must be prepared again
+        # once it has changed.
+        self._scene_version = 0
         # Each pair's (path, reach, reach_ext) rows (see _pair_rows), kept across scene changes.
         self._rows: Dict[Pair, Tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._views: Optional[Dict[str, np.ndarray]] = None
@@ -519,17 +523,32 @@ class CollisionChecker:
         :raises SceneError: no such object, or a pose that is not a rigid transform.
         """
         # apply_scene_changes([MoveObject(name, pose)]), without its bookkeeping: this is the
-        # call a moving object makes at every step.
+        # call a moving object makes at every step. An object fixed in the world moves in one
+        # engine call (the pose checked there as checked_pose checks it); anything the engine
+        # refuses takes the long way, which names the fault.
         old = self._objects.get(name)
         if old is None:
             raise SceneError(f'no object "{name}" to move; add it first (objects: '
                              f'{", ".join(self._objects) or "none"})')
-        placed = PlacedObject(old.obj, old.block, old.attach_to, old.touch_links,
-                              checked_pose(pose, f'object "{name}"'))
-        objects = dict(self._objects)   # never changed in place: prepared changes compare it
-        objects[name] = placed
-        self._move_in_place(placed)
-        self._objects = objects
+        T = None
+        if old.attach_to is None:
+            try:
+                T = np.array(pose, dtype=np.float64)
+            except (TypeError, ValueError):
+                pass
+            if T is None or T.shape != (4, 4) or self._engine.move_world_body(
+                    self._body_index[name], T, MAX_COORDINATE, ROTATION_TOLERANCE):
+                T = None
+            else:
+                T.setflags(write=False)
+        if T is None:
+            T = checked_pose(pose, f'object "{name}"')
+            placed = PlacedObject(old.obj, old.block, old.attach_to, old.touch_links, T)
+            self._move_in_place(placed)
+        else:
+            placed = PlacedObject(old.obj, old.block, None, old.touch_links, T)
+        self._objects[name] = placed
+        self._scene_version += 1
 
     def remove_object(self, name: str) -> None:
         """Remove object ``name`` from the scene.
@@ -560,7 +579,7 @@ class CollisionChecker:
         :raises SceneChangeError: the first change that cannot apply (``index``), naming the
             object and the fix.
         """
-        base = self._objects
+        version, base = self._scene_version, self._objects
         objects = dict(base)
         moved, rebuilt = set(), set()
         structural = False
@@ -594,7 +613,7 @@ class CollisionChecker:
             except SceneError as error:
                 raise SceneChangeError(k, str(error)) from None
         return PreparedSceneChanges(self, base, objects, structural,
-                                    frozenset(moved - rebuilt), frozenset(rebuilt))
+                                    frozenset(moved - rebuilt), frozenset(rebuilt), version)
 
     def _placed(self, change: AddObject,
                 objects: Mapping[str, PlacedObject]) -> Tuple[PlacedObject, bool]:
@@ -636,9 +655,10 @@ class CollisionChecker:
         :raises SceneError: ``prepared`` was made for another checker, or another scene change
             was committed since it was prepared; nothing changes then.
         """
-        if prepared.checker is not self or prepared.base is not self._objects:
+        if prepared.checker is not self or prepared.version != self._scene_version:
             raise SceneError('these scene changes were prepared for another checker or scene '
                              '(another change was committed since); prepare them again')
+        self._scene_version += 1
         if prepared.structural:
             self._install(prepared)
             return
@@ -853,14 +873,14 @@ class CollisionChecker:
             boxes=float_views['boxes'][:n_nodes], nodes=int_views['nodes'][:n_nodes],
             volume=float_views['volume'][:n_nodes], gain=float_views['gain'][:n_nodes],
             tris=float_views['tris'][:n_tris])
-        objects = dict(self._objects)    # a new mapping: prepared changes compare the old one
+        objects = dict(self._objects)
         for p, n0, n1, t0, t1 in zip(placed, node_start[:-1], node_start[1:], tri_start[:-1],
                                      tri_start[1:]):
             block = dataclasses.replace(
                 p.block, boxes=float_views['boxes'][n0:n1],
                 volume=float_views['volume'][n0:n1], gain=float_views['gain'][n0:n1],
                 tris=float_views['tris'][t0:t1])
-            objects[p.name] = dataclasses.replace(p, block=block)
+            objects[p.name] = p._replace(block=block)
         self._objects = objects
 
     def _scene_pairs(self, attached: Sequence[PlacedObject], world: Sequence[PlacedObject]):

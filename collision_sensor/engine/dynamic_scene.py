@@ -35,7 +35,7 @@ checker's exception list (``allowed_collisions``) applies to objects by name.
 """
 import math
 from dataclasses import dataclass
-from typing import Dict, FrozenSet, Mapping, Optional, Tuple, Union
+from typing import Dict, FrozenSet, Mapping, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 
@@ -128,9 +128,9 @@ class ObjectBlock:
         return len(self.tris)
 
 
-@dataclass(frozen=True, eq=False)
-class PlacedObject:
-    """An object in the scene: geometry, tree, where it is and what it may touch.
+class PlacedObject(NamedTuple):
+    """An object in the scene: geometry, tree, where it is and what it may touch (a tuple:
+    a moving object makes a new one at every step, cheaply).
 
     :ivar pose: (4, 4) read-only, ``T_world_object``, or ``T_link_object`` when attached.
     """
@@ -286,6 +286,8 @@ class PreparedSceneChanges:
     :ivar structural: some object is added, replaced or removed (the tables change).
     :ivar moved: objects whose pose alone changed.
     :ivar rebuilt: objects added or replaced.
+    :ivar version: the checker's count of scene changes they were prepared at; any change
+        committed or object moved since makes them stale.
     """
 
     checker: object
@@ -294,3 +296,4 @@ class PreparedSceneChanges:
     structural: bool
     moved: FrozenSet[str]
     rebuilt: FrozenSet[str]
+    version: int

@@ -110,7 +110,10 @@ def test_random_scene_edits_and_motion_match_scratch_and_fcl(seed):
         for _ in range(int(rng.integers(1, 4))):   # a batch, applied in order
             edits.append(_random_edit(rng, oracle, links, counter))
             oracle.apply(edits[-1])
-        checker.apply_scene_changes(edits)
+        if len(edits) == 1 and isinstance(edits[0], MoveObject):
+            checker.move_object(edits[0].name, edits[0].pose)    # its own way, in one call
+        else:
+            checker.apply_scene_changes(edits)
         if rng.random() < 0.7:
             q = np.clip(q + rng.normal(0.0, 0.05, len(q)) * (rng.random() < 0.6), lower, upper)
         got = checker.check(q) if rng.random() < 0.1 else checker.update(q)
@@ -345,6 +348,51 @@ def test_prepared_changes_are_refused_once_the_scene_changed():
     other, _ = _small_cell()
     with pytest.raises(SceneError):
         other.commit_scene_changes(checker.prepare_scene_changes([RemoveObject('b')]))
+    # A move is a change too.
+    prepared = checker.prepare_scene_changes([AddObject(_random_object(rng, 'c'))])
+    checker.move_object('b', _random_pose(rng, 0.5))
+    with pytest.raises(SceneError, match='prepare them again'):
+        checker.commit_scene_changes(prepared)
+    assert checker.object_names == ('b',)
+
+
+@pytest.mark.parametrize('attached', [False, True])
+def test_a_bad_move_is_named_as_checked_pose_names_it_and_changes_nothing(attached):
+    """``move_object`` checks a world object's pose in the engine, an attached one's in
+    Python: either way the message is :func:`checked_pose`'s and the scene stays."""
+    checker, oracle = _small_cell()
+    rng = np.random.default_rng(11)
+    obj = _random_object(rng, 'box')
+    change = AddObject(obj, 'tool' if attached else None, (), _random_pose(rng, 0.3))
+    checker.apply_scene_changes([change])
+    oracle.apply(change)
+    q = random_configurations(checker, 1, 11)[0]
+    expected = checker.check(q).colliding_pairs
+    pose = checker.object_pose('box').copy()
+    rotated = _random_pose(rng, 0.1)
+    bad = [np.full((4, 4), np.nan), np.diag([2.0, 1.0, 1.0, 1.0]), np.eye(3), 'pose',
+           [[1, 0, 0, 2e6], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]],
+           np.vstack([rotated[:3], [0.0, 0.0, 0.1, 1.0]]),
+           rotated @ np.diag([1.0, 1.0, -1.0, 1.0])]              # a reflection
+    for value in bad:
+        try:
+            checked_pose(value, 'object "box"')
+        except SceneError as error:
+            message = str(error)
+        else:
+            raise AssertionError(f'checked_pose accepts {value!r}')
+        with pytest.raises(SceneError) as raised:
+            checker.move_object('box', value)
+        assert str(raised.value) == message
+        np.testing.assert_array_equal(checker.object_pose('box'), pose)
+        assert checker.update(q).colliding_pairs == expected
+    # Good poses in any array form: lists, other dtypes, views that are not contiguous.
+    for value in (rotated.tolist(), rotated.astype(np.float32).astype(np.float64),
+                  np.asfortranarray(rotated), np.hstack([rotated, rotated])[:, :4]):
+        checker.move_object('box', value)
+        np.testing.assert_allclose(checker.object_pose('box'), rotated)
+    oracle.apply(MoveObject('box', rotated))
+    assert checker.update(q).colliding_pairs == oracle.colliding_pairs(q)
 
 
 def _ancestors(checker, link):
