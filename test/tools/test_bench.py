@@ -10,7 +10,7 @@ from collision_sensor.tools.bench.scenario_scale import growth_fits
 
 HEADERS = ('### Scenario 1: random configurations', '### Scenario 2: coherent streams',
            "### Scenario 3: the paper's experiment", '### Scenario 4: scale',
-           '### Scenario 5: the parts')
+           '### Scenario 5: the parts', '### Scenario 9: the dynamic scene')
 
 
 def _installed(module):
@@ -82,6 +82,18 @@ def test_proximity_scenario_measures_both_robots_against_fcl():
     assert len(rows) == 2
     assert all(line.rstrip(' |').endswith('30/30') for line in rows), rows  # min distances
     assert len(section.verdicts) == 4 and all(v.passed is not None for v in section.verdicts)
+
+
+def test_dynamic_scene_scenario_judges_both_targets():
+    pytest.importorskip('fcl')
+    from collision_sensor.tools.bench import scenario_dynamic
+    from collision_sensor.tools.bench.scenario_settings import Settings
+    section = scenario_dynamic.run(Settings.for_run(quick=True, seed=3))
+    assert [v.target.split(':')[0] for v in section.verdicts] == [
+        'S9 50 objects, one moving per step',
+        "S9 adding a 10,000-triangle mesh <= python-fcl's BVH build"]
+    assert all(v.passed is not None for v in section.verdicts)
+    assert any('`update` and `check` agreed at every step' in line for line in section.lines)
 
 
 @pytest.mark.parametrize('args, line', [

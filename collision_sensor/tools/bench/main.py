@@ -15,7 +15,9 @@ times of scenario 1. Peers are optional: a missing one is reported as missing.
    5. the parts (box tests, expansion rules, bounding-volume fits, the cost of a call);
    6. heavy contact (a tool mesh among clutter, against python-fcl); 7. large meshes and
    many pairs (example-robot-data robots of 50k triangles and more, against pinocchio+coal);
-   8. proximity (distances and nearest points against python-fcl and pinocchio+coal).
+   8. proximity (distances and nearest points against python-fcl and pinocchio+coal);
+   9. the dynamic scene (one of 50 objects moving per step, ``update`` against ``check``; a
+   100k-triangle mesh added, against python-fcl's BVH build).
 """
 import argparse
 import datetime
@@ -30,15 +32,15 @@ from typing import List, Optional, Sequence
 from collision_sensor.tools.bench.scenario_report import Section
 from collision_sensor.tools.bench.scenario_settings import Settings
 
-SCENARIOS = (1, 2, 3, 4, 5, 6, 7, 8)
+SCENARIOS = (1, 2, 3, 4, 5, 6, 7, 8, 9)
 PEERS = (('pinocchio', 'pin'), ('coal', 'coal'), ('python-fcl', 'python-fcl'))
 
 
 def run_scenarios(numbers: Sequence[int], settings: Settings, log=None) -> List[Section]:
     """Run the scenarios ``numbers`` in order; return their sections."""
     from collision_sensor.tools.bench import (
-        scenario_cells, scenario_contact, scenario_large, scenario_paper, scenario_parts,
-        scenario_proximity, scenario_random, scenario_scale, scenario_streams)
+        scenario_cells, scenario_contact, scenario_dynamic, scenario_large, scenario_paper,
+        scenario_parts, scenario_proximity, scenario_random, scenario_scale, scenario_streams)
     log = log or (lambda message: None)
     sections = []
     with tempfile.TemporaryDirectory(prefix='collision_sensor_bench_') as workdir:
@@ -64,8 +66,10 @@ def run_scenarios(numbers: Sequence[int], settings: Settings, log=None) -> List[
                 section = scenario_contact.run(settings, workdir)
             elif number == 7:
                 section = scenario_large.run(settings)
-            else:
+            elif number == 8:
                 section = scenario_proximity.run(settings)
+            else:
+                section = scenario_dynamic.run(settings)
             section.plot['seconds'] = time.perf_counter() - start
             log(f'scenario {number} done in {section.plot["seconds"]:.0f} s')
             sections.append(section)
