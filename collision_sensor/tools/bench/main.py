@@ -195,7 +195,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument('--quick', action='store_true',
                         help='small counts and meshes, for a smoke run (figures are rough)')
     parser.add_argument('--scenario', type=int, action='append', choices=SCENARIOS,
-                        metavar='N', help='run scenario N (1-5); repeatable; default: all')
+                        metavar='N', help='run scenario N (1-9); repeatable; default: all')
     parser.add_argument('--seed', type=int, default=Settings.seed,
                         help=f'seed of every random input (default {Settings.seed})')
     parser.add_argument('--markdown', metavar='FILE', help='also write the table here')
