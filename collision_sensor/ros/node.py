@@ -67,7 +67,7 @@ class StopRequest:
 
 #: Environment variables by which a user configures Fast DDS profiles already.
 _FAST_DDS_CONFIGURED = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE',
-                        'RMW_FASTRTPS_USE_QOS_FROM_XML')
+                        'RMW_FASTRTPS_USE_QOS_FROM_XML', 'RMW_FASTRTPS_PUBLICATION_MODE')
 #: Profile files Fast DDS loads from the working directory on its own.
 _FAST_DDS_LOCAL_FILES = ('DEFAULT_FASTRTPS_PROFILES.xml', 'DEFAULT_FASTDDS_PROFILES.xml')
 

@@ -1019,10 +1019,17 @@ def test_console_script_points_fast_dds_at_the_shipped_profile_only_when_unconfi
     ns = {'p': 'http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles'}
     readers = etree.parse(profile).findall('p:data_reader', ns)
     assert [r.findtext('p:historyMemoryPolicy', namespaces=ns) for r in readers] == ['DYNAMIC']
+    # Writers as rmw_fastrtps sets them without the profile: synchronous (Fast DDS's own
+    # default, asynchronous, puts a thread between each verdict and the wire).
+    writers = etree.parse(profile).findall('p:data_writer', ns)
+    assert [(w.findtext('p:historyMemoryPolicy', namespaces=ns),
+             w.findtext('p:qos/p:publishMode/p:kind', namespaces=ns)) for w in writers] == \
+        [('PREALLOCATED_WITH_REALLOC', 'SYNCHRONOUS')]
     # A user's own Fast DDS configuration, another middleware or the switch: nothing changes.
     for environ in ({'FASTRTPS_DEFAULT_PROFILES_FILE': '/mine.xml'},
                     {'FASTDDS_DEFAULT_PROFILES_FILE': '/mine.xml'},
                     {'RMW_FASTRTPS_USE_QOS_FROM_XML': '1'},
+                    {'RMW_FASTRTPS_PUBLICATION_MODE': 'ASYNCHRONOUS'},
                     {'RMW_IMPLEMENTATION': 'rmw_cyclonedds_cpp'},
                     {'COLLISION_SENSOR_DDS_PROFILE': 'off'}):
         before = dict(environ)
