@@ -79,9 +79,24 @@ def test_proximity_scenario_measures_both_robots_against_fcl():
     section = scenario_proximity.run(Settings.for_run(quick=True, seed=3))
     rows = [line for line in section.lines if line.startswith('| panda') or
             line.startswith('| ur5')]
-    assert len(rows) == 2
-    assert all(line.rstrip(' |').endswith('30/30') for line in rows), rows  # min distances
+    assert len(rows) == 4   # the peers' table, then the warning zone's
+    assert all(line.rstrip(' |').endswith('30/30') for line in rows[:2]), rows  # min distances
+    assert all(line.rstrip(' |').endswith('x') for line in rows[2:]), rows
     assert len(section.verdicts) == 4 and all(v.passed is not None for v in section.verdicts)
+
+
+def test_the_warning_zone_walk_stays_within_the_limits_in_small_steps():
+    from collision_sensor.engine.sampling import sampling_bounds
+    from collision_sensor.tools.bench.scenario_cells import robot_cell
+    from collision_sensor.tools.bench.scenario_proximity import WALK_STEP, coherent_walk
+    panda_checker = robot_cell('panda').checker()
+    walk = coherent_walk(panda_checker, 500, seed=4)
+    lower, upper = sampling_bounds(panda_checker)
+    assert walk.shape == (500, len(panda_checker.joint_names))
+    assert np.all(walk >= lower) and np.all(walk <= upper)
+    steps = np.abs(np.diff(walk, axis=0))
+    assert 0 < steps.max() <= 6 * WALK_STEP and np.all(np.ptp(walk, axis=0) > WALK_STEP)
+    assert np.array_equal(walk, coherent_walk(panda_checker, 500, seed=4))
 
 
 def test_dynamic_scene_scenario_judges_both_targets():

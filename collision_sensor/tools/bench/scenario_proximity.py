@@ -14,6 +14,11 @@ Per robot (Panda, UR5, each with its SRDF), the same seeded random configuration
 
 The agreement column compares, per configuration, the smallest distance over the pairs that
 do not collide, ours against python-fcl's on the same triangles (within 1e-6 m).
+
+The warning zone's cost, as the node pays it per joint state: along a seeded random walk
+(every joint moves by N(0, WALK_STEP) rad or m per state, kept within the limits), ``update``
+alone against ``update`` then ``proximity(q, WARNING_DISTANCE)``; each pass starts from the
+walk's first state after a full check (untimed).
 """
 import math
 from typing import Dict, List
@@ -30,6 +35,9 @@ TITLE = 'Scenario 8: proximity (distances and nearest points) against python-fcl
 TARGET_RATIO = 0.5
 MAX_DISTANCE = 0.1
 AGREEMENT_TOLERANCE = 1e-6
+WARNING_DISTANCE = 0.05     # m, the node's warning_distance in the warning-zone measurement
+WALK_STEP = 0.002           # rad or m per joint and state
+WALK_STATES = 3000
 
 
 class FclDistances:
@@ -137,4 +145,44 @@ def run(settings) -> Section:
     section.table(['robot', 'pairs', 'ours all us', f'ours < {MAX_DISTANCE:g} m us',
                    'python-fcl us', 'pinocchio+coal us', 'all / fcl', 'near / fcl',
                    'all / pinocchio', 'min distance equal (fcl)'], rows)
+    _warning_zone(section, settings)
     return section
+
+
+def coherent_walk(checker, n: int, seed: int) -> np.ndarray:
+    """Return ``n`` states of a seeded random walk within the sampling bounds, each joint
+    moving by N(0, WALK_STEP) per state."""
+    from collision_sensor.engine.sampling import sampling_bounds
+    lower, upper = sampling_bounds(checker)
+    rng = np.random.default_rng(seed)
+    q = random_configurations(checker, 1, seed)[0]
+    states = np.empty((n, len(q)))
+    for i in range(n):
+        q = np.clip(q + rng.normal(0.0, WALK_STEP, len(q)), lower, upper)
+        states[i] = q
+    return states
+
+
+def _warning_zone(section, settings):
+    n = 300 if settings.quick else WALK_STATES
+    rows = []
+    for name in ('panda', 'ur5'):
+        checker = robot_cell(name).checker()
+        walk = list(coherent_walk(checker, n, settings.seed))
+
+        def zone(q, checker=checker):
+            checker.update(q)
+            return checker.proximity(q, WARNING_DISTANCE)
+
+        def restart(checker=checker, first=walk[0]):
+            checker.check(first)
+        times = interleaved_us([Candidate('update', checker.update, walk, restart),
+                                Candidate('zone', zone, walk, restart)], settings.rounds)
+        rows.append([name, us(times['update']), us(times['zone']),
+                     f'{times["zone"] / times["update"]:.0f}x'])
+    section.text('', f'The warning zone as the node pays it per joint state: a seeded random walk '
+                 f'of {n} states (each joint N(0, {WALK_STEP:g}) rad or m per state), `update` '
+                 f'alone against `update` then `proximity(q, {WARNING_DISTANCE:g})` '
+                 f'(`warning_distance: {WARNING_DISTANCE:g}`).')
+    section.table(['robot', '`update` us', '`update` + `proximity` us', 'zone / update'],
+                  rows)
