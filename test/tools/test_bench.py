@@ -128,3 +128,33 @@ def test_node_latency_drives_the_console_script_from_another_process(args, line,
     assert run.returncode == 0, out
     assert line in run.stdout and 'node RSS' in run.stdout, out
     assert 'node counters: received_total' in run.stdout and 'exited with' not in out, out
+
+
+@pytest.mark.parametrize('robot', ['tiago_pro', 'kinova'])
+def test_the_pinocchio_peer_places_the_links_where_our_kinematics_does(robot):
+    """The peer's configurations must put every link where ours do, continuous joints (held by
+    pinocchio as cosine and sine) included; before that was so, scaled rotations made coal
+    report wheels half a metre apart in contact."""
+    pytest.importorskip('pinocchio')
+    from collision_sensor.engine.sampling import random_configurations
+    from collision_sensor.tools.bench.peers import PinocchioPeer
+    from collision_sensor.tools.bench.scenario_large import large_cells
+    cells = [cell for cell in large_cells() if cell.name == robot]
+    if not cells:
+        pytest.skip(f'{robot} is not in this example-robot-data')
+    cell = cells[0]
+    checker = cell.checker()
+    peer = PinocchioPeer(cell.urdf, cell.srdf, cell.package_paths)
+    pin, model = peer.pin, peer.model
+    continuous = [model.names[j] for j in range(1, model.njoints)
+                  if model.joints[j].nq == 2 and model.joints[j].nv == 1]
+    assert continuous                                       # the case this test is about
+    for q in random_configurations(checker, 5, seed=7):
+        checker.check(q)
+        ours = checker.link_poses()
+        pin.framesForwardKinematics(model, peer.data, peer.configuration(checker, q))
+        for link in checker.model.links:
+            frame = model.getFrameId(link, pin.FrameType.BODY)
+            if frame < model.nframes and link in ours:
+                np.testing.assert_allclose(peer.data.oMf[frame].homogeneous, ours[link],
+                                           atol=1e-9, err_msg=link)

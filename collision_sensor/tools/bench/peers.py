@@ -30,7 +30,8 @@ class PinocchioPeer:
         self.pair_count = len(self.geom.collisionPairs)
 
     def configuration(self, checker, positions):
-        """pinocchio's q for our joint vector (mimic joints get their derived value)."""
+        """pinocchio's q for our joint vector (mimic joints get their derived value; a
+        continuous joint's angle as pinocchio holds it, its cosine and sine)."""
         q = self.pin.neutral(self.model)
         values = dict(zip(checker.joint_names, positions))
         for joint in checker.model.joints:
@@ -39,7 +40,11 @@ class PinocchioPeer:
                                       + joint.mimic.offset)
         for name, value in values.items():
             if self.model.existJointName(name):
-                q[self.model.joints[self.model.getJointId(name)].idx_q] = value
+                joint = self.model.joints[self.model.getJointId(name)]
+                if joint.nq == 2 and joint.nv == 1:  # continuous: (cos, sin) of the angle
+                    q[joint.idx_q:joint.idx_q + 2] = np.cos(value), np.sin(value)
+                else:
+                    q[joint.idx_q] = value
         return q
 
     def check(self, q):
