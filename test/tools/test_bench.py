@@ -88,10 +88,15 @@ def test_proximity_scenario_measures_both_robots_against_fcl():
 def test_the_warning_zone_walk_stays_within_the_limits_in_small_steps():
     from collision_sensor.engine.sampling import sampling_bounds
     from collision_sensor.tools.bench.scenario_cells import robot_cell
-    from collision_sensor.tools.bench.scenario_proximity import WALK_STEP, coherent_walk
+    from collision_sensor.tools.bench.engine import stream
+    from collision_sensor.tools.bench.scenario_proximity import WALK_STEP
     panda_checker = robot_cell('panda').checker()
-    walk = coherent_walk(panda_checker, 500, seed=4)
     lower, upper = sampling_bounds(panda_checker)
+
+    def coherent_walk(checker, n, seed):    # as scenario 8 makes its walk
+        return np.array(stream(checker, n, len(checker.joint_names), seed, step=WALK_STEP,
+                               bounds=(lower, upper)))
+    walk = coherent_walk(panda_checker, 500, seed=4)
     assert walk.shape == (500, len(panda_checker.joint_names))
     assert np.all(walk >= lower) and np.all(walk <= upper)
     steps = np.abs(np.diff(walk, axis=0))

@@ -29,15 +29,18 @@ def per_call_us(function, items, repeats=3):
     return best * 1e6
 
 
-def stream(checker, n, moving, seed=0):
-    """A coherent stream: ``moving`` joints (random ones each step) move by a small step."""
+def stream(checker, n, moving, seed=0, step=0.02, bounds=None):
+    """A coherent stream: ``moving`` joints (random ones each step) move by N(0, ``step``);
+    with ``bounds`` ``(lower, upper)`` every state is clipped to them."""
     rng = np.random.default_rng(seed)
     q = random_configurations(checker, 1, seed)[0]
     frames = []
     for _ in range(n):
         q = q.copy()
         joints = rng.choice(len(q), size=min(moving, len(q)), replace=False)
-        q[joints] += rng.normal(0.0, 0.02, len(joints))
+        q[joints] += rng.normal(0.0, step, len(joints))
+        if bounds is not None:
+            q = np.clip(q, *bounds)
         frames.append(q)
     return frames
 

@@ -25,7 +25,8 @@ from typing import Dict, List
 
 import numpy as np
 
-from collision_sensor.engine.sampling import random_configurations
+from collision_sensor.engine.sampling import random_configurations, sampling_bounds
+from collision_sensor.tools.bench.engine import stream
 from collision_sensor.tools.bench.scenario_cells import robot_cell
 from collision_sensor.tools.bench.scenario_measure import Candidate, interleaved_us
 from collision_sensor.tools.bench.scenario_peers import optional_peer, pinocchio_peer
@@ -149,26 +150,13 @@ def run(settings) -> Section:
     return section
 
 
-def coherent_walk(checker, n: int, seed: int) -> np.ndarray:
-    """Return ``n`` states of a seeded random walk within the sampling bounds, each joint
-    moving by N(0, WALK_STEP) per state."""
-    from collision_sensor.engine.sampling import sampling_bounds
-    lower, upper = sampling_bounds(checker)
-    rng = np.random.default_rng(seed)
-    q = random_configurations(checker, 1, seed)[0]
-    states = np.empty((n, len(q)))
-    for i in range(n):
-        q = np.clip(q + rng.normal(0.0, WALK_STEP, len(q)), lower, upper)
-        states[i] = q
-    return states
-
-
 def _warning_zone(section, settings):
     n = 300 if settings.quick else WALK_STATES
     rows = []
     for name in ('panda', 'ur5'):
         checker = robot_cell(name).checker()
-        walk = list(coherent_walk(checker, n, settings.seed))
+        walk = stream(checker, n, len(checker.joint_names), settings.seed, step=WALK_STEP,
+                      bounds=sampling_bounds(checker))
 
         def zone(q, checker=checker):
             checker.update(q)
