@@ -1,8 +1,12 @@
-"""Random joint configurations, uniform within the joint limits (sampling and benchmarks)."""
+"""Random joint configurations, uniform within the joint limits (sampling and benchmarks), and
+the pairs they show near everywhere."""
 import math
-from typing import Tuple
+from dataclasses import dataclass
+from typing import Dict, List, Tuple
 
 import numpy as np
+
+from collision_sensor.errors import JointStateError
 
 
 def sampling_bounds(checker) -> Tuple[np.ndarray, np.ndarray]:
@@ -26,3 +30,67 @@ def random_configurations(checker, n: int, seed: int = 0) -> np.ndarray:
     """Return ``(n, J) float`` configurations of ``checker``'s joints, uniform within limits."""
     lower, upper = sampling_bounds(checker)
     return uniform_configurations(lower, upper, n, np.random.default_rng(seed))
+
+
+#: Configurations :func:`pairs_near_everywhere` samples by default (besides the neutral one).
+NEAR_SAMPLES = 300
+#: The share of samples in which a pair must be near to be named, as the exception-list tool's
+#: "Always" (``collision_sensor_acm --always-fraction``).
+NEAR_FRACTION = 0.95
+
+
+@dataclass(frozen=True)
+class NearPair:
+    """A pair of bodies nearer than a distance in (almost) every sampled configuration.
+
+    :ivar link_a: the pair's first name (``link_a < link_b``, as in ``checked_pairs``).
+    :ivar link_b: the second name.
+    :ivar near: configurations in which the pair was nearer than the distance.
+    :ivar samples: configurations measured.
+    :ivar largest: the pair's largest (padded) distance over the configurations in which it
+        was near (m): a warning distance at or below it leaves the pair out there.
+    """
+
+    link_a: str
+    link_b: str
+    near: int
+    samples: int
+    largest: float
+
+
+def pairs_near_everywhere(checker, distance: float, samples: int = NEAR_SAMPLES,
+                          seed: int = 0, fraction: float = NEAR_FRACTION) -> List[NearPair]:
+    """Return the checked pairs nearer than ``distance`` wherever the robot goes: in at least
+    ``fraction`` of the neutral configuration and ``samples`` configurations uniform within the
+    joint limits (:func:`sampling_bounds`, seeded), as ``collision_sensor_acm`` samples for
+    "Always". A warning zone of that ``distance`` would report them all the time.
+
+    Sampling is not proof: a pair near in every configuration drawn can be apart in one that was
+    not drawn. The checker is left at its neutral configuration, checked from scratch.
+
+    :param checker: a :class:`CollisionChecker` (its carried state is used, then reset).
+    :param distance: metres (padded distance, as :meth:`CollisionChecker.proximity` measures).
+    :return: the pairs, sorted by name.
+    """
+    neutral = checker.kinematics.neutral()
+    lower, upper = sampling_bounds(checker)
+    configurations = np.vstack([neutral[None, :], uniform_configurations(
+        lower, upper, samples, np.random.default_rng(seed))])
+    near: Dict[Tuple[str, str], int] = {}
+    largest: Dict[Tuple[str, str], float] = {}
+    measured = 0
+    for q in configurations:
+        try:
+            records = checker.proximity(q, distance)
+        except JointStateError:   # a floating joint's quaternion drawn (almost) zero
+            continue
+        measured += 1
+        for record in records:
+            if record.distance < distance:
+                pair = (record.link_a, record.link_b)
+                near[pair] = near.get(pair, 0) + 1
+                largest[pair] = max(largest.get(pair, -math.inf), record.distance)
+    checker.check(neutral)
+    return [NearPair(a, b, count, measured, largest[a, b])
+            for (a, b), count in sorted(near.items())
+            if measured and count >= fraction * measured]
