@@ -291,9 +291,10 @@ def _limits_reason(beyond, tolerance: float) -> str:
     joints = listing((f'joint {quoted(name)} at {value:.6g} outside its limits '
                       f'[{bound(lower)}, {bound(upper)}]' for name, value, lower, upper in beyond),
                      total=len(beyond), max_items=_MAX_LISTED, limit=600, escape=False)
-    return (f'{joints} by more than limit_tolerance {tolerance:g}; fix the publisher (units, '
-            'joint order, calibration), or set the parameter joint_limit_policy to "clamp" or '
-            '"accept"')
+    # The node's parameter, as the user sets it (this merger is the node's).
+    return (f'{joints} by more than joint_limit_tolerance {tolerance:g}; fix the publisher '
+            '(units, joint order, calibration), or set the parameter joint_limit_policy to '
+            '"clamp" or "accept"')
 
 
 def joints_out_of_limits(positions: Mapping[str, float],
