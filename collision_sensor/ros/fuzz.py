@@ -12,12 +12,16 @@ above the node's ``max_joint_state_bytes``: rejected before decoding). The node 
 ``overload_policy: every``: every accepted message must get its verdict, so one superseded on
 a busy machine counts as lost here.
 
-Each message carries a unique header stamp, which the node copies into its verdict. This process
-keeps its own :class:`~collision_sensor.ros.joint_state_merger.JointStateMerger` with the node's
-settings to know which messages the node must accept, and for each accepted one compares the
-node's colliding pairs with a fresh ``CollisionChecker.check`` here, on the merged state. It
-reports, per message class: sent, verdicts expected, received, lost (expected, never came),
-unexpected (came for a message that must be rejected) and wrong (pairs differ); the node's
+Each message carries a unique header stamp, which the node copies into its answer: every
+message is answered. This process keeps its own
+:class:`~collision_sensor.ros.joint_state_merger.JointStateMerger` with the node's settings to
+know what the node must answer: for an accepted message that completes the state, the node's
+colliding pairs are compared with a fresh ``CollisionChecker.check`` here, on the merged state;
+a rejected one (or one the engine refuses) must be answered by a ``joint_state_rejected`` entry,
+one that cannot be checked yet by ``waiting_for_joints``, and one that changes nothing (no
+position, no joint of the robot) by the verdict of the state held. It reports, per message
+class: sent, answers expected, of them verdicts of a checked state, received, lost (expected,
+never came), unexpected (came for no message sent) and wrong (answer differs); the node's
 resident memory (``VmRSS`` of ``/proc/PID/status``, sampled every 0.1 s), its own counters from
 ``/diagnostics`` (every message received, skipped ones counted by reason), its output checked
 for forged log lines (every line must start as rcutils writes a log line, and none may start
@@ -57,6 +61,10 @@ MALFORMED = ('length_mismatch', 'duplicate_names', 'nan', 'inf', 'huge_1e9', 'hu
              'only_control_char_names', 'empty', 'velocity_only', 'oversized')
 #: New unknown names in an ``oversized`` message: far above the node's max_joint_state_bytes.
 OVERSIZED_NAMES = 20_000
+#: The node's answers to a message it refuses, and to one it cannot check yet (their
+#: ``colliding_pairs`` failure entries, see ``collision_sensor.ros.verdicts``).
+REJECTED = (('joint_state_rejected',),)
+WAITING = (('waiting_for_joints',),)
 #: What an injected name tries to make the node print as a line of its own.
 FORGED_PREFIX = '[ERROR] [0.000000000] [collision_sensor]: FORGED'
 #: How rcutils starts every line it writes (the default RCUTILS_CONSOLE_OUTPUT_FORMAT).
@@ -71,6 +79,7 @@ class ClassStats:
 
     sent: int = 0
     expected: int = 0
+    checked: int = 0
     received: int = 0
     lost: int = 0
     unexpected: int = 0
@@ -113,7 +122,8 @@ class Report:
             'messages': self.messages, 'policy': self.policy, 'seconds': self.seconds,
             'classes': {name: vars(stats) for name, stats in self.classes.items()},
             'totals': {name: self.total(name) for name in
-                       ('sent', 'expected', 'received', 'lost', 'unexpected', 'wrong')},
+                       ('sent', 'expected', 'checked', 'received', 'lost', 'unexpected',
+                        'wrong')},
             'wrong_examples': self.wrong_examples,
             'rss_kib': {'at_ready': self.rss_at_ready_kib,
                         'first': self.rss_kib[0] if self.rss_kib else None,
@@ -367,7 +377,8 @@ def run_fuzz(messages: int, seed: int = 1, rate: float = 500.0, policy: str = 'r
         say(f'node ready after {time.monotonic() - started:.1f} s; sending {messages} joint '
             f'states at {rate:g} Hz')
 
-        expected: Dict[int, Tuple[str, Tuple[Tuple[str, str], ...]]] = {}
+        expected: Dict[int, Tuple[str, Tuple[Tuple[str, ...], ...]]] = {}
+        held = None     # the verdict of the last state checked, which an ignored one gets
         period = 1.0 / rate
         t0 = time.monotonic()
         for index, (kind, names, values, velocities) in enumerate(maker.stream(messages)):
@@ -380,14 +391,23 @@ def run_fuzz(messages: int, seed: int = 1, rate: float = 500.0, policy: str = 'r
             # The node rejects an oversized message before decoding it: the mirror never sees it.
             oversized = len(serialize_message(msg)) > MAX_JOINT_STATE_BYTES
             outcome = None if oversized else mirror.merge(names, values)
-            if outcome is not None and outcome.accepted and mirror.complete:
+            if outcome is None or outcome.problem is not None:
+                answer = REJECTED
+            elif not outcome.accepted:
+                answer = WAITING if held is None else held
+            elif not mirror.complete:
+                answer = WAITING
+            else:
                 try:
                     result = reference.check(dict(mirror.positions))
-                except JointStateError:  # the node's engine refuses it too: no verdict
+                except JointStateError:  # the node's engine refuses it too
                     mirror.undo(outcome)
+                    answer = REJECTED
                 else:
-                    stats.expected += 1
-                    expected[key] = (kind, tuple(result.colliding_pairs))
+                    answer = held = tuple(result.colliding_pairs)
+                    stats.checked += 1
+            stats.expected += 1
+            expected[key] = (kind, answer)
             delay = t0 + index * period - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
@@ -443,21 +463,22 @@ def run_fuzz(messages: int, seed: int = 1, rate: float = 500.0, policy: str = 'r
 
 def summary_lines(report: Report) -> List[str]:
     """Return the summary table and the checks below it."""
-    lines = ['', f'{"class":<26}{"sent":>7}{"expected":>10}{"received":>10}{"lost":>7}'
-             f'{"unexpected":>12}{"wrong":>7}']
+    lines = ['', f'{"class":<26}{"sent":>7}{"expected":>10}{"checked":>9}{"received":>10}'
+             f'{"lost":>7}{"unexpected":>12}{"wrong":>7}']
     rows = ['valid'] + [kind for kind in MALFORMED if kind in report.classes]
     for kind in rows + ['total']:
         if kind == 'total':
             values = [report.total(name) for name in
-                      ('sent', 'expected', 'received', 'lost', 'unexpected', 'wrong')]
+                      ('sent', 'expected', 'checked', 'received', 'lost', 'unexpected',
+                       'wrong')]
         elif kind in report.classes:
             stats = report.classes[kind]
-            values = [stats.sent, stats.expected, stats.received, stats.lost, stats.unexpected,
-                      stats.wrong]
+            values = [stats.sent, stats.expected, stats.checked, stats.received, stats.lost,
+                      stats.unexpected, stats.wrong]
         else:
             continue
-        lines.append(f'{kind:<26}{values[0]:>7}{values[1]:>10}{values[2]:>10}{values[3]:>7}'
-                     f'{values[4]:>12}{values[5]:>7}')
+        lines.append(f'{kind:<26}{values[0]:>7}{values[1]:>10}{values[2]:>9}{values[3]:>10}'
+                     f'{values[4]:>7}{values[5]:>12}{values[6]:>7}')
     for example in report.wrong_examples[:3]:
         lines.append(f'  wrong: message {example["message"]} ({example["class"]}): node '
                      f'{example["node"]}, check {example["check"]}')

@@ -5,7 +5,7 @@ they define every parameter (name, typed default, description) and turn a ``{nam
 mapping into validated :class:`NodeSettings`, raising :class:`~collision_sensor.ConfigError`
 with a message that names the parameter and the fix. :func:`declare_node_parameters` is the
 only part that touches rclpy (imported inside it): it declares each parameter on a node with a
-read-only, typed descriptor and reads the values back.
+typed descriptor, read-only except the :data:`DYNAMIC` ones, and reads the values back.
 
 Empty string arrays: rclpy infers the type of a ``[]`` default as BYTE_ARRAY, after which a
 string list from a params file is refused. String-array parameters are therefore declared by
@@ -13,20 +13,29 @@ type alone (``Parameter.Type.STRING_ARRAY``), and a parameter left unset, or set
 params file or on the command line (which rcl reads as "not set"), reads as the empty list.
 
 Every parameter is listed, with comments, in ``config/collision_sensor.yaml``; keep the two in
-step (``test_node_parameters`` in ``test/test_node.py`` checks it).
+step (``test_params_file_lists_every_parameter_with_its_default`` in
+``test/ros/test_node.py`` checks it).
 """
+import difflib
 import math
 import os
 from dataclasses import dataclass, field
-from typing import Any, Dict, List, Mapping, Optional, Tuple
+from typing import Any, Dict, FrozenSet, List, Mapping, Optional, Tuple
 
 from collision_sensor.engine.checker_config import BOX_TESTS, OBB_FITS, CheckerConfig
 from collision_sensor.engine.scene_markers import SceneLimits
 from collision_sensor.engine.traversal import EXPANSION_RULES
 from collision_sensor.errors import ConfigError
 from collision_sensor.model.mesh_loading import parse_package_paths
+from collision_sensor.model.exception_list import sorted_pair
 from collision_sensor.ros.joint_state_merger import (
     DEFAULT_LIMIT_TOLERANCE, LIMIT_POLICIES, MAX_UNKNOWN_NAMES)
+from collision_sensor.untrusted_text import printable
+
+#: The values of ``on_rejected_input``, ``on_engine_error`` and ``stale_policy`` (as
+#: ``collision_sensor.ros.verdicts.FAIL_SAFE_POLICIES``; this module imports no rclpy).
+CONTACT, HOLD = 'contact', 'hold'
+FAIL_SAFE_POLICIES = (CONTACT, HOLD)
 
 #: Default of ``max_joint_state_bytes``: a JointState of 1000 joints, names of 24 characters,
 #: positions, velocities and efforts is about 60 KiB serialized.
@@ -47,6 +56,7 @@ class ParameterSpec:
     default: Any
     description: str
     constraints: str = ''
+    dynamic: bool = False   # settable while the node runs (ros2 param set)
 
 
 #: Every parameter of the node, in the order of ``config/collision_sensor.yaml``. A default of
@@ -67,7 +77,7 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
                   'YAML file of static scene objects checked against the robot; empty: none'),
     ParameterSpec('allowed_collisions', (),
                   'pairs never checked, as "link_a:link_b" (links of the robot or scene objects)',
-                  'each entry "link_a:link_b" with two different names'),
+                  'each entry "link_a:link_b" with two different names', dynamic=True),
     ParameterSpec('ignore_adjacent', True,
                   'skip pairs of links joined by one joint (they usually touch by design)'),
     ParameterSpec('motion_tolerance', _ENGINE.motion_tolerance,
@@ -88,20 +98,24 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
     ParameterSpec('padding', _ENGINE.padding,
                   'metres every robot link is grown by (a sphere swept over its geometry, as '
                   'MoveIt\'s link padding): two links, or a link and a scene object, are in '
-                  'contact when their surfaces are within the sum of their paddings', '>= 0'),
+                  'contact when their surfaces are within the sum of their paddings', '>= 0',
+                  dynamic=True),
     ParameterSpec('link_padding', (),
                   'a link\'s own padding instead of padding, as "link=metres"',
-                  'each entry "link=metres" with a link of the robot and a number >= 0'),
+                  'each entry "link=metres" with a link of the robot and a number >= 0',
+                  dynamic=True),
     ParameterSpec('require_all_joints', True,
                   'publish no verdict until every movable joint has been heard at least once'),
     ParameterSpec('stale_timeout', 1.0,
-                  'seconds without an accepted joint state before the state is reported stale '
-                  'on /diagnostics; 0 turns the check off', '>= 0'),
+                  'seconds without an accepted joint state (after the first) before the state '
+                  'is stale: /diagnostics ERROR, and stale_policy says what contact does; 0 '
+                  'turns the check off', '>= 0'),
     ParameterSpec('joint_limit_policy', 'reject',
                   'a joint state with a value beyond its joint limits (URDF) by more than '
                   'joint_limit_tolerance: "reject" it whole (state unchanged, warning), '
                   '"clamp" the value to the limit, or "accept" it as given (reported); joints '
-                  'without limits take any finite value', ' | '.join(LIMIT_POLICIES)),
+                  'without limits take any finite value', ' | '.join(LIMIT_POLICIES),
+                  dynamic=True),
     ParameterSpec('joint_limit_tolerance', DEFAULT_LIMIT_TOLERANCE,
                   'rad or m a value may lie beyond a joint limit and still be taken as given '
                   '(encoder noise, calibration)', '>= 0'),
@@ -123,14 +137,35 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
                   'current; "every" checks every one in order however far behind (a recorded '
                   'path replayed as fast as possible, one verdict per frame)',
                   'newest | every'),
+    ParameterSpec('on_rejected_input', 'contact',
+                  'a joint state the node refuses (malformed, beyond its limits, too large) or '
+                  'cannot check yet (joints missing) is answered by a colliding_pairs entry '
+                  'naming the reason; "contact": contact true (the node does not know where '
+                  'the robot is), "hold": contact repeats the last verdict',
+                  ' | '.join(FAIL_SAFE_POLICIES)),
+    ParameterSpec('on_engine_error', 'contact',
+                  'the engine fails on a joint state (the state stays the last one checked, '
+                  '/diagnostics ERROR until a state is checked again): "contact" publishes '
+                  'contact true and a colliding_pairs entry naming the error, "hold" repeats the '
+                  'last verdict with that entry', ' | '.join(FAIL_SAFE_POLICIES)),
+    ParameterSpec('stale_policy', 'contact',
+                  'no joint state for stale_timeout (/diagnostics ERROR until one comes): '
+                  '"contact" publishes contact true and a colliding_pairs entry saying so, '
+                  '"hold" publishes nothing (contact keeps the last verdict)',
+                  ' | '.join(FAIL_SAFE_POLICIES)),
     ParameterSpec('warning_distance', 0.0,
                   'metres: pairs nearer than this (padded distance) are reported on near, '
                   'min_distance and near_pairs with every verdict; 0 turns the proximity '
-                  'outputs off', '>= 0'),
+                  'outputs off', '>= 0', dynamic=True),
+    ParameterSpec('warning_ignore', (),
+                  'pairs left out of the warning zone, as "link_a:link_b" (they are still '
+                  'checked for contact); the node names at start-up the pairs that are nearer '
+                  'than warning_distance wherever the robot goes',
+                  'each entry "link_a:link_b" with two different names', dynamic=True),
     ParameterSpec('publish_markers', False,
                   'publish the boxes of colliding links, the scene objects, and the nearest '
                   'points of pairs nearer than warning_distance, on ~/markers '
-                  '(visualization_msgs/MarkerArray)'),
+                  '(visualization_msgs/MarkerArray)', dynamic=True),
     ParameterSpec('scene_max_objects', _TOPIC.max_objects,
                   'objects the scene topic may hold at once; an array that would add more is '
                   'rejected', '>= 0'),
@@ -148,6 +183,8 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
 )
 
 _SPECS = {spec.name: spec for spec in PARAMETERS}
+#: The parameters settable while the node runs (``collision_sensor.ros.runtime_parameters``).
+DYNAMIC = frozenset(spec.name for spec in PARAMETERS if spec.dynamic)
 
 
 @dataclass(frozen=True)
@@ -170,7 +207,12 @@ class NodeSettings:
     :ivar max_joint_state_bytes: largest serialized joint_states message taken.
     :ivar xacro_args: ``{name: value}`` for a ``.xacro`` urdf_path.
     :ivar warning_distance: metres; 0: no proximity outputs.
+    :ivar warning_ignore: pairs left out of the warning zone, each sorted.
     :ivar scene_limits: the ``scene`` topic's caps and mesh roots.
+    :ivar on_rejected_input: one of :data:`FAIL_SAFE_POLICIES`.
+    :ivar on_engine_error: one of :data:`FAIL_SAFE_POLICIES`.
+    :ivar stale_policy: one of :data:`FAIL_SAFE_POLICIES`.
+    :ivar values: the parameter values these settings were made from, ``{name: value}``.
     """
 
     urdf_path: Optional[str]
@@ -189,7 +231,12 @@ class NodeSettings:
     xacro_args: Dict[str, str] = field(default_factory=dict)
     overload_policy: str = 'newest'
     warning_distance: float = 0.0
+    warning_ignore: FrozenSet[Tuple[str, str]] = frozenset()
     scene_limits: SceneLimits = field(default_factory=SceneLimits)
+    on_rejected_input: str = CONTACT
+    on_engine_error: str = CONTACT
+    stale_policy: str = CONTACT
+    values: Mapping[str, Any] = field(default_factory=dict, compare=False)
 
 
 def default_values() -> Dict[str, Any]:
@@ -231,16 +278,16 @@ def _parse_xacro_args(entries: List[str]) -> Dict[str, str]:
     return args
 
 
-def _parse_allowed_collisions(entries: List[str]) -> List[str]:
+def _parse_pairs(entries: List[str], name: str = 'allowed_collisions') -> List[str]:
     pairs = []
     for entry in entries:
         first, separator, second = entry.partition(':')
         first, second = first.strip(), second.strip()
         if not separator or not first or not second or ':' in second:
-            raise ConfigError(f'parameter allowed_collisions: entry "{entry}" is not '
+            raise ConfigError(f'parameter {name}: entry "{entry}" is not '
                               '"link_a:link_b"; write e.g. "panda_link0:panda_link2"')
         if first == second:
-            raise ConfigError(f'parameter allowed_collisions: entry "{entry}" names one link '
+            raise ConfigError(f'parameter {name}: entry "{entry}" names one link '
                               'twice; a pair needs two different links')
         pairs.append(f'{first}:{second}')
     return pairs
@@ -300,14 +347,14 @@ def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
     """
     unknown = set(values) - set(_SPECS)
     if unknown:
-        raise ConfigError(f'unknown parameters {sorted(unknown)}; known: {sorted(_SPECS)}')
+        raise unknown_parameters_error(unknown)
     merged = default_values()
     for name, value in values.items():
         if isinstance(_SPECS[name].default, tuple):
             value = [] if value is None else list(value)
         merged[name] = value
     checker_config = {
-        'allowed_collisions': _parse_allowed_collisions(merged['allowed_collisions']),
+        'allowed_collisions': _parse_pairs(merged['allowed_collisions']),
         'ignore_adjacent': bool(merged['ignore_adjacent']),
         'motion_tolerance': _non_negative(merged, 'motion_tolerance'),
         'box_test': merged['box_test'],
@@ -341,6 +388,13 @@ def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
         max_unknown_joints=_non_negative_int(merged, 'max_unknown_joints'),
         max_joint_state_bytes=_at_least(merged, 'max_joint_state_bytes', 1024),
         warning_distance=_non_negative(merged, 'warning_distance'),
+        warning_ignore=frozenset(sorted_pair(*entry.split(':'))
+                                 for entry in _parse_pairs(merged['warning_ignore'],
+                                                           'warning_ignore')),
+        on_rejected_input=_choice(merged, 'on_rejected_input', FAIL_SAFE_POLICIES),
+        on_engine_error=_choice(merged, 'on_engine_error', FAIL_SAFE_POLICIES),
+        stale_policy=_choice(merged, 'stale_policy', FAIL_SAFE_POLICIES),
+        values=merged,
         scene_limits=SceneLimits(
             max_objects=_non_negative_int(merged, 'scene_max_objects'),
             max_triangles=_non_negative_int(merged, 'scene_max_triangles'),
@@ -350,13 +404,51 @@ def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
     )
 
 
+#: Parameters rclpy itself reads (by prefix): never refused as unknown.
+ROS_PARAMETER_PREFIXES = ('qos_overrides.',)
+
+
+def closest_name(name: str) -> str:
+    """Return the known parameter name most like ``name``."""
+    return max(_SPECS, key=lambda known: difflib.SequenceMatcher(None, name, known).ratio())
+
+
+def unknown_parameters_error(names) -> ConfigError:
+    """Return the error for parameters the node does not have, each with the closest name."""
+    listed = '; '.join(f'"{printable(name, 100)}" (did you mean {closest_name(name)}?)'
+                       for name in sorted(names))
+    return ConfigError(f'unknown parameter(s): {listed}. The node has no such parameter, so its '
+                       'value would be ignored: fix the name where it is set (a -p name:=value '
+                       'argument or a --params-file), or remove it; every parameter is listed '
+                       'in config/collision_sensor.yaml')
+
+
+def unknown_overrides(node) -> List[str]:
+    """Return the parameter names given to ``node`` (``-p`` arguments, params files and
+    ``parameter_overrides``, as rcl matched them to this node) that are neither this node's nor
+    ROS's own (``use_sim_time``, ``qos_overrides.*``, whatever rclpy declared itself).
+
+    rclpy keeps those names in ``Node._parameter_overrides`` and offers no public accessor:
+    this is the node's one read of a private rclpy attribute, and without it (another rclpy)
+    nothing is found.
+    """
+    overrides = getattr(node, '_parameter_overrides', None)
+    if not isinstance(overrides, Mapping):
+        return []
+    return sorted(name for name in overrides
+                  if name not in _SPECS and not node.has_parameter(name)
+                  and not name.startswith(ROS_PARAMETER_PREFIXES))
+
+
 def declare_node_parameters(node) -> NodeSettings:
-    """Declare every parameter on ``node`` (typed, read-only descriptors) and validate them.
+    """Declare every parameter on ``node`` (typed descriptors, read-only unless dynamic) and
+    validate them.
 
     :param node: an ``rclpy.node.Node``.
     :return: the validated settings.
-    :raises ConfigError: a value of the wrong type (e.g. ``1`` for a double: write ``1.0``) or
-        one that :func:`settings_from_values` refuses.
+    :raises ConfigError: a parameter the node does not have (:func:`unknown_overrides`), a
+        value of the wrong type (e.g. ``1`` for a double: write ``1.0``) or one that
+        :func:`settings_from_values` refuses.
     """
     from rcl_interfaces.msg import ParameterDescriptor
     from rclpy.exceptions import (
@@ -364,6 +456,9 @@ def declare_node_parameters(node) -> NodeSettings:
         ParameterUninitializedException)
     from rclpy.parameter import Parameter
 
+    unknown = unknown_overrides(node)
+    if unknown:
+        raise unknown_parameters_error(unknown)
     values = {}
     for spec in PARAMETERS:
         string_array = isinstance(spec.default, tuple)
@@ -371,7 +466,7 @@ def declare_node_parameters(node) -> NodeSettings:
                  else Parameter.Type.from_parameter_value(spec.default))
         descriptor = ParameterDescriptor(
             name=spec.name, type=type_.value, description=spec.description,
-            additional_constraints=spec.constraints, read_only=True)
+            additional_constraints=spec.constraints, read_only=not spec.dynamic)
         try:
             node.declare_parameter(spec.name, type_ if string_array else spec.default,
                                    descriptor)

@@ -247,9 +247,11 @@ def test_shipped_params_file_declares_typed_defaults(ros):
         else:
             assert value.value == spec.default and type(value.value) is type(spec.default)
     descriptor = node.describe_parameter('allowed_collisions')
-    assert descriptor.type == Parameter.Type.STRING_ARRAY.value and descriptor.read_only
+    assert descriptor.type == Parameter.Type.STRING_ARRAY.value and not descriptor.read_only
+    for spec in PARAMETERS:     # settable at run time: the dynamic ones only
+        assert node.describe_parameter(spec.name).read_only is not spec.dynamic, spec.name
     result = node.set_parameters([Parameter('stale_timeout', value=5.0)])[0]
-    assert not result.successful    # read-only: the node does not reconfigure at run time
+    assert not result.successful    # read-only: the node does not take it at run time
 
 
 @pytest.mark.parametrize('overrides, words', [
@@ -325,7 +327,9 @@ def test_partial_states_from_two_publishers_merge(ros, panda, panda_urdf, panda_
     probe = Probe(ros)
     gripper = ros.publisher(JointState, 'joint_states', reliable(10))
     hit, free = poses['hit'], poses['free']
-    assert probe.no_verdict_for(joint_state({name: hit[name] for name in ARM}))
+    # The arm alone cannot be checked yet: answered, contact true (on_rejected_input contact).
+    assert probe.send(joint_state({name: hit[name] for name in ARM})) == \
+        (True, (('waiting_for_joints',),))
     count = len(probe.pairs)
     gripper.publish(joint_state({name: hit[name] for name in GRIPPER}))
     assert ros.spin_until(lambda: len(probe.pairs) > count)
@@ -424,12 +428,19 @@ def test_checking_thread_answers_each_message_unless_the_backlog_is_long():
 
 
 def test_node_uses_only_public_rclpy():
-    """No private rclpy layer (``_rclpy``, ``take_message``): it changes between releases."""
-    import inspect
-    from collision_sensor.ros import sensor_node
-    source = inspect.getsource(sensor_node)
-    assert 'rclpy.impl' not in source and 'take_message' not in source
-    assert '_rclpy' not in source
+    """No private rclpy layer (``_rclpy``, ``take_message``): it changes between releases.
+    Every module of the node, since it is split by concern; the one private read (the names
+    of the parameters given, which rclpy does not expose) is in node_parameters, guarded."""
+    import pathlib
+    from collision_sensor import ros
+    for path in pathlib.Path(ros.__file__).parent.glob('*.py'):
+        source = path.read_text()
+        assert 'rclpy.impl' not in source and 'take_message' not in source, path.name
+        assert '_rclpy' not in source, path.name
+        private = [line.strip() for line in source.splitlines()
+                   if "'_parameter_overrides'" in line or 'node._' in line]
+        assert private == ([] if path.name != 'node_parameters.py' else
+                           ["overrides = getattr(node, '_parameter_overrides', None)"]), path.name
 
 
 def test_require_all_joints_off_checks_partial_states(ros, panda, panda_urdf, panda_srdf,
@@ -451,7 +462,11 @@ def test_waiting_for_joints_is_reported(ros, panda_urdf, panda_srdf, erd_share, 
     status, values = probe.next_diagnostics()
     assert values['seconds_since_joint_state'] == '' and values['waiting_for_joints'] == 'true'
     assert status.level == DiagnosticStatus.WARN and 'waiting for joint states' in status.message
-    assert probe.no_verdict_for(joint_state({name: poses['free'][name] for name in ARM}))
+    assert probe.send(joint_state({name: poses['free'][name] for name in ARM})) == \
+        (True, (('waiting_for_joints',),))
+    entry = probe.pairs.last.status[0]
+    assert entry.level == DiagnosticStatus.ERROR and 'panda_finger_joint1' in entry.message
+    assert {kv.key: kv.value for kv in entry.values}['policy'] == 'contact'
     status, values = probe.next_diagnostics(lambda v: v['seconds_since_joint_state'] != '')
     assert values['missing_joints'] == 'panda_finger_joint1'
     assert values['waiting_for_joints'] == 'true'
@@ -472,12 +487,16 @@ def test_bad_joint_states_are_rejected_and_change_nothing(ros, panda_urdf, panda
         'nan': joint_state(hit_values[:-1] + [math.nan], names=names),
         'inf': joint_state([math.inf] + hit_values[1:], names=names),
     }
-    for msg in bad.values():
-        # Each would make the robot collide if any of it were taken.
-        assert probe.no_verdict_for(msg, seconds=0.15)
+    for k, msg in enumerate(bad.values()):
+        # Each would make the robot collide if any of it were taken. Each is answered: contact
+        # true (on_rejected_input contact), the reason as the one entry, the message's stamp.
+        msg.header.stamp = stamp_of(k)
+        assert probe.send(msg) == (True, (('joint_state_rejected',),))
+        assert probe.pairs.last.header.stamp == stamp_of(k)
+        assert probe.pairs.last.status[0].level == DiagnosticStatus.ERROR
     velocity_only = joint_state([], names=names)
     velocity_only.velocity = [1.0] * len(names)
-    assert probe.no_verdict_for(velocity_only, seconds=0.15)
+    assert probe.send(velocity_only) == (False, ())    # ignored: the state held, its verdict
     # The known state is unchanged: a message moving nothing gives the free verdict again.
     assert probe.send(joint_state({'panda_joint1': free['panda_joint1']})) == (False, ())
     err = capfd.readouterr().err
@@ -535,7 +554,13 @@ def test_an_oversized_joint_state_is_rejected_before_decoding(ros, panda_urdf, p
     assert probe.send(joint_state(poses['free'])) == (False, ())
     # 400 names: about 8 KiB serialized, above the 4 KiB allowed. No verdict, state unchanged.
     huge = dict(poses['hit'], **{f'ghost_{i}': 0.0 for i in range(400)})
-    assert probe.no_verdict_for(joint_state(huge), 0.2)
+    huge = joint_state(huge, stamp=stamp_of(7))
+    huge.header.frame_id = 'big'
+    assert probe.send(huge) == (True, (('joint_state_rejected',),))
+    # Not decoded, yet answered with its header (read from the first bytes) and the reason.
+    assert probe.pairs.last.header.stamp == stamp_of(7)
+    assert probe.pairs.last.header.frame_id == 'big'
+    assert 'above max_joint_state_bytes (4096)' in probe.pairs.last.status[0].message
     assert probe.send(joint_state({'panda_joint1': poses['free']['panda_joint1']})) == \
         (False, ())
     assert probe.send(joint_state(poses['hit']))[0]     # the robot's own states still fit
@@ -558,7 +583,8 @@ def test_out_of_limit_joints_are_rejected_by_default(ros, panda_urdf, panda_srdf
     probe = Probe(ros)
     assert probe.send(joint_state(poses['free'])) == (False, ())
     for value in (0.5, 1e9, 9.2e18, 1.7e308, -1.7e308):    # panda_joint4 in [-3.0718, -0.0698]
-        assert probe.no_verdict_for(joint_state(dict(poses['hit'], panda_joint4=value)), 0.1)
+        assert probe.send(joint_state(dict(poses['hit'], panda_joint4=value))) == \
+            (True, (('joint_state_rejected',),))
     assert probe.send(joint_state({'panda_joint1': poses['free']['panda_joint1']})) == \
         (False, ())     # the state is unchanged: still the free pose
     # Within the tolerance (0.01 rad) a value is taken as given.
@@ -566,7 +592,7 @@ def test_out_of_limit_joints_are_rejected_by_default(ros, panda_urdf, panda_srdf
     assert probe.send(joint_state(state))
     err = capfd.readouterr().err
     assert 'joint state rejected, state unchanged: joint "panda_joint4" at 0.5 outside its ' \
-           'limits [-3.0718, -0.0698] by more than limit_tolerance 0.01' in err
+           'limits [-3.0718, -0.0698] by more than joint_limit_tolerance 0.01' in err
     assert 'joint_limit_policy to "clamp" or "accept"' in err
     _, values = probe.next_diagnostics(lambda v: v['rejected_out_of_limits'] != '0')
     assert values['rejected_out_of_limits'] == '5' and values['joint_limit_policy'] == 'reject'
@@ -613,7 +639,7 @@ class _FlakyChecker:
     def __getattr__(self, name):
         return getattr(self._checker, name)
 
-    def update(self, positions):
+    def _fault(self, positions):
         # A mapping, or (the node's fast path) an array in joint_names order.
         value = (positions.get('panda_joint1') if hasattr(positions, 'get')
                  else positions[self._checker.joint_names.index('panda_joint1')])
@@ -621,7 +647,14 @@ class _FlakyChecker:
             raise RuntimeError('engine fault injected by the test')
         if value == -self.MARK:
             raise ConfigError('engine error injected by the test')
+
+    def update(self, positions):
+        self._fault(positions)
         return self._checker.update(positions)
+
+    def check(self, positions):     # after an engine error the node checks from scratch
+        self._fault(positions)
+        return self._checker.check(positions)
 
 
 def test_engine_errors_are_logged_and_the_node_keeps_running(ros, panda_urdf, panda_srdf,
@@ -635,8 +668,12 @@ def test_engine_errors_are_logged_and_the_node_keeps_running(ros, panda_urdf, pa
     probe = Probe(ros)
     free = poses['free']
     assert probe.send(joint_state(free)) == (False, ())
-    assert probe.no_verdict_for(joint_state(dict(free, panda_joint1=_FlakyChecker.MARK)))
-    assert probe.no_verdict_for(joint_state(dict(free, panda_joint1=-_FlakyChecker.MARK)))
+    # Answered, fail safe (on_engine_error contact): contact true, the error named.
+    assert probe.send(joint_state(dict(free, panda_joint1=_FlakyChecker.MARK))) == \
+        (True, (('engine_error',),))
+    assert probe.send(joint_state(dict(free, panda_joint1=-_FlakyChecker.MARK))) == \
+        (True, (('engine_error',),))
+    assert 'engine error injected by the test' in probe.pairs.last.status[0].message
     assert probe.send(joint_state(free)) == (False, ())
     err = capfd.readouterr().err
     assert 'engine fault injected by the test' in err
@@ -650,7 +687,10 @@ def test_stale_joint_states_are_reported(ros, panda_urdf, panda_srdf, erd_share,
     probe = Probe(ros)
     probe.send(joint_state(poses['free']))
     status, values = probe.next_diagnostics(lambda v: v['stale'] == 'true')
-    assert status.level == DiagnosticStatus.STALE and 'stale' in status.message
+    assert status.level == DiagnosticStatus.ERROR and 'stale' in status.message
+    # stale_policy contact (the default): contact true once, the reason as the entry.
+    assert ros.spin_until(lambda: pairs_of(probe.pairs.last) == (('joint_states_stale',),))
+    assert probe.contact.last.data
     # A stream of joint states again (20 Hz): the state is fresh.
     ros.probe.create_timer(0.05, lambda: probe.joint_states.publish(joint_state(poses['free'])))
     status, values = probe.next_diagnostics(lambda v: v['stale'] == 'false')
@@ -742,10 +782,14 @@ def test_robot_from_topic_and_bad_description_rejected(ros, panda_urdf, erd_shar
     assert verdict_for(poses['hit']) == panda_hit and verdict_for(poses['free']) == panda_free
 
     description.publish(String(data=SLIDER_URDF))
+    # Until the slider has loaded, its joint is an unknown name to the Panda, whose verdict
+    # answers it (the state held); wait for the slider.
+    loaded = 'robot loaded from robot_description: 1 joints'
+    assert loaded in logged(ros, capfd, loaded, 60.0)
     assert verdict_for({'slide': -0.95}) == (True, (('anchor', 'carriage'),))
     assert verdict_for({'slide': 0.0}) == (False, ())
-    # The Panda's joints are now unknown names, ignored.
-    assert probe.no_verdict_for(joint_state(poses['free']))
+    # The Panda's joints are now unknown names, ignored: answered by the state held.
+    assert probe.send(joint_state(poses['free'])) == (False, ())
 
 
 # -- the console script, as a user runs it ------------------------------------------------------
@@ -996,6 +1040,9 @@ def test_console_script_survives_a_name_that_is_not_utf8(ros, panda_urdf, panda_
         probe = Probe(ros, timeout=60.0)
         raw = serialize_message(JointState(name=['zzzzzz'], position=[0.0]))
         probe.joint_states.publish(raw.replace(b'zzzzzz', b'\xff\xfe\xfd\xfc\xfb\xfa'))
+        # Decoded with the bytes replaced: a name of no joint, answered as such.
+        assert ros.spin_until(lambda: len(probe.pairs) == 1, 10.0)
+        assert pairs_of(probe.pairs.last) == (('waiting_for_joints',),)
         assert probe.send(joint_state(poses['free']), timeout=10.0) == (False, ())
         assert process.poll() is None
     finally:

@@ -1,0 +1,194 @@
+"""``~/markers`` (``publish_markers``): the boxes of colliding bodies, the scene objects and the
+near pairs' nearest points, as ``visualization_msgs/MarkerArray`` in the robot's root link frame.
+"""
+import math
+import time
+from typing import Dict, Optional
+
+import numpy as np
+from geometry_msgs.msg import Point, Pose
+from std_msgs.msg import ColorRGBA
+from visualization_msgs.msg import Marker, MarkerArray
+
+from collision_sensor.model.mesh_loading import SOLID_BOX, SOLID_CYLINDER, SOLID_SPHERE
+
+MARKER_PERIOD = 0.1         # s between marker updates while the colliding set stays the same
+MARKER_COLOR = ColorRGBA(r=1.0, g=0.0, b=0.0, a=0.6)
+NEAR_COLOR = ColorRGBA(r=1.0, g=0.55, b=0.0, a=0.9)   # nearest-point segments
+TEXT_COLOR = ColorRGBA(r=1.0, g=1.0, b=1.0, a=0.9)
+SEGMENT_WIDTH = 0.004       # m, line width of the nearest-point segments
+CONTACT_DIAMETER = 0.02     # m, the contact points' spheres
+TEXT_HEIGHT = 0.02          # m
+#: Scene objects on ~/markers: fixed in the world, attached to a link, colliding.
+WORLD_OBJECT_COLOR = ColorRGBA(r=0.6, g=0.6, b=0.65, a=0.8)
+ATTACHED_OBJECT_COLOR = ColorRGBA(r=0.2, g=0.8, b=0.3, a=0.8)
+COLLIDING_OBJECT_COLOR = ColorRGBA(r=1.0, g=0.1, b=0.1, a=0.9)
+#: A mesh object with more triangles is drawn as its box on ~/markers.
+MARKER_MAX_TRIANGLES = 20_000
+
+
+def quaternion_from_matrix(R) -> tuple:
+    """Return the unit quaternion ``(x, y, z, w)`` of a rotation matrix (Shepperd's method).
+
+    :param R: (3, 3) float, a rotation matrix.
+    """
+    trace = R[0][0] + R[1][1] + R[2][2]
+    # Branch on the largest of w, x, y, z so the square root is of a value >= 1/4 (stable).
+    if trace > max(R[0][0], R[1][1], R[2][2]):
+        s = 2.0 * math.sqrt(1.0 + trace)
+        return ((R[2][1] - R[1][2]) / s, (R[0][2] - R[2][0]) / s, (R[1][0] - R[0][1]) / s,
+                0.25 * s)
+    if R[0][0] >= R[1][1] and R[0][0] >= R[2][2]:
+        s = 2.0 * math.sqrt(1.0 + R[0][0] - R[1][1] - R[2][2])
+        return (0.25 * s, (R[0][1] + R[1][0]) / s, (R[0][2] + R[2][0]) / s,
+                (R[2][1] - R[1][2]) / s)
+    if R[1][1] >= R[2][2]:
+        s = 2.0 * math.sqrt(1.0 + R[1][1] - R[0][0] - R[2][2])
+        return ((R[0][1] + R[1][0]) / s, 0.25 * s, (R[1][2] + R[2][1]) / s,
+                (R[0][2] - R[2][0]) / s)
+    s = 2.0 * math.sqrt(1.0 + R[2][2] - R[0][0] - R[1][1])
+    return ((R[0][2] + R[2][0]) / s, (R[1][2] + R[2][1]) / s, 0.25 * s,
+            (R[1][0] - R[0][1]) / s)
+
+
+def _point(point) -> Point:
+    return Point(x=float(point[0]), y=float(point[1]), z=float(point[2]))
+
+
+class MarkerPublisher:
+    """Publish ``~/markers`` after verdicts (call everything with the node's lock held).
+
+    :param node: the node that owns the publisher.
+    """
+
+    def __init__(self, node):
+        self._publisher = node.create_publisher(MarkerArray, '~/markers', 10)
+        self.root_frame = ''
+        self._content = ()      # (colliding links, near pairs) the markers show
+        self._time = 0.0
+        self._shapes: Dict[str, tuple] = {}   # object: (its vertices, its marker's shape)
+        self.scene_changed = True       # the scene file's objects, on the first verdict
+
+    def close(self, node) -> None:
+        """Clear the markers and destroy the publisher (``publish_markers`` turned off)."""
+        self.clear()
+        node.destroy_publisher(self._publisher)
+
+    def publish(self, checker, stamp, pairs, records=()) -> None:
+        """Publish the boxes of the colliding bodies, the scene objects and, with
+        ``warning_distance``, the near pairs' nearest points: when any of them changes, and at
+        most every MARKER_PERIOD while something collides or is near, or an attached object
+        moves with the robot.
+
+        :param checker: the checker that gave the verdict (at the state it describes).
+        :param stamp: the verdict's stamp.
+        :param pairs: the colliding pairs.
+        :param records: the warning zone's ``ProximityRecord``\\ s.
+        """
+        colliding = tuple(sorted({name for pair in pairs for name in pair}))
+        near = tuple((r.link_a, r.link_b) for r in records)
+        objects = checker.object_names
+        if not colliding and not near and not objects:
+            self.clear()
+            return
+        now = time.monotonic()
+        moving = colliding or near or checker.attachments
+        content = (colliding, near)
+        if not self.scene_changed and content == self._content and (
+                not moving or now - self._time < MARKER_PERIOD):
+            return
+        self._content, self._time, self.scene_changed = content, now, False
+        # DELETEALL first: bodies that stopped colliding lose their boxes in the same message.
+        markers = [Marker(action=Marker.DELETEALL)]
+        for index, (name, T_world_box, half) in enumerate(checker.collision_boxes(colliding)):
+            marker = self._marker(name, index, Marker.CUBE, T_world_box, stamp, MARKER_COLOR)
+            marker.scale.x, marker.scale.y, marker.scale.z = (2.0 * float(h) for h in half)
+            markers.append(marker)
+        attached = checker.attachments
+        for index, obj in enumerate(checker.scene_objects):
+            color = (COLLIDING_OBJECT_COLOR if obj.name in colliding else
+                     ATTACHED_OBJECT_COLOR if obj.name in attached else WORLD_OBJECT_COLOR)
+            markers.append(self._object_marker(checker, obj, index, stamp, color))
+        markers.extend(self._proximity_markers(checker, stamp, records))
+        self._publisher.publish(MarkerArray(markers=markers))
+
+    def _proximity_markers(self, checker, stamp, records) -> list:
+        """The near pairs: nearest points joined (LINE_LIST, apart pairs), the contact points
+        (SPHERE_LIST) and each pair's distance as text, with the padding it includes."""
+        identity = np.eye(4)
+        segments = self._marker('proximity', 0, Marker.LINE_LIST, identity, stamp, NEAR_COLOR)
+        segments.scale.x = SEGMENT_WIDTH
+        contacts = self._marker('proximity', 1, Marker.SPHERE_LIST, identity, stamp,
+                                MARKER_COLOR)
+        contacts.scale.x = contacts.scale.y = contacts.scale.z = CONTACT_DIAMETER
+        labels = []
+        paddings = checker.paddings
+        for index, r in enumerate(records):
+            a, b = _point(r.point_a), _point(r.point_b)
+            if r.distance > 0:
+                segments.points.extend((a, b))
+            else:
+                contacts.points.append(a)
+            padding = paddings.get(r.link_a, 0.0) + paddings.get(r.link_b, 0.0)
+            at = np.eye(4)
+            at[:3, 3] = 0.5 * (r.point_a + r.point_b)
+            label = self._marker('proximity/distance', index, Marker.TEXT_VIEW_FACING, at,
+                                 stamp, TEXT_COLOR)
+            label.scale.z = TEXT_HEIGHT
+            label.text = (f'{r.link_a}:{r.link_b} {1e3 * r.distance:.1f} mm'
+                          + (f' (padding {1e3 * padding:g} mm)' if padding > 0 else ''))
+            labels.append(label)
+        return [m for m in (segments, contacts) if m.points] + labels
+
+    def _marker(self, ns: str, index: int, kind: int, T_world, stamp, color) -> Marker:
+        x, y, z, w = quaternion_from_matrix(T_world[:3, :3])
+        pose = Pose()
+        pose.position.x, pose.position.y, pose.position.z = (float(v) for v in T_world[:3, 3])
+        pose.orientation.x, pose.orientation.y = x, y
+        pose.orientation.z, pose.orientation.w = z, w
+        marker = Marker(ns=ns, id=index, type=kind, action=Marker.ADD, pose=pose, color=color,
+                        frame_locked=False)
+        marker.header.frame_id = self.root_frame
+        marker.header.stamp = stamp
+        return marker
+
+    def _object_marker(self, checker, obj, index: int, stamp, color) -> Marker:
+        """A scene object's marker (ns ``scene_objects``): its primitive, its triangles, or for
+        a mesh of more than MARKER_MAX_TRIANGLES its box."""
+        cached = self._shapes.get(obj.name)
+        if cached is None or cached[0] is not obj.vertices:
+            solid, size = obj.solid, (1.0, 1.0, 1.0)
+            kind, points, T_object_shape = Marker.TRIANGLE_LIST, [], np.eye(4)
+            if solid is not None and solid.kind in (SOLID_BOX, SOLID_SPHERE, SOLID_CYLINDER):
+                h = solid.size
+                kind, size = {SOLID_BOX: (Marker.CUBE, (2 * h[0], 2 * h[1], 2 * h[2])),
+                              SOLID_SPHERE: (Marker.SPHERE, (2 * h[0],) * 3),
+                              SOLID_CYLINDER: (Marker.CYLINDER, (2 * h[0], 2 * h[0], 2 * h[1]))
+                              }[solid.kind]
+            elif len(obj.faces) <= MARKER_MAX_TRIANGLES:
+                points = [Point(x=x, y=y, z=z)
+                          for x, y, z in obj.vertices[obj.faces.ravel()].tolist()]
+            else:
+                _, T_world_box, half = checker.collision_boxes([obj.name])[0]
+                kind, size = Marker.CUBE, tuple(2.0 * float(v) for v in half)
+                T_object_shape = np.linalg.inv(obj.T_world_object) @ T_world_box
+            cached = (obj.vertices, kind, size, points, T_object_shape)
+            self._shapes[obj.name] = cached
+        _, kind, size, points, T_object_shape = cached
+        marker = self._marker('scene_objects', index, kind, obj.T_world_object @ T_object_shape,
+                              stamp, color)
+        marker.scale.x, marker.scale.y, marker.scale.z = (float(v) for v in size)
+        marker.points = points
+        marker.text = obj.name
+        return marker
+
+    def clear(self, root_frame: Optional[str] = None) -> None:
+        """Delete every marker shown (a new model, or nothing left to show)."""
+        if self._content or self._shapes:
+            marker = Marker(action=Marker.DELETEALL)
+            marker.header.frame_id = self.root_frame
+            self._publisher.publish(MarkerArray(markers=[marker]))
+        if root_frame is not None:
+            self.root_frame = root_frame
+        self._content = ()
+        self._shapes = {}

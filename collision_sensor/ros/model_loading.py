@@ -1,0 +1,137 @@
+"""Loading the robot: building a checker from ``urdf_path`` or ``robot_description``, and
+swapping a new checker in while the node runs.
+
+A checker is built (:func:`build_checker`), its query run once so that nothing compiles on the
+first joint state, and, with a warning zone, the pairs near wherever the robot goes named. A new
+checker while the node runs (a new ``robot_description``, or a parameter that changes the
+checker: ``padding``, ``link_padding``, ``allowed_collisions``) is built on the loader thread
+(:class:`ModelLoader`): joint states keep being checked with the current one meanwhile. The
+sources then hand it their data (the merged joint state, the scene topic's objects:
+:meth:`~collision_sensor.ros.input_source.InputSource.prepare_model`) and it replaces the current
+checker under the node's lock, between two checks. Only the newest request waits: a request
+made during a build is built next, with the newest robot and parameters.
+"""
+import collections
+import threading
+import warnings
+from typing import Callable
+
+from collision_sensor.errors import LoadWarning
+from collision_sensor.model.exception_list import parse_pair_strings
+from collision_sensor.ros.warning_zone import near_everywhere_notes
+from collision_sensor.untrusted_text import printable
+
+#: Largest robot_description accepted (UTF-8 bytes); real URDFs with inline meshes stay far
+#: below.
+MAX_ROBOT_DESCRIPTION_BYTES = 16 * 1024 * 1024
+MODEL_POLL_PERIOD = 0.05    # s between looks for a finished build
+
+
+def default_checker_factory(urdf, srdf=None, package_paths=None, scene=None, config=None,
+                            xacro_args=None):
+    from collision_sensor import CollisionChecker
+    return CollisionChecker.from_urdf(urdf, srdf=srdf, package_paths=package_paths,
+                                      scene=scene, config=config, xacro_args=xacro_args)
+
+
+def root_link(checker) -> str:
+    """Return the frame the checker's world poses are in: the robot's root link."""
+    return getattr(getattr(checker, 'model', None), 'root_link', '') or ''
+
+
+def neutral_positions(checker) -> dict:
+    """Every variable at the checker's neutral state: zeros, identity quaternions."""
+    kinematics = getattr(checker, 'kinematics', None)
+    if kinematics is None or not hasattr(kinematics, 'neutral'):
+        return {name: 0.0 for name in checker.joint_names}
+    return dict(zip(checker.joint_names, (float(v) for v in kinematics.neutral())))
+
+
+def build_checker(factory, urdf, settings, notes: list):
+    """Build a checker of ``urdf`` (a path, or the document as bytes) with ``settings``
+    (:class:`~collision_sensor.ros.node_parameters.NodeSettings`); append its load warnings and
+    the warning zone's report to ``notes``.
+
+    :raises CollisionSensorError: the robot cannot be loaded, or a name in the parameters is
+        not one of its links or scene objects.
+
+    The loaders' :class:`~collision_sensor.LoadWarning`\\ s are not printed by Python as well:
+    the node logs them once, from ``checker.load_warnings``.
+    """
+    extra = {'xacro_args': settings.xacro_args} if settings.xacro_args else {}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter('always', LoadWarning)
+        checker = factory(urdf, srdf=settings.srdf_path,
+                          package_paths=settings.package_paths or None,
+                          scene=settings.scene_path, config=settings.checker_config, **extra)
+    if settings.warning_ignore:
+        parse_pair_strings([f'{a}:{b}' for a, b in settings.warning_ignore],
+                           set(checker.kinematics.link_names) | set(checker.object_names),
+                           'parameter warning_ignore')
+    lines = list(getattr(checker, 'load_warnings', ()))
+    logged = {line.split(': ', 1)[-1] for line in lines}
+    lines += [str(w.message) for w in caught if str(w.message) not in logged]
+    for line in lines:
+        notes.append(('warning', None, f'while loading the robot: {printable(line, 1000)}'))
+    notes.extend(near_everywhere_notes(checker, settings.warning_distance,
+                                       settings.warning_ignore))
+    # At the state a new checker starts in (every joint at 0, identity quaternions): check
+    # then update, so the carried state is the one the first joint state updates from, and
+    # the first verdict costs what every later one does.
+    start = neutral_positions(checker)
+    checker.check(start)
+    checker.update(start)
+    return checker
+
+
+class ModelLoader:
+    """Run :meth:`request`\\ ed builds on a thread of its own, newest request first.
+
+    :param run: called on the loader thread for each request; builds and installs.
+    """
+
+    def __init__(self, run: Callable[[], None]):
+        self._run_one = run
+        self._condition = threading.Condition()
+        self._pending = False
+        self._closed = False
+        self.busy = False
+        #: Finished builds' outcomes, for the executor's thread: ``(notes, first model)``.
+        self.results = collections.deque()
+        self._thread = threading.Thread(target=self._run, name='model loader', daemon=True)
+        self._thread.start()
+
+    def request(self) -> None:
+        """Build again, with the newest robot and parameters (after the build under way)."""
+        with self._condition:
+            self._pending = True
+            self._condition.notify()
+
+    @property
+    def loading(self) -> bool:
+        """True while a build runs or waits."""
+        return self.busy or self._pending
+
+    def close(self) -> None:
+        with self._condition:
+            self._closed = True
+            self._condition.notify()
+        # A build cannot be interrupted; the thread is a daemon and its result is dropped.
+        self._thread.join(timeout=0.5)
+
+    def _run(self):
+        while True:
+            with self._condition:
+                while not self._pending and not self._closed:
+                    self._condition.wait()
+                if self._closed:
+                    return
+                self._pending = False
+                self.busy = True
+            try:
+                self._run_one()
+            finally:
+                with self._condition:
+                    self.busy = False
+                    if self._closed:
+                        return

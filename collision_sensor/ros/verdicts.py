@@ -1,0 +1,127 @@
+"""The verdict topics, ``contact`` and ``colliding_pairs``, and the fail-safe answers.
+
+A verdict is one ``contact`` (``std_msgs/Bool``) and then one ``colliding_pairs``
+(``diagnostic_msgs/DiagnosticArray``, the answered input's header; one status per colliding
+pair, level ERROR, name ``link_a:link_b``, values ``link_a``, ``link_b``).
+
+When the node cannot say where the robot is, or cannot check it, it answers with a failure entry
+instead: a ``colliding_pairs`` status whose name has no ``:`` (one of :data:`FAILURE_KINDS`),
+level ERROR, the reason as its message, values ``kind``, ``reason`` and ``policy``. What
+``contact`` says then is the policy's choice (parameters ``on_rejected_input``,
+``on_engine_error``, ``stale_policy``), one of :data:`FAIL_SAFE_POLICIES`:
+
+- ``contact``: ``contact`` true, ``colliding_pairs`` the failure entry alone: the node does not
+  know that the robot is clear, so it does not say so;
+- ``hold``: ``contact`` repeats the verdict of the last state checked (the state the node holds:
+  an input it could not take changed nothing), ``colliding_pairs`` the failure entry, then that
+  verdict's pairs. With no state checked yet there is nothing to hold: as ``contact``.
+"""
+from typing import Optional, Tuple
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Bool
+
+# The values of on_rejected_input, on_engine_error and stale_policy.
+from collision_sensor.ros.node_parameters import CONTACT, FAIL_SAFE_POLICIES, HOLD  # noqa: F401
+from collision_sensor.ros.work_queue import MAX_INPUT_RATE
+from collision_sensor.untrusted_text import printable
+
+#: Verdicts and the robot description: late joiners get the latest message.
+LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: The verdict history that covers 0.1 s of input at ``MAX_INPUT_RATE``: a reliable subscriber
+#: 0.1 s behind still gets every verdict.
+VERDICT_DEPTH = int(0.1 * MAX_INPUT_RATE)
+VERDICT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=VERDICT_DEPTH,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+#: Failure entries in ``colliding_pairs`` (their status names).
+REJECTED = 'joint_state_rejected'     # a joint state the node refused (on_rejected_input)
+WAITING = 'waiting_for_joints'        # no state to check yet (on_rejected_input)
+ENGINE_ERROR = 'engine_error'         # the engine failed on this state (on_engine_error)
+STALE = 'joint_states_stale'          # no joint state for stale_timeout (stale_policy)
+FAILURE_KINDS = (REJECTED, WAITING, ENGINE_ERROR, STALE)
+
+
+def failure_status(kind: str, reason: str, policy: str, root_frame: str) -> DiagnosticStatus:
+    """Return a failure entry of ``colliding_pairs`` (see the module docstring)."""
+    reason = printable(reason, 1000)
+    return DiagnosticStatus(level=DiagnosticStatus.ERROR, name=kind, message=reason,
+                            hardware_id=root_frame,
+                            values=[KeyValue(key='kind', value=kind),
+                                    KeyValue(key='reason', value=reason),
+                                    KeyValue(key='policy', value=policy)])
+
+
+class VerdictPublisher:
+    """Publish ``contact`` and ``colliding_pairs`` (call with the node's lock held).
+
+    :param node: the node that owns the publishers.
+    :ivar held: the verdict of the last state checked, ``(in_collision, colliding pairs)``, or
+        None before one (or since a new model).
+    """
+
+    def __init__(self, node):
+        self._contact_pub = node.create_publisher(Bool, 'contact', VERDICT_QOS)
+        self._pairs_pub = node.create_publisher(DiagnosticArray, 'colliding_pairs', VERDICT_QOS)
+        # The messages, reused: the pair statuses are rebuilt only when the colliding set
+        # changes, the header is the answered input's.
+        self._contact_msgs = (Bool(data=False), Bool(data=True))
+        self._pairs_msg = DiagnosticArray()
+        self._last_pairs = None
+        self.root_frame = ''
+        self.held: Optional[Tuple[bool, tuple]] = None
+
+    def forget(self, root_frame: str) -> None:
+        """A new model: no state of it checked yet."""
+        self.root_frame = root_frame
+        self._last_pairs = None
+        self.held = None
+
+    def publish(self, header, result) -> None:
+        """Publish the verdict ``result`` (a ``CheckResult``) answering ``header``."""
+        pairs = result.colliding_pairs
+        in_collision = bool(result.in_collision)
+        self._contact_pub.publish(self._contact_msgs[in_collision])
+        verdict = self._pairs_msg
+        if pairs != self._last_pairs:
+            self._last_pairs = pairs
+            verdict.status = self._pair_statuses(pairs)
+            self.held = (in_collision, pairs)   # in_collision is bool(pairs)
+        verdict.header = header
+        self._pairs_pub.publish(verdict)
+
+    def publish_held(self, header) -> bool:
+        """Publish the held verdict again, answering ``header``; return False (nothing
+        published) when there is none."""
+        if self.held is None:
+            return False
+        in_collision, pairs = self.held
+        self._contact_pub.publish(self._contact_msgs[in_collision])
+        self._pairs_msg.header = header
+        self._pairs_pub.publish(self._pairs_msg)
+        return True
+
+    def publish_failure(self, header, entry: DiagnosticStatus, policy: str) -> bool:
+        """Answer ``header`` with the failure ``entry`` by ``policy``; return the ``contact``
+        published."""
+        if policy == HOLD and self.held is not None:
+            in_collision, pairs = self.held
+            statuses = [entry] + self._pair_statuses(pairs)
+        else:
+            in_collision, statuses = True, [entry]
+        self._contact_pub.publish(self._contact_msgs[in_collision])
+        self._pairs_pub.publish(DiagnosticArray(header=header, status=statuses))
+        return in_collision
+
+    def _pair_statuses(self, pairs) -> list:
+        root = self.root_frame
+        return [DiagnosticStatus(level=DiagnosticStatus.ERROR, name=f'{a}:{b}',
+                                 message=f'{a} collides with {b}', hardware_id=root,
+                                 values=[KeyValue(key='link_a', value=a),
+                                         KeyValue(key='link_b', value=b)])
+                for a, b in pairs]
