@@ -68,9 +68,10 @@ def build_checker(factory, urdf, settings, notes: list):
         parse_pair_strings([f'{a}:{b}' for a, b in settings.warning_ignore],
                            set(checker.kinematics.link_names) | set(checker.object_names),
                            'parameter warning_ignore')
-    lines = list(getattr(checker, 'load_warnings', ()))
-    logged = {line.split(': ', 1)[-1] for line in lines}
-    lines += [str(w.message) for w in caught if str(w.message) not in logged]
+    # The LoadWarnings say in one summary what load_warnings says line by line; other warnings
+    # are logged as they are.
+    lines = list(getattr(checker, 'load_warnings', ())) + [
+        str(w.message) for w in caught if not issubclass(w.category, LoadWarning)]
     for line in lines:
         notes.append(('warning', None, f'while loading the robot: {printable(line, 1000)}'))
     notes.extend(near_everywhere_notes(checker, settings.warning_distance,

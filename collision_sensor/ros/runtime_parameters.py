@@ -19,9 +19,10 @@ from rcl_interfaces.msg import SetParametersResult
 
 from collision_sensor.errors import ConfigError
 from collision_sensor.model.exception_list import parse_pair_strings
-from collision_sensor.ros.node_parameters import DYNAMIC, settings_from_values
+from collision_sensor.ros.node_parameters import DYNAMIC, PARAMETERS, settings_from_values
 from collision_sensor.untrusted_text import printable
 
+PARAMETER_NAMES = frozenset(spec.name for spec in PARAMETERS)
 #: The parameters whose change needs a new checker.
 CHECKER_PARAMETERS = ('padding', 'link_padding', 'allowed_collisions')
 
@@ -54,13 +55,16 @@ class RuntimeParameters:
 
     def on_set(self, parameters: List) -> SetParametersResult:
         node = self._node
-        read_only = [p.name for p in parameters if p.name not in DYNAMIC]
+        ours = [p for p in parameters if p.name in PARAMETER_NAMES]
+        if not ours:
+            return SetParametersResult(successful=True)    # ROS's own (use_sim_time)
+        read_only = [p.name for p in ours if p.name not in DYNAMIC]
         if read_only:
             return _refused(f'{", ".join(read_only)} can only be set at start-up; the '
                             f'parameters settable at run time are {", ".join(sorted(DYNAMIC))}')
         requested = node.requested_settings
         values = dict(requested.values)
-        for parameter in parameters:
+        for parameter in ours:
             values[parameter.name] = parameter.value
         try:
             settings = settings_from_values(values)
@@ -70,7 +74,7 @@ class RuntimeParameters:
                 check_names(settings, checker, file_objects)
         except ConfigError as error:
             return _refused(printable(error, 1000))
-        changed = ', '.join(f'{p.name} = {printable(repr(p.value), 200)}' for p in parameters)
+        changed = ', '.join(f'{p.name} = {printable(repr(p.value), 200)}' for p in ours)
         node.change_settings(settings, changed)
         return SetParametersResult(successful=True)
 

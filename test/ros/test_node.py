@@ -1020,6 +1020,22 @@ def test_load_warnings_reach_the_node_log(ros, erd_share, capfd):
     assert 'WARN' in text and 'base' in text and 'skipped' in text
 
 
+def test_load_warnings_are_printed_once_by_the_console_script(ros, erd_share):
+    """Issue 28: the SRDF's warning came twice, as a raw Python warning and as the log line."""
+    robots = os.path.join(erd_share, 'robots', 'z1_description')
+    process = node_process(
+        ros.namespace, '-p', f'urdf_path:={os.path.join(robots, "urdf", "z1.urdf")}', '-p',
+        f'srdf_path:={os.path.join(robots, "srdf", "z1.srdf")}', '-p',
+        f'package_paths:=["example-robot-data={erd_share}"]')
+    assert ros.spin_until(
+        lambda: ros.probe.count_subscribers(f'{ros.namespace}/joint_states') > 0, 60.0)
+    status, output, _ = stop(process, signal.SIGINT)
+    assert status == 0, output
+    assert 'LoadWarning' not in output
+    assert output.count('base_link="base" is not a link of the robot') == 1, output
+    assert output.count('[WARN] while loading the robot: SRDF: line 11: <chain> skipped') == 1
+
+
 def test_xacro_args_and_mesh_containment_parameters_reach_the_checker():
     from collision_sensor.ros.node_parameters import settings_from_values
     settings = settings_from_values({'xacro_args': ['arm_id:=panda', 'hand:=true'],
