@@ -3,8 +3,8 @@ diagnostic_updater), and each source's own status (``scene``).
 
 Levels: OK; WARN while waiting for the robot's first joint states or missing joints, with joints
 beyond their limits, or after a rejected joint state in the period; ERROR without a robot model,
-after an engine error until a state is checked again, and while joint states are stale (no
-accepted one for ``stale_timeout``). Every value is bounded: names come through
+after an engine error until a state is checked again, while joint states are stale (no
+accepted one for ``stale_timeout``), and while any other source's data are missing or too old. Every value is bounded: names come through
 :func:`~collision_sensor.untrusted_text.listing` (at most 10 each, escaped), whatever the input.
 """
 import time
@@ -76,6 +76,10 @@ def sensor_status(node, joints, period: PeriodStats, now: float) -> DiagnosticSt
         level = DiagnosticStatus.ERROR
         problems.append(f'stale: no joint state for {now - last_accepted:.1f} s (stale_policy '
                         f'{settings.stale_policy})')
+    for source in node.sources:
+        if source is not joints and source.timed_out():
+            level = DiagnosticStatus.ERROR
+            problems.append(f'{source.name}: no data within its timeout')
     if node.rebuilding:
         problems.append('parameters changed: a new checker is being built')
     if problems:
