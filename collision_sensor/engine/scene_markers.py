@@ -22,7 +22,10 @@ Rules (README, "Dynamic scene"):
 - ``header.frame_id`` empty, the robot's root link or the world frame
   (:attr:`CollisionChecker.world_frames`): the pose is in the world and the object stays
   there; any other link of the robot: the object is attached to it (pose in the link's
-  frame), never checked against it nor against the links ``text`` lists (separated by spaces);
+  frame), never checked against it;
+- ``text``: the links of the robot the object may touch, separated by spaces, never checked
+  against it (a world object too: a table under the robot's base); a name that is not a link of
+  the robot rejects the array;
 - an array applies all or nothing: the first bad marker raises :class:`MarkerError` naming
   it, the reason and the fix, and nothing changes;
 - caps (:class:`SceneLimits`): objects that came through the topic, triangles per object and
@@ -216,19 +219,21 @@ class SceneTopic:
 
     def _frame(self, index, marker, checker, links) -> Tuple[Optional[str], Tuple[str, ...]]:
         frame = getattr(getattr(marker, 'header', None), 'frame_id', '') or ''
-        if frame == '' or frame in checker.world_frames:
-            return None, ()
-        if frame not in links:
+        in_world = frame == '' or frame in checker.world_frames
+        if not in_world and frame not in links:
             world = ' or '.join(repr(name) for name in sorted(checker.world_frames))
             raise MarkerError(index, marker, f'frame {quoted(frame)} is neither the world nor a '
                               f'link of the robot; use "" or {world} for an object fixed in the '
                               'world, or a link name to attach it')
+        # Touch links, for an object in the world as for an attached one (a table under the
+        # robot's base, a part in the gripper).
         touch = tuple(dict.fromkeys(str(getattr(marker, 'text', '') or '').split()))
         unknown = [name for name in touch if name not in links]
         if unknown:
             raise MarkerError(index, marker, f'touch link {quoted(unknown[0])} (in text) is not '
-                              'a link of the robot; list link names separated by spaces')
-        return frame, touch
+                              'a link of the robot; list link names separated by spaces, or '
+                              'leave text empty')
+        return (None if in_world else frame), touch
 
     def _key(self, index, marker, attach_to, touch_links, points) -> tuple:
         kind = _integer(marker, 'type')

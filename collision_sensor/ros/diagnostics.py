@@ -2,9 +2,11 @@
 diagnostic_updater), and each source's own status (``scene``).
 
 Levels: OK; WARN while waiting for the robot's first joint states or missing joints, with joints
-beyond their limits, or after a rejected joint state in the period; ERROR without a robot model,
-after an engine error until a state is checked again, while joint states are stale (no
-accepted one for ``stale_timeout``), and while any other source's data are missing or too old. Every value is bounded: names come through
+beyond their limits, after a rejected joint state in the period, or while ``allowed_collisions``
+or ``warning_ignore`` names something that is no link or scene object (yet); ERROR without a
+robot model, after an engine error until a state is checked again, while joint states are stale
+(no accepted one for ``stale_timeout``), and while any other source's data are missing or too
+old. Every value is bounded: names come through
 :func:`~collision_sensor.untrusted_text.listing` (at most 10 each, escaped), whatever the input.
 """
 import time
@@ -76,6 +78,11 @@ def sensor_status(node, joints, period: PeriodStats, now: float) -> DiagnosticSt
         level = DiagnosticStatus.ERROR
         problems.append(f'stale: no joint state for {now - last_accepted:.1f} s (stale_policy '
                         f'{settings.stale_policy})')
+    pending = node.pending_names()
+    if pending:
+        level = max(level, DiagnosticStatus.WARN)
+        problems.append('allowed_collisions or warning_ignore name(s) no link or scene object '
+                        'has (yet): ' + listing(pending))
     for source in node.sources:
         if source is not joints and source.timed_out():
             level = DiagnosticStatus.ERROR
@@ -138,6 +145,7 @@ def sensor_status(node, joints, period: PeriodStats, now: float) -> DiagnosticSt
         'model_loading': str(node.model_loading).lower(),
         'parameter_changes_applied_total': str(totals['parameter_changes']),
         'parameters_pending': str(node.rebuilding).lower(),
+        'names_pending': listing(pending, total=len(pending)),
     }
     return DiagnosticStatus(
         level=level, name=f'{node.get_fully_qualified_name().lstrip("/")}: collision sensor',

@@ -12,14 +12,14 @@ checker under the node's lock, between two checks. Only the newest request waits
 made during a build is built next, with the newest robot and parameters.
 """
 import collections
+import difflib
 import threading
 import warnings
 from typing import Callable
 
 from collision_sensor.errors import LoadWarning
-from collision_sensor.model.exception_list import parse_pair_strings
 from collision_sensor.ros.warning_zone import near_everywhere_notes
-from collision_sensor.untrusted_text import printable
+from collision_sensor.untrusted_text import printable, quoted
 
 #: Largest robot_description accepted (UTF-8 bytes); real URDFs with inline meshes stay far
 #: below.
@@ -52,8 +52,7 @@ def build_checker(factory, urdf, settings, notes: list):
     (:class:`~collision_sensor.ros.node_parameters.NodeSettings`); append its load warnings and
     the warning zone's report to ``notes``.
 
-    :raises CollisionSensorError: the robot cannot be loaded, or a name in the parameters is
-        not one of its links or scene objects.
+    :raises CollisionSensorError: the robot cannot be loaded, or a setting does not fit it.
 
     The loaders' :class:`~collision_sensor.LoadWarning`\\ s are not printed by Python as well:
     the node logs them once, from ``checker.load_warnings``.
@@ -64,16 +63,14 @@ def build_checker(factory, urdf, settings, notes: list):
         checker = factory(urdf, srdf=settings.srdf_path,
                           package_paths=settings.package_paths or None,
                           scene=settings.scene_path, config=settings.checker_config, **extra)
-    if settings.warning_ignore:
-        parse_pair_strings([f'{a}:{b}' for a, b in settings.warning_ignore],
-                           set(checker.kinematics.link_names) | set(checker.object_names),
-                           'parameter warning_ignore')
     # The LoadWarnings say in one summary what load_warnings says line by line; other warnings
     # are logged as they are.
     lines = list(getattr(checker, 'load_warnings', ())) + [
         str(w.message) for w in caught if not issubclass(w.category, LoadWarning)]
     for line in lines:
         notes.append(('warning', None, f'while loading the robot: {printable(line, 1000)}'))
+    notes.extend(pending_name_notes(checker, 'warning_ignore', [
+        name for pair in settings.warning_ignore for name in pair]))
     notes.extend(near_everywhere_notes(checker, settings.warning_distance,
                                        settings.warning_ignore))
     # At the state a new checker starts in (every joint at 0, identity quaternions): check
@@ -83,6 +80,22 @@ def build_checker(factory, urdf, settings, notes: list):
     checker.check(start)
     checker.update(start)
     return checker
+
+
+def pending_name_notes(checker, parameter: str, names) -> list:
+    """Name, with the closest link, each of ``names`` that is neither a link of ``checker``'s
+    robot nor one of its scene objects: kept for an object of that name from the scene topic
+    (log notes)."""
+    links = list(checker.kinematics.link_names)
+    known = set(links) | set(checker.object_names)
+    notes = []
+    for name in sorted(set(names) - known):
+        closest = max(links, key=lambda link: difflib.SequenceMatcher(None, name, link).ratio())
+        notes.append(('warning', None, (
+            f'{parameter} names {quoted(name)}, neither a link of the robot nor a scene object: '
+            f'kept for an object of that name from the scene topic (/diagnostics lists it while '
+            f'none exists); if you meant the link "{closest}", fix the name')))
+    return notes
 
 
 class ModelLoader:

@@ -13,12 +13,11 @@ answered by a verdict at the current state (header: the time and the root frame)
 change is, and logged. A refused request changes nothing and names the reason (``ros2 param
 set`` prints it).
 """
-from typing import Iterable, List
+from typing import List
 
 from rcl_interfaces.msg import SetParametersResult
 
 from collision_sensor.errors import ConfigError
-from collision_sensor.model.exception_list import parse_pair_strings
 from collision_sensor.ros.node_parameters import DYNAMIC, PARAMETERS, settings_from_values
 from collision_sensor.untrusted_text import printable
 
@@ -27,21 +26,17 @@ PARAMETER_NAMES = frozenset(spec.name for spec in PARAMETERS)
 CHECKER_PARAMETERS = ('padding', 'link_padding', 'allowed_collisions')
 
 
-def check_names(settings, checker, file_objects: Iterable[str]) -> None:
-    """Check the names ``settings`` give against ``checker``'s robot, as its build would.
+def check_names(settings, checker) -> None:
+    """Check the links ``link_padding`` names against ``checker``'s robot, as its build would
+    (``allowed_collisions`` and ``warning_ignore`` may name scene objects still to come).
 
-    :param file_objects: the scene file's objects (those a new checker starts with).
-    :raises ConfigError: naming the parameter, the unknown names and the known ones.
+    :raises ConfigError: naming the parameter, the unknown link and the links.
     """
     links = set(checker.kinematics.link_names)
     for link, _ in settings.checker_config['link_padding'].items():
         if link not in links:
             raise ConfigError(f'parameter link_padding: "{link}" is not a link of the robot; '
                               f'links: {", ".join(sorted(links))}')
-    parse_pair_strings(settings.checker_config['allowed_collisions'],
-                       links | set(file_objects), 'parameter allowed_collisions')
-    parse_pair_strings([f'{a}:{b}' for a, b in settings.warning_ignore],
-                       links | set(checker.object_names), 'parameter warning_ignore')
 
 
 class RuntimeParameters:
@@ -69,9 +64,9 @@ class RuntimeParameters:
         try:
             settings = settings_from_values(values)
             with node.lock:
-                checker, file_objects = node.checker, node.file_objects()
+                checker = node.checker
             if checker is not None:
-                check_names(settings, checker, file_objects)
+                check_names(settings, checker)
         except ConfigError as error:
             return _refused(printable(error, 1000))
         changed = ', '.join(f'{p.name} = {printable(repr(p.value), 200)}' for p in ours)

@@ -331,13 +331,16 @@ class CollisionSensorNode(Node):
         if back:
             self.set_parameters(back)
 
-    def file_objects(self) -> List[str]:
-        """The scene objects a new checker starts with (from ``scene_path``), lock held."""
-        if self.checker is None:
+    def pending_names(self) -> List[str]:
+        """The names ``allowed_collisions`` and ``warning_ignore`` give that are neither a link
+        nor a scene object yet: kept for an object of that name (lock held)."""
+        checker = self.checker
+        if checker is None:
             return []
-        from_topic = next((s.topic.objects for s in self.sources if isinstance(s, SceneSource)),
-                          {})
-        return [name for name in self.checker.object_names if name not in from_topic]
+        known = set(checker.kinematics.link_names) | set(checker.object_names)
+        names = set(getattr(checker, 'pending_allowed_names', ()))
+        names.update(name for pair in self.settings.warning_ignore for name in pair)
+        return sorted(names - known)
 
     # -- parameters set at run time -----------------------------------------------------------
 
