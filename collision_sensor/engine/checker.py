@@ -14,6 +14,7 @@ once, and names back into answers.
 """
 import dataclasses
 import math
+from difflib import SequenceMatcher
 from typing import Dict, Iterable, List, Mapping, NamedTuple, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -31,7 +32,8 @@ from collision_sensor.engine.kinematics import (JOINT_FIXED, JOINT_FLOATING, JOI
                                                 build_kinematic_tree)
 from collision_sensor.engine.obb_tree import (
     BOX_WIDTH, NODE_LEFT, NODE_RIGHT, box_table, build_forest, forest_view, node_table)
-from collision_sensor.errors import ConfigError, JointStateError, SceneError, SrdfError
+from collision_sensor.errors import (
+    ConfigError, JointStateError, SceneError, SrdfError, warn_load)
 from collision_sensor.model.exception_list import adjacent_pairs, parse_pair_strings, sorted_pair
 from collision_sensor.model.robot_model import Joint, RobotModel, load_urdf
 from collision_sensor.model.scene import SceneObject, load_scene
@@ -298,7 +300,8 @@ class CollisionChecker:
         checker = cls(model, srdf_model, objects, settings)
         # What loading tolerated (also issued as LoadWarning), for a caller's own logger.
         checker.load_warnings = tuple(f'URDF: {line}' for line in model.warnings) + tuple(
-            f'SRDF: {line}' for line in (srdf_model.warnings if srdf_model else ()))
+            f'SRDF: {line}' for line in (srdf_model.warnings if srdf_model else ())) + \
+            checker.config_warnings
         return checker
 
     # ------------------------------------------------------------------ set-up helpers
@@ -362,9 +365,25 @@ class CollisionChecker:
                 pair = sorted_pair(entry.link1, entry.link2)
                 excluded.setdefault(pair, f'srdf: {entry.reason}' if entry.reason else 'srdf')
         known = set(link_names) | set(object_names)
-        for pair in parse_pair_strings(self.config.allowed_collisions, known):
+        # A name that is no link or object yet is kept: a scene object may come by that name.
+        pending = set()
+        for pair in parse_pair_strings(self.config.allowed_collisions, known, pending=pending):
             excluded.setdefault(pair, 'allowed_collisions')
+        self._allowed_unknown = frozenset(pending)
+        self.config_warnings = tuple(
+            f'allowed_collisions: "{name}" is neither a link of robot "{self.model.name}" nor '
+            'a scene object: kept for an object of that name added later; if you meant the link '
+            f'"{max(link_names, key=lambda link: SequenceMatcher(None, name, link).ratio())}", '
+            'fix the name' for name in sorted(pending))
+        for line in self.config_warnings:
+            warn_load(line)
         return excluded
+
+    @property
+    def pending_allowed_names(self) -> Tuple[str, ...]:
+        """Names ``allowed_collisions`` gives that are no link and no scene object (yet): their
+        pairs apply once an object of that name is added; sorted."""
+        return tuple(sorted(name for name in self._allowed_unknown if name not in self._objects))
 
     def _pair_rows(self, tree: '_EngineTree', vertex_radius: np.ndarray, pair_a: np.ndarray,
                    pair_b: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -634,11 +653,9 @@ class CollisionChecker:
                              f'"{self.model.name}"; attach it to one of its links, or to '
                              f'{" or ".join(sorted(self.world_frames))} (the world)')
         unknown = [link for link in touch_links if link not in self._link_index]
-        if unknown or (touch_links and attach_to is None):
-            why = (f'touch link "{unknown[0]}" is not a link of robot "{self.model.name}"'
-                   if unknown else 'touch links are given for an object fixed in the world')
-            raise SceneError(f'{owner}: {why}; give touch links of the robot, and only for an '
-                             'object attached to a link other than the root')
+        if unknown:
+            raise SceneError(f'{owner}: touch link "{unknown[0]}" is not a link of robot '
+                             f'"{self.model.name}"; give touch links of the robot')
         pose = checked_pose(obj.T_world_object if change.pose is None else change.pose, owner)
         old = objects.get(name)
         if (old is not None and old.attach_to == attach_to and old.touch_links == touch_links
@@ -908,8 +925,12 @@ class CollisionChecker:
                     pairs.append(pair)
         movers = list(self.link_names) + [placed.name for placed in attached]
         for placed in world:
-            pairs.extend(pair for pair in (sorted_pair(placed.name, other) for other in movers)
-                         if pair not in excluded)
+            for other in movers:
+                pair = sorted_pair(placed.name, other)
+                if other in placed.touch_links:     # a table under the base
+                    excluded.setdefault(pair, 'touch link')
+                elif pair not in excluded:
+                    pairs.append(pair)
         checked = tuple(sorted(pairs))
         object_pairs = {name: [] for name in [p.name for p in attached] + [p.name for p in world]}
         for p, (a, b) in enumerate(checked):

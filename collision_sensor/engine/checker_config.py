@@ -3,7 +3,9 @@
 ===================== ========== ============================================================
 key                   default    meaning
 ===================== ========== ============================================================
-allowed_collisions    ()         extra pairs never checked, strings ``"link_a:link_b"``
+allowed_collisions    ()         extra pairs never checked, strings ``"link_a:link_b"``;
+                                 a name that is no link or object yet is kept (with a
+                                 LoadWarning) for an object added later by that name
 ignore_adjacent       True       never check a link against its nearest ancestor with geometry
 motion_tolerance      0.0        a joint counts as moved when it changed by more than this
                                  (rad or m) since the state the carried statuses describe;

@@ -2,8 +2,9 @@
 
 The scene is a set of named objects. A *world object* is fixed in the world frame (the
 checker's root frame); an *attached object* is fixed to a robot link: its pose is given in
-that link's frame, it moves with the link, and it is never checked against that link nor its
-*touch links* (MoveIt's attached bodies: a part in the gripper touches the fingers). The
+that link's frame, it moves with the link, and it is never checked against that link. No object
+is checked against its *touch links* (MoveIt's attached bodies: a part in the gripper touches
+the fingers; a table under the robot's base touches the base). The
 checker (:meth:`CollisionChecker.apply_scene_changes`) takes a sequence of changes::
 
     AddObject(obj, attach_to=None, touch_links=(), pose=None)   # add, or replace by name
@@ -70,7 +71,7 @@ class AddObject:
 
     :ivar obj: the geometry (``vertices``, ``faces`` in the object frame) and its name.
     :ivar attach_to: a robot link: the object moves with it; None: fixed in the world.
-    :ivar touch_links: further robot links the attached object may touch (never checked).
+    :ivar touch_links: further robot links the object may touch (never checked).
     :ivar pose: (4, 4) the object's pose, in the world frame, or in ``attach_to``'s frame;
         None: ``obj.T_world_object``.
     """

@@ -7,7 +7,8 @@ Three sources, merged:
 * the SRDF's ``<disable_collisions>`` entries (only pairs of links with geometry matter);
 * pairs from the configuration, as strings ``"link_a:link_b"`` (scene objects by name too).
 
-Pairs are stored once, as two names in sorted order. Unknown names are an error naming them.
+Pairs are stored once, as two names in sorted order. Unknown names are an error naming them,
+or, for a checker whose scene grows later, kept for an object of that name.
 """
 from typing import Iterable, Mapping, Optional, Sequence, Tuple
 
@@ -39,12 +40,14 @@ def adjacent_pairs(parents: Mapping[str, Optional[str]], with_geometry: Iterable
 
 
 def parse_pair_strings(entries: Sequence[str], known: Iterable[str],
-                       what: str = 'allowed_collisions') -> set:
+                       what: str = 'allowed_collisions', pending: Optional[set] = None) -> set:
     """Parse ``"link_a:link_b"`` strings into sorted pairs, checking every name.
 
     :param entries: the strings; blank entries are skipped.
     :param known: every name the robot and scene have (links with or without geometry).
     :param what: the setting's name, for messages.
+    :param pending: when given, names that are not known are added to it (objects still to
+        come) instead of being an error.
     :raises ConfigError: on a malformed entry or names that are not known, naming them all.
     """
     known = set(known)
@@ -63,7 +66,9 @@ def parse_pair_strings(entries: Sequence[str], known: Iterable[str],
                               'a body is never checked against itself, remove the entry')
         unknown.extend(name for name in parts if name not in known)
         pairs.add(sorted_pair(*parts))
-    if unknown:
+    if unknown and pending is not None:
+        pending.update(unknown)
+    elif unknown:
         names = ', '.join(f'"{name}"' for name in sorted(set(unknown)))
         raise ConfigError(
             f'{what}: unknown link or scene object name(s) {names}; use names of the robot\'s '

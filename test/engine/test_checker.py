@@ -12,7 +12,8 @@ import pytest
 from collision_sensor import CollisionChecker, ConfigError, JointStateError
 from collision_sensor.engine.sampling import random_configurations, sampling_bounds
 from collision_sensor.engine.triangle_test import triangles_intersect
-from collision_sensor.model.mesh_loading import SOLID_BOX, SOLID_SPHERE
+from collision_sensor.model.mesh_loading import SOLID_BOX, SOLID_SPHERE, box_mesh
+from collision_sensor.model.scene import SceneObject
 from engine_oracles import FclOracle
 from small_robot import SMALL_ROBOT, SMALL_SCENE
 
@@ -488,10 +489,24 @@ def test_exception_list_from_srdf_adjacency_and_config(panda_urdf, panda_srdf,
     assert all(a < b for a, b in with_srdf.checked_pairs)
 
 
-def test_unknown_link_in_allowed_collisions_is_an_error(panda_urdf, erd_package_paths):
-    with pytest.raises(ConfigError, match='"panda_link99"'):
-        CollisionChecker.from_urdf(panda_urdf, package_paths=erd_package_paths,
-                                   config={'allowed_collisions': ['panda_link1:panda_link99']})
+def test_unknown_name_in_allowed_collisions_is_kept_for_an_object_to_come(
+        panda_urdf, erd_package_paths):
+    """Issue 28: allowed_collisions may name a scene object that arrives later; the name is
+    kept, warned about (with the closest link: a typo shows) and listed until it exists."""
+    from collision_sensor import LoadWarning
+    with pytest.warns(LoadWarning, match='"table" is neither a link of robot .* if you meant '
+                      'the link "panda_'):
+        checker = CollisionChecker.from_urdf(
+            panda_urdf, package_paths=erd_package_paths,
+            config={'allowed_collisions': ['panda_link0:table', 'panda_link1:table']})
+    assert checker.pending_allowed_names == ('table',)
+    assert any('"table"' in line for line in checker.load_warnings)
+    table = SceneObject('table', 'box', np.eye(4), *box_mesh(np.array([1.0, 1.0, 0.1])))
+    checker.add_object(table)
+    assert checker.pending_allowed_names == ()
+    assert ('panda_link0', 'table') not in checker.checked_pairs
+    assert ('panda_link1', 'table') not in checker.checked_pairs
+    assert ('panda_link2', 'table') in checker.checked_pairs
     with pytest.raises(ConfigError, match='link_a:link_b'):
         CollisionChecker.from_urdf(panda_urdf, package_paths=erd_package_paths,
                                    config={'allowed_collisions': ['panda_link1']})
