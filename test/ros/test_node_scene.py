@@ -346,3 +346,76 @@ def test_markers_show_scene_objects_attached_and_colliding(ros, robot_file):
                           and same(objects()['far'].color, COLLIDING_OBJECT_COLOR))
     assert ros.spin_until(lambda: any(m.ns == 'far' and m.type == Marker.CUBE
                                       for m in markers.last.markers))   # its box, red
+
+
+# -- touch links of world objects, allowed_collisions for objects still to come (issue 28) ------
+
+def sensor_values(probe, condition, timeout=10.0):
+    """The values of the node's ``collision sensor`` status once ``condition(values)``."""
+    name = f'{probe.ros.namespace.strip("/")}/collision_sensor: collision sensor'
+    found = []
+
+    def ready():
+        for msg in probe.diagnostics.messages:
+            for status in msg.status:
+                values = {kv.key: kv.value for kv in status.values}
+                if status.name == name and condition(values):
+                    found.append((status, values))
+        return bool(found)
+
+    assert probe.ros.spin_until(ready, timeout), 'no matching collision sensor status'
+    return found[-1]
+
+
+def test_a_world_object_may_touch_the_links_its_text_lists(ros, robot_file):
+    """A table under the robot's base: without touch links in contact for ever; with ``text``
+    "base" the base is never checked against it, the arm still is; an unknown link in text
+    rejects the array."""
+    start(ros, robot_file)
+    probe = SceneProbe(ros, robot_file)
+    probe.send_joints([0.0, 0.0, 0.0, 0.0])
+    table = dict(size=(1.0, 1.0, 0.1), position=(0.0, 0.0, -0.1))   # the base stands on it
+    assert ('base', 'table') in probe.send_scene([box('table', **table)])
+    verdict = probe.send_scene([box('table', **table, text='base')])
+    assert ('base', 'table') not in verdict and verdict == probe.expected()
+    hits = set()
+    for shoulder in np.linspace(0.0, 2.4, 9):    # the arm folds down onto the table
+        verdict = probe.send_joints([shoulder, 0.6, 0.0, 0.0])
+        assert verdict == probe.expected()
+        hits.update(pair for pair in verdict if 'table' in pair)
+    assert hits and ('base', 'table') not in hits
+    probe.send_scene([box('table', **table, text='base tabel_leg')], applies=False)
+    _, values = probe.scene_status(
+        lambda status, values: values['scene_arrays_rejected_total'] == '1')
+    assert 'touch link "tabel_leg" (in text) is not a link of the robot' in \
+        values['last_rejection']
+
+
+def test_allowed_collisions_may_name_an_object_still_to_come(ros, robot_file, capfd):
+    start(ros, robot_file, allowed_collisions=['tool:crate'])
+    probe = SceneProbe(ros, robot_file)
+    status, values = sensor_values(probe, lambda values: values['names_pending'] == 'crate')
+    assert status.level == status.WARN and 'crate' in status.message
+    probe.send_joints([0.0, 0.0, 0.0, 0.0])
+    T_tool = probe.mirror.link_poses()['tool']
+    verdict = probe.send_scene([box('crate', (0.08,) * 3, T_tool[:3, 3])])
+    assert ('crate', 'tool') in probe.expected()      # it touches the tool: allowed
+    assert verdict == tuple(pair for pair in probe.expected() if pair != ('crate', 'tool'))
+    sensor_values(probe, lambda values: values['names_pending'] == '')
+    err = capfd.readouterr().err
+    assert 'allowed_collisions: "crate" is neither a link of robot "small" nor a scene object' \
+        in err
+
+
+def test_allowed_collisions_set_at_run_time_for_an_object_to_come(ros, robot_file):
+    from test_node_parameters import Parameters
+    start(ros, robot_file)
+    probe = SceneProbe(ros, robot_file)
+    probe.send_joints([0.0, 0.0, 0.0, 0.0])
+    count = len(probe.pairs)
+    assert Parameters(ros).set(allowed_collisions=['tool:crate']) == (True, '')
+    assert probe.ros.spin_until(lambda: len(probe.pairs) > count, 30.0)   # the new checker
+    sensor_values(probe, lambda values: values['names_pending'] == 'crate')
+    T_tool = probe.mirror.link_poses()['tool']
+    verdict = probe.send_scene([box('crate', (0.08,) * 3, T_tool[:3, 3])])
+    assert ('crate', 'tool') in probe.expected() and ('crate', 'tool') not in verdict
