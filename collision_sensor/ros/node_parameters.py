@@ -76,7 +76,8 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
     ParameterSpec('scene_path', '',
                   'YAML file of static scene objects checked against the robot; empty: none'),
     ParameterSpec('allowed_collisions', (),
-                  'pairs never checked, as "link_a:link_b" (links of the robot or scene objects)',
+                  'pairs never checked, as "link_a:link_b" (links of the robot or scene objects, '
+                  'also objects still to come on the scene topic)',
                   'each entry "link_a:link_b" with two different names', dynamic=True),
     ParameterSpec('ignore_adjacent', True,
                   'skip pairs of links joined by one joint (they usually touch by design)'),

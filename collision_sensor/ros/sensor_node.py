@@ -231,7 +231,7 @@ class CollisionSensorNode(Node):
     def _install(self, checker, robot, source: str, settings: NodeSettings, notes: list) -> None:
         """Make ``checker`` (of ``robot``, built with ``settings``) the one in use: the sources
         hand it their data, then it replaces the current one under the lock, between two
-        checks; ``settings`` are applied at the same moment."""
+        checks; the newest parameters are applied at the same moment."""
         with contextlib.ExitStack() as stack:
             commits = prepare_all(self.sources, checker, stack)
             loaded = []
@@ -248,8 +248,9 @@ class CollisionSensorNode(Node):
                     self.markers.scene_changed = True   # the scene file's objects
                 for commit in commits:
                     commit(loaded)
-                if settings is not self.settings:
-                    self._apply_settings(settings, loaded)
+                # The newest parameters (some may have changed during the build).
+                if self.requested_settings is not self.settings:
+                    self._apply_settings(self.requested_settings, loaded)
         summary = (f'{len(checker.joint_names)} joints, {len(checker.link_names)} links with '
                    f'geometry, {len(checker.checked_pairs)} pairs checked')
         notes[:0] = [('info', None, f'robot loaded from {printable(source, 300)}: {summary}')]
@@ -261,6 +262,8 @@ class CollisionSensorNode(Node):
             robot = self._new_robot if self._new_robot is not None else self._robot_input
             settings = self.requested_settings
             new_robot = robot is self._new_robot
+        if robot is None:
+            return      # no robot yet: its first build takes the parameters
         notes = []
         try:
             checker = build_checker(self._factory, robot, settings, notes)
@@ -350,7 +353,9 @@ class CollisionSensorNode(Node):
         with self.lock:
             current = self.requested_settings
             self.requested_settings = settings
-            rebuild = settings.checker_config != current.checker_config
+            # Without a robot yet, its first build takes the new values.
+            rebuild = (settings.checker_config != current.checker_config
+                       and self.checker is not None)
             if rebuild:
                 self.rebuilding = True
             else:
