@@ -118,7 +118,12 @@ class SceneProbe:
         return self.oracle.colliding_pairs(self.q)
 
     def scene_status(self, condition, timeout=10.0):
-        name = f'{self.ros.namespace.strip("/")}/collision_sensor: scene'
+        return self.status('scene', condition, timeout)
+
+    def status(self, which, condition, timeout=10.0):
+        """The node's /diagnostics status ``which`` (``scene``, ``collision sensor``) once
+        ``condition(status, values)``: (status, values)."""
+        name = f'{self.ros.namespace.strip("/")}/collision_sensor: {which}'
         found = []
 
         def ready():
@@ -350,21 +355,9 @@ def test_markers_show_scene_objects_attached_and_colliding(ros, robot_file):
 
 # -- touch links of world objects, allowed_collisions for objects still to come (issue 28) ------
 
-def sensor_values(probe, condition, timeout=10.0):
-    """The values of the node's ``collision sensor`` status once ``condition(values)``."""
-    name = f'{probe.ros.namespace.strip("/")}/collision_sensor: collision sensor'
-    found = []
-
-    def ready():
-        for msg in probe.diagnostics.messages:
-            for status in msg.status:
-                values = {kv.key: kv.value for kv in status.values}
-                if status.name == name and condition(values):
-                    found.append((status, values))
-        return bool(found)
-
-    assert probe.ros.spin_until(ready, timeout), 'no matching collision sensor status'
-    return found[-1]
+def sensor_values(probe, condition):
+    """The node's ``collision sensor`` status once ``condition(values)``."""
+    return probe.status('collision sensor', lambda status, values: condition(values))
 
 
 def test_a_world_object_may_touch_the_links_its_text_lists(ros, robot_file):

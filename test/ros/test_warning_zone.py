@@ -36,6 +36,18 @@ def ur5_process(ros, ur5_urdf, ur5_srdf, erd_share, *extra):
                         f'warning_distance:={WARNING}', '-p', 'stale_timeout:=0.0', *extra)
 
 
+def run_ur5(ros, ur5, ur5_urdf, ur5_srdf, erd_share, Q, *extra):
+    """Start the UR5 node process, send each row of Q, stop it; return the near_pairs and near
+    messages answering them and the node's output."""
+    process = ur5_process(ros, ur5_urdf, ur5_srdf, erd_share, *extra)
+    try:
+        near_pairs, near = zone_answers(ros, ur5, Q)
+    finally:
+        status, output, _ = stop(process, 2)
+    assert_clean_exit(status, output)
+    return near_pairs, near, output
+
+
 def zone_answers(ros, ur5, Q):
     """Send each row of Q; return the near_pairs and near messages answering them."""
     publisher = ros.publisher(JointState, 'joint_states', reliable(100))
@@ -50,13 +62,8 @@ def zone_answers(ros, ur5, Q):
 
 def test_pairs_near_everywhere_are_named_at_start_up_with_the_fix(ros, ur5, ur5_urdf, ur5_srdf,
                                                                   erd_share):
-    process = ur5_process(ros, ur5_urdf, ur5_srdf, erd_share)
-    try:
-        Q = random_configurations(ur5, 8, seed=2)
-        near_pairs, near = zone_answers(ros, ur5, Q)
-    finally:
-        status, output, _ = stop(process, 2)
-    assert_clean_exit(status, output)
+    near_pairs, near, output = run_ur5(ros, ur5, ur5_urdf, ur5_srdf, erd_share,
+                                       random_configurations(ur5, 8, seed=2))
     line = next(line for line in output.splitlines() if 'warning zone:' in line)
     assert line.startswith('[WARN]')
     assert f'1 pair(s) nearer than warning_distance {WARNING:g} m wherever the robot goes' in line
@@ -68,14 +75,9 @@ def test_pairs_near_everywhere_are_named_at_start_up_with_the_fix(ros, ur5, ur5_
 
 
 def test_warning_ignore_leaves_the_pair_out(ros, ur5, ur5_urdf, ur5_srdf, erd_share):
-    process = ur5_process(ros, ur5_urdf, ur5_srdf, erd_share, '-p',
-                          f'warning_ignore:=["{UR5_PAIR}"]')
-    try:
-        Q = random_configurations(ur5, 30, seed=3)
-        near_pairs, near = zone_answers(ros, ur5, Q)
-    finally:
-        status, output, _ = stop(process, 2)
-    assert_clean_exit(status, output)
+    Q = random_configurations(ur5, 30, seed=3)
+    near_pairs, near, output = run_ur5(ros, ur5, ur5_urdf, ur5_srdf, erd_share, Q, '-p',
+                                       f'warning_ignore:=["{UR5_PAIR}"]')
     assert 'warning zone:' not in output
     left = 0
     for q, msg, flag in zip(Q, near_pairs, near):
