@@ -263,7 +263,7 @@ def test_shipped_params_file_declares_typed_defaults(ros):
     ({'joint_limit_policy': 'wrap'}, ['joint_limit_policy', 'wrap', 'clamp']),
     ({'joint_limit_tolerance': -0.1}, ['joint_limit_tolerance', '>= 0']),
     ({'max_unknown_joints': -1}, ['max_unknown_joints', '>= 0']),
-    ({'allowed_collisions': ['panda_link0:panda_link99']}, ['panda_link99']),
+    ({'allowed_collisions': ['panda_link0']}, ['allowed_collisions', 'link_a:link_b']),
     ({'padding': -0.01}, ['padding', '>= 0']),
     ({'link_padding': ['panda_hand:0.02']}, ['link_padding', 'link=metres']),
     ({'link_padding': ['panda_hand=-1']}, ['link_padding', 'panda_hand=-1']),
