@@ -18,6 +18,8 @@ node's :class:`SourceHost`, and:
 - ``poll_timeout(now, notes)`` says, at least every ``TIMEOUT_POLL_PERIOD``, whether its data
   are missing or too old (``Timeout``): the node then fails safe by the policy the source names
   (``contact``: publish contact; ``hold``: keep the verdict; /diagnostics ERROR either way);
+  ``timeout_due(now)``, asked first without the lock, keeps the checking thread from waiting on
+  a poll that finds nothing;
 - ``prepare_model(checker, stack)`` hands its data to a new checker before that checker replaces
   the current one (a new robot_description, or a parameter change that needs a new checker),
   off the checking thread; the commit it returns runs under the lock at the swap;
@@ -45,7 +47,8 @@ class Timeout:
     """A source's data went missing or too old.
 
     :ivar kind: the ``colliding_pairs`` entry's name (e.g. ``joint_states_stale``).
-    :ivar reason: one sentence, with the parameter that sets the timeout.
+    :ivar reason: one sentence, with the parameter that sets the timeout; text from the
+        network in it escaped (:mod:`collision_sensor.untrusted_text`).
     :ivar policy: ``'contact'`` or ``'hold'`` (see ``verdicts.FAIL_SAFE_POLICIES``).
     """
 
@@ -70,7 +73,8 @@ class SourceHost:
         raise NotImplementedError
 
     def refuse(self, header, kind: str, reason: str, notes: list) -> None:
-        """Answer an input that cannot be checked, by ``on_rejected_input`` (lock held)."""
+        """Answer an input that cannot be checked, by ``on_rejected_input`` (lock held);
+        ``reason`` with text from the network escaped already."""
         raise NotImplementedError
 
     def answer_current(self, notes: list) -> None:
@@ -106,6 +110,12 @@ class InputSource:
         :return: the commit to run under the lock at the swap, or None.
         """
         return None
+
+    def timeout_due(self, now: float) -> bool:
+        """Return False only when :meth:`poll_timeout` cannot find a timeout now (without the
+        lock: reads only). The default, True, always polls: a source with a timeout that does
+        not override this is still failed safe on."""
+        return True
 
     def poll_timeout(self, now: float, notes: list) -> Optional[Timeout]:
         """Return a :class:`Timeout` when the data just went missing or too old (once per

@@ -360,11 +360,14 @@ class JointStateSource(InputSource):
 
     # -- staleness ----------------------------------------------------------------------------
 
+    def timeout_due(self, now: float) -> bool:
+        timeout, last = self.host.settings.stale_timeout, self.last_accepted
+        return not self.stale and timeout > 0 and last is not None and now - last > timeout
+
     def poll_timeout(self, now: float, notes: list) -> Optional[Timeout]:
-        timeout = self.host.settings.stale_timeout
-        if (self.stale or timeout <= 0 or self.last_accepted is None
-                or now - self.last_accepted <= timeout):
+        if not self.timeout_due(now):
             return None
+        timeout = self.host.settings.stale_timeout
         self.stale, self._stale_since = True, self.last_accepted
         self.stale_episodes += 1
         held = self.host.log.throttle.admit('stale', now, STALE_REPORT_PERIOD)

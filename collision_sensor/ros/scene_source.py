@@ -64,6 +64,9 @@ class SceneSource(InputSource):
             event_callbacks=SubscriptionEventCallbacks(
                 incompatible_qos=self._on_incompatible_qos, use_default_callbacks=False))
 
+    def timeout_due(self, now: float) -> bool:
+        return False    # the scene topic has no timeout: objects stay until deleted
+
     def close(self) -> None:
         if self._worker is not None:
             self._worker.stop()

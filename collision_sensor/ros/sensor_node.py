@@ -489,6 +489,8 @@ class CollisionSensorNode(Node):
 
     def _poll_timeouts(self) -> None:
         """Fail safe on a source whose data went missing or too old (by its policy)."""
+        if not any(source.timeout_due(time.monotonic()) for source in self.sources):
+            return      # the usual case, without waiting for the lock
         notes = []
         with self.lock:
             now = time.monotonic()

@@ -25,7 +25,6 @@ from std_msgs.msg import Bool
 # The values of on_rejected_input, on_engine_error and stale_policy.
 from collision_sensor.ros.node_parameters import CONTACT, FAIL_SAFE_POLICIES, HOLD  # noqa: F401
 from collision_sensor.ros.work_queue import MAX_INPUT_RATE
-from collision_sensor.untrusted_text import printable
 
 #: Verdicts and the robot description: late joiners get the latest message.
 LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
@@ -47,9 +46,19 @@ STALE = 'joint_states_stale'          # no joint state for stale_timeout (stale_
 FAILURE_KINDS = (REJECTED, WAITING, ENGINE_ERROR, STALE)
 
 
+#: Longest reason in a failure entry (characters).
+MAX_REASON_CHARS = 1000
+
+
 def failure_status(kind: str, reason: str, policy: str, root_frame: str) -> DiagnosticStatus:
-    """Return a failure entry of ``colliding_pairs`` (see the module docstring)."""
-    reason = printable(reason, 1000)
+    """Return a failure entry of ``colliding_pairs`` (see the module docstring).
+
+    :param reason: text safe to show already (built from
+        :mod:`~collision_sensor.untrusted_text` parts: a flood of refused messages must not
+        cost an escape each); only cut here.
+    """
+    if len(reason) > MAX_REASON_CHARS:
+        reason = reason[:MAX_REASON_CHARS - 3] + '...'
     return DiagnosticStatus(level=DiagnosticStatus.ERROR, name=kind, message=reason,
                             hardware_id=root_frame,
                             values=[KeyValue(key='kind', value=kind),
