@@ -25,7 +25,6 @@ from typing import FrozenSet, List, Optional, Tuple
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from std_msgs.msg import Bool, Float64
 
-from collision_sensor.engine.sampling import NEAR_FRACTION, NEAR_SAMPLES, pairs_near_everywhere
 from collision_sensor.ros.verdicts import HOLD, VERDICT_QOS
 
 Pair = Tuple[str, str]
@@ -141,6 +140,9 @@ def near_everywhere_notes(checker, distance: float, ignore: FrozenSet[Pair]) -> 
     """
     if distance <= 0:
         return []
+    # Imported here: sampling brings numpy.random (2 MiB) that a node without a zone never uses.
+    from collision_sensor.engine.sampling import (
+        NEAR_FRACTION, NEAR_SAMPLES, pairs_near_everywhere)
     found = [pair for pair in pairs_near_everywhere(checker, distance)
              if (pair.link_a, pair.link_b) not in ignore]
     if not found:
