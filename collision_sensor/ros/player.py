@@ -168,7 +168,7 @@ class SequencePlayer:
         :data:`PLAYBACK_QOS`.
     :ivar published: frames published.
     :ivar acknowledged: frames acknowledged by every reliable subscription matched when they
-        were (counted when :meth:`note_acknowledged` finds all acknowledged).
+        were published (counted when :meth:`note_acknowledged` finds all acknowledged).
     :ivar unmatched: frames published while no subscription was matched (nobody got them).
     """
 
@@ -323,11 +323,12 @@ class SequencePlayer:
 
     def note_acknowledged(self, timeout: float = 0.0) -> bool:
         """Wait up to ``timeout`` s for every frame so far to be acknowledged by every matched
-        reliable subscription; count them acknowledged if so. Return whether they are."""
-        published = self.published
+        reliable subscription; count them acknowledged if so (not those published while no
+        subscription was matched: nobody acknowledged them). Return whether they are."""
+        delivered = self.published - self.unmatched
         if not self.publisher.wait_for_all_acked(Duration(seconds=timeout)):
             return False
-        self.acknowledged = published
+        self.acknowledged = delivered
         return True
 
     def settle(self, timeout: float) -> bool:
@@ -351,8 +352,8 @@ class SequencePlayer:
             text += (f'; {self.unmatched} published while no subscription was matched, '
                      'received by nobody')
         if self.acknowledged < self.published - self.unmatched:
-            text += (f'; {self.published - self.acknowledged} not acknowledged (yet): a '
-                     'subscriber did not keep up, or left')
+            text += (f'; {self.published - self.unmatched - self.acknowledged} not '
+                     'acknowledged (yet): a subscriber did not keep up, or left')
         return f'stopped ({stopped}): {text}' if stopped else text
 
     def wait_for_acknowledgement(self, publisher=None) -> None:
@@ -361,7 +362,7 @@ class SequencePlayer:
         waited = 0.0
         warned = False
         publisher = publisher or self.publisher
-        published = self.published
+        delivered = self.published - self.unmatched
         while not publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT)):
             self._ok()
             waited += ACK_TIMEOUT
@@ -370,7 +371,7 @@ class SequencePlayer:
                     f'no acknowledgement for {waited:.0f} s: a subscriber is not keeping up')
                 warned = True
         if publisher is self.publisher:
-            self.acknowledged = published
+            self.acknowledged = delivered
 
     def play(self, rate: Optional[float] = None, fast: bool = False, loop: bool = False,
              progress_mode: str = 'auto') -> int:

@@ -281,3 +281,18 @@ def test_ctrl_c_says_what_was_published_and_acknowledged(ros):
     assert acknowledged == published == len(received), play.output
     positions = np.array([msg.position for msg in received.messages])
     assert np.array_equal(positions, seq.positions[:published])
+
+
+def test_frames_nobody_was_matched_for_are_said_to_be_received_by_nobody(ros, tmp_path):
+    seq = JointSequence(('a',), np.arange(5) * 0.01, np.arange(5.0)[:, None])
+    path = tmp_path / 'five.csv'
+    write_sequence(seq, path)
+    play = ScriptProcess('collision_sensor_play', str(path), '--wait-for-subscribers', '0',
+                         '--progress', 'never', '--ros-args', '-r', f'__ns:={ros.namespace}')
+    try:
+        assert play.wait(60.0) == 0, play.output
+    finally:
+        play.stop()
+    assert _summary(play.output) == ('', 5, 0)
+    assert '5 published while no subscription was matched, received by nobody' in play.output
+    assert 'not acknowledged' not in play.output
