@@ -360,3 +360,44 @@ def test_colcon_installed_check_finds_the_paper_collisions(colcon_install, tmp_p
                 'paper_experiment'], cwd=str(tmp_path),
                env=colcon_env(colcon_install), expect=1)
     check_summary(proc, os.path.join(colcon_install, 'share', PACKAGE))
+
+
+# --- 5. the README's workspace recipe --------------------------------------------------------
+
+def workspace_recipe():
+    """Return the commands of the README's workspace recipe, continuation lines joined."""
+    with open(os.path.join(REPO, 'README.md'), encoding='utf-8') as stream:
+        text = stream.read()
+    section = text.split('## In a ROS 2 workspace', 1)[1].split('\n## ', 1)[0]
+    block = section.split('```sh\n', 1)[1].split('```', 1)[0]
+    return [line.split('  #')[0].strip() for line in block.replace('\\\n', ' ').splitlines()]
+
+
+def test_the_workspace_recipe_installs_every_requirement():
+    """Its pip line names every requirement of setup.py (install_requires, extras ros and
+    test), as the installed metadata lists them, and what colcon needs to build and test."""
+    import importlib.metadata
+    from packaging.requirements import Requirement
+    from packaging.utils import canonicalize_name
+    try:
+        required = importlib.metadata.requires(PACKAGE)
+    except importlib.metadata.PackageNotFoundError:
+        pytest.skip('collision_sensor has no installed metadata here')
+    pip, = [line for line in workspace_recipe() if line.startswith('pip install')]
+    named = {canonicalize_name(Requirement(word.strip('\'"')).name)
+             for word in pip.split()[2:]}
+    wanted = {canonicalize_name(Requirement(entry).name) for entry in required}
+    assert wanted - named == set(), pip
+    assert {'colcon-core', 'colcon-ros', 'setuptools', 'wheel', 'pybind11'} <= named
+
+
+def test_the_workspace_recipe_keeps_colcon_out_of_its_venv_and_dds_local():
+    commands = workspace_recipe()
+    venv = [line for line in commands if '-m venv' in line]
+    assert venv and 'touch venv/COLCON_IGNORE' in venv[0]
+    assert any(line.startswith('export FASTDDS_BUILTIN_TRANSPORTS=SHM ROS_DOMAIN_ID=')
+               for line in commands)
+    order = ['colcon build', '. install/setup.sh',
+             'install/collision_sensor/lib/collision_sensor/collision_sensor_demo',
+             'colcon test --event-handlers console_direct+', 'colcon test-result --verbose']
+    assert [line for line in commands if line in order] == order
