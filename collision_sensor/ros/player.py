@@ -58,6 +58,7 @@ The sequence is read before ROS starts, so a bad file fails fast with one line
 ``collision_sensor_play: error: ...`` on stderr and exit status 2.
 """
 import argparse
+import contextlib
 import signal
 import sys
 import threading
@@ -158,6 +159,41 @@ def _stamp_from_seconds(seconds: float):
     from builtin_interfaces.msg import Time
     nanoseconds = int(round(seconds * 1e9))
     return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
+
+
+class _Stop(KeyboardInterrupt):
+    """Ctrl-C or SIGTERM, named."""
+
+
+class _Interrupts:
+    """The player's SIGINT and SIGTERM handler: raises :class:`_Stop`, except while a frame is
+    published and counted (:meth:`held`), where it waits for the end of that, so that the
+    count printed on stopping is exactly what was published."""
+
+    def __init__(self):
+        self.holding = 0
+        self.pending: Optional[str] = None
+
+    def __call__(self, signum, frame):
+        name = signal.Signals(signum).name
+        if self.holding:
+            self.pending = self.pending or name
+            return
+        raise _Stop(name)
+
+    @contextlib.contextmanager
+    def held(self):
+        self.holding += 1
+        try:
+            yield
+        finally:
+            self.holding -= 1
+            if not self.holding and self.pending:
+                name, self.pending = self.pending, None
+                raise _Stop(name)
+
+
+_INTERRUPTS = _Interrupts()
 
 
 class SequencePlayer:
@@ -316,10 +352,11 @@ class SequencePlayer:
             msg.header.stamp = self.node.get_clock().now().to_msg()
         msg.name = self._names
         msg.position = self.seq.positions[index].tolist()
-        if not self.publisher.get_subscription_count():
-            self.unmatched += 1
-        self.publisher.publish(msg)
-        self.published += 1
+        with _INTERRUPTS.held():    # a Ctrl-C here must not split publishing from counting
+            if not self.publisher.get_subscription_count():
+                self.unmatched += 1
+            self.publisher.publish(msg)
+            self.published += 1
 
     def note_acknowledged(self, timeout: float = 0.0) -> bool:
         """Wait up to ``timeout`` s for every frame so far to be acknowledged by every matched
@@ -493,8 +530,8 @@ def main(argv: Optional[Sequence[str]] = None, context=None) -> int:
     rclpy.init(args=[PROG] + argv, context=context,
                signal_handler_options=SignalHandlerOptions.NO if own_signals else None)
     if own_signals:
-        signal.signal(signal.SIGINT, _interrupt)
-        signal.signal(signal.SIGTERM, _interrupt)
+        signal.signal(signal.SIGINT, _INTERRUPTS)
+        signal.signal(signal.SIGTERM, _INTERRUPTS)
     player = None
     try:
         player = SequencePlayer(seq, context=context, stamp=args.stamp,
@@ -518,14 +555,6 @@ def main(argv: Optional[Sequence[str]] = None, context=None) -> int:
             player.destroy()
         rclpy.try_shutdown(context=context)
     return 0
-
-
-class _Stop(KeyboardInterrupt):
-    """Ctrl-C or SIGTERM, named."""
-
-
-def _interrupt(signum, frame):
-    raise _Stop(signal.Signals(signum).name)
 
 
 def _report_stop(player: 'SequencePlayer', stop: BaseException) -> None:
