@@ -21,6 +21,7 @@ import zipfile
 import pytest
 
 import collision_sensor
+from collision_sensor.ros import console_scripts
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PACKAGE = 'collision_sensor'
@@ -47,10 +48,15 @@ TIMEOUT = 240
 
 def clean_env(**extra):
     """Return the environment minus anything that could point at this checkout or a ROS
-    workspace (PYTHONPATH, AMENT_PREFIX_PATH, COLCON_*), plus ``extra``."""
+    workspace (PYTHONPATH, AMENT_PREFIX_PATH, COLCON_*), plus ``extra``. ``PATH`` loses every
+    directory that holds a ``collision_sensor_node`` (this checkout's ``.venv/bin`` when it is
+    activated): an install must find its own executables, as it must on a user's machine."""
     env = {key: value for key, value in os.environ.items()
            if key not in ('PYTHONPATH', 'PYTHONHOME', 'AMENT_PREFIX_PATH', 'CMAKE_PREFIX_PATH')
            and not key.startswith('COLCON_')}
+    env['PATH'] = os.pathsep.join(
+        entry for entry in env.get('PATH', os.defpath).split(os.pathsep)
+        if entry and not os.path.exists(os.path.join(entry, 'collision_sensor_node')))
     env['PYTHONNOUSERSITE'] = '1'
     env.update(extra)
     return env
@@ -183,8 +189,10 @@ def test_wheel_has_an_entry_point_for_every_console_script(wheel):
         scripts = dict(entry_points['console_scripts'])
         assert sorted(scripts) == sorted(CONSOLE_SCRIPTS)
         for name, target in scripts.items():
-            # Each target names a module of the wheel that defines the function.
+            # Each target names a module of the wheel that defines the function, the module
+            # a tool runs with `python -m` where the script is not installed.
             module, _, function = target.strip().partition(':')
+            assert console_scripts.MODULES[name] == module, name
             source = archive.read(module.replace('.', '/') + '.py').decode()
             defined = {node.name for node in ast.parse(source).body
                        if isinstance(node, ast.FunctionDef)}
@@ -192,6 +200,20 @@ def test_wheel_has_an_entry_point_for_every_console_script(wheel):
 
 
 # --- 3. a real pip install -----------------------------------------------------------------
+
+def plain_venv(prefix):
+    """Make a venv at ``prefix`` that has this venv's packages but not its executables; return
+    its python. ``--without-pip``, and one ``.pth`` line naming this venv's site-packages (a
+    bare path line: this venv's own ``.pth`` hooks, the editable finder of this checkout among
+    them, do not run there, so ``collision_sensor`` is not importable from it)."""
+    run([sys.executable, '-m', 'venv', '--without-pip', prefix], cwd=REPO, env=clean_env())
+    python = os.path.join(prefix, 'bin', 'python')
+    purelib = run([python, '-c', 'import sysconfig; print(sysconfig.get_paths()["purelib"])'],
+                  cwd=prefix, env=clean_env()).stdout.strip()
+    with open(os.path.join(purelib, '_collision_sensor_test_deps.pth'), 'w') as stream:
+        stream.write(sysconfig.get_paths()['purelib'] + '\n')
+    return python
+
 
 @pytest.fixture(scope='module')
 def pip_venv(wheel, tmp_path_factory):
@@ -206,12 +228,7 @@ def pip_venv(wheel, tmp_path_factory):
     not this venv's.)
     """
     prefix = str(tmp_path_factory.mktemp('pip') / 'venv')
-    run([sys.executable, '-m', 'venv', '--without-pip', prefix], cwd=REPO, env=clean_env())
-    python = os.path.join(prefix, 'bin', 'python')
-    purelib = run([python, '-c', 'import sysconfig; print(sysconfig.get_paths()["purelib"])'],
-                  cwd=prefix, env=clean_env()).stdout.strip()
-    with open(os.path.join(purelib, '_collision_sensor_test_deps.pth'), 'w') as stream:
-        stream.write(sysconfig.get_paths()['purelib'] + '\n')
+    python = plain_venv(prefix)
     run([sys.executable, '-m', 'pip', '--python', python, 'install', '--no-deps', '--no-index',
          '--no-compile', '-q', wheel], cwd=prefix, env=clean_env())
     return prefix
@@ -233,38 +250,58 @@ def test_pip_installed_check_finds_the_paper_collisions(pip_venv, tmp_path):
     check_summary(proc, os.path.join(pip_venv, 'share', PACKAGE))
 
 
+def check_demo(script, share, cwd, env):
+    """Run ``script`` (collision_sensor_demo of an install) as a user would; assert that it
+    started the node of the same install and played the paper's experiment into it."""
+    pytest.importorskip('rclpy')
+    import uuid
+    namespace = f'/packaging_demo_{uuid.uuid4().hex[:8]}'
+    proc = run([script, '--as-fast-as-possible', '--namespace', namespace], cwd=cwd, env=env)
+    loaded = re.search(r'robot loaded from urdf_path "([^"]+)"', proc.stdout)
+    assert loaded, proc.stdout + proc.stderr
+    assert same_path(loaded.group(1), os.path.join(share, 'config', 'demo_arm.urdf'))
+    assert re.search(r'frames in collision: [1-9]\d* of 571', proc.stdout), proc.stdout
+    assert 'result: COLLISION' in proc.stdout and 'Traceback' not in proc.stderr
+
+
+def test_pip_installed_demo_starts_the_node_of_its_own_install(pip_venv, tmp_path):
+    check_demo(os.path.join(pip_venv, 'bin', 'collision_sensor_demo'),
+               os.path.join(pip_venv, 'share', PACKAGE), str(tmp_path), clean_env())
+
+
 # --- 4. a real colcon build ----------------------------------------------------------------
 
-def colcon_command():
-    """Return the colcon executable of this interpreter's environment, or None."""
+def colcon_available():
+    """True if colcon-core and colcon-ros (the ament_python build type) are installed."""
     import importlib.util
-    if importlib.util.find_spec('colcon_core') is None:
-        return None
-    if importlib.util.find_spec('colcon_ros') is None:  # the ament_python build type
-        return None
-    candidate = os.path.join(os.path.dirname(sys.executable), 'colcon')
-    return candidate if os.access(candidate, os.X_OK) else shutil.which('colcon')
+    return all(importlib.util.find_spec(name) is not None
+               for name in ('colcon_core', 'colcon_ros'))
 
 
 @pytest.fixture(scope='module')
 def colcon_install(tmp_path_factory):
     """``colcon build`` of a workspace holding a copy of the package; return the package's
-    install prefix (``install/collision_sensor``, colcon's isolated layout)."""
-    colcon = colcon_command()
-    if colcon is None:
+    install prefix (``install/collision_sensor``, colcon's isolated layout).
+
+    colcon runs with the python of a venv of the workspace's own (:func:`plain_venv`), as in
+    the README's recipe: the installed scripts name that python, and nothing of this
+    checkout's ``.venv/bin`` lies beside it."""
+    if not colcon_available():
         pytest.skip('colcon-core and colcon-ros are not installed in this environment '
                     '(pip install -e ".[test]" brings them)')
     workspace = tmp_path_factory.mktemp('colcon')
     copy_shipped(workspace / 'src' / PACKAGE)
+    python = plain_venv(str(workspace / 'venv'))
+    colcon = [python, '-c', 'import sys; from colcon_core.command import main; sys.exit(main())']
     # COLCON_HOME in the workspace: no user defaults (e.g. --symlink-install) leak in.
     env = clean_env(COLCON_HOME=str(workspace / 'colcon_home'))
     # --base-paths keeps discovery to the workspace, so the one package found is ours
     # (--packages-select would need the colcon-package-selection extension).
-    proc = run([colcon, '--log-base', str(workspace / 'log'), 'build',
+    proc = run(colcon + ['--log-base', str(workspace / 'log'), 'build',
                 '--base-paths', str(workspace / 'src'),
                 '--build-base', str(workspace / 'build'),
                 '--install-base', str(workspace / 'install'),
-                '--event-handlers', 'console_direct+'], cwd=str(workspace), env=env)
+                         '--event-handlers', 'console_direct+'], cwd=str(workspace), env=env)
     assert f'Finished <<< {PACKAGE}' in proc.stdout, proc.stdout
     with open(workspace / 'log' / 'latest_build' / 'logger_all.log') as stream:
         assert f"with type 'ros.ament_python' and name '{PACKAGE}'" in stream.read()
@@ -293,7 +330,8 @@ def test_colcon_install_has_what_ros2_run_and_the_ament_index_need(colcon_instal
 
 
 def test_colcon_install_finds_its_data_through_the_ament_index(colcon_install, tmp_path):
-    python = sys.executable  # the interpreter colcon wrote into the scripts' shebang
+    with open(os.path.join(colcon_install, 'lib', PACKAGE, 'collision_sensor_check')) as script:
+        python = script.readline()[2:].strip()   # the interpreter colcon wrote into the shebang
     share = os.path.join(colcon_install, 'share', PACKAGE)
     proc = run([python, '-c', WHERE], cwd=str(tmp_path), env=colcon_env(colcon_install))
     module, found = proc.stdout.split()
@@ -309,8 +347,57 @@ def test_colcon_install_finds_its_data_through_the_ament_index(colcon_install, t
         assert 'FileNotFoundError' in proc.stderr, proc.stderr
 
 
+def test_colcon_installed_demo_runs_as_ros2_run_would(colcon_install, tmp_path):
+    """``ros2 run collision_sensor collision_sensor_demo`` runs this script; the node it
+    starts is in the same directory, which install/setup.sh does not put on PATH."""
+    check_demo(os.path.join(colcon_install, 'lib', PACKAGE, 'collision_sensor_demo'),
+               os.path.join(colcon_install, 'share', PACKAGE), str(tmp_path),
+               colcon_env(colcon_install))
+
+
 def test_colcon_installed_check_finds_the_paper_collisions(colcon_install, tmp_path):
     proc = run([os.path.join(colcon_install, 'lib', PACKAGE, 'collision_sensor_check'),
                 'paper_experiment'], cwd=str(tmp_path),
                env=colcon_env(colcon_install), expect=1)
     check_summary(proc, os.path.join(colcon_install, 'share', PACKAGE))
+
+
+# --- 5. the README's workspace recipe --------------------------------------------------------
+
+def workspace_recipe():
+    """Return the commands of the README's workspace recipe, continuation lines joined."""
+    with open(os.path.join(REPO, 'README.md'), encoding='utf-8') as stream:
+        text = stream.read()
+    section = text.split('## In a ROS 2 workspace', 1)[1].split('\n## ', 1)[0]
+    block = section.split('```sh\n', 1)[1].split('```', 1)[0]
+    return [line.split('  #')[0].strip() for line in block.replace('\\\n', ' ').splitlines()]
+
+
+def test_the_workspace_recipe_installs_every_requirement():
+    """Its pip line names every requirement of setup.py (install_requires, extras ros and
+    test), as the installed metadata lists them, and what colcon needs to build and test."""
+    import importlib.metadata
+    from packaging.requirements import Requirement
+    from packaging.utils import canonicalize_name
+    try:
+        required = importlib.metadata.requires(PACKAGE)
+    except importlib.metadata.PackageNotFoundError:
+        pytest.skip('collision_sensor has no installed metadata here')
+    pip, = [line for line in workspace_recipe() if line.startswith('pip install')]
+    named = {canonicalize_name(Requirement(word.strip('\'"')).name)
+             for word in pip.split()[2:]}
+    wanted = {canonicalize_name(Requirement(entry).name) for entry in required}
+    assert wanted - named == set(), pip
+    assert {'colcon-core', 'colcon-ros', 'setuptools', 'wheel', 'pybind11'} <= named
+
+
+def test_the_workspace_recipe_keeps_colcon_out_of_its_venv_and_dds_local():
+    commands = workspace_recipe()
+    venv = [line for line in commands if '-m venv' in line]
+    assert venv and 'touch venv/COLCON_IGNORE' in venv[0]
+    assert any(line.startswith('export FASTDDS_BUILTIN_TRANSPORTS=SHM ROS_DOMAIN_ID=')
+               for line in commands)
+    order = ['colcon build', '. install/setup.sh',
+             'install/collision_sensor/lib/collision_sensor/collision_sensor_demo',
+             'colcon test --event-handlers console_direct+', 'colcon test-result --verbose']
+    assert [line for line in commands if line in order] == order

@@ -35,20 +35,21 @@ inscribed, never larger than the shape.
   ``pi i / stacks``; ``sections (stacks - 1) + 2`` vertices, ``2 sections (stacks - 1)``
   triangles. With the default 32 sections: 482 vertices, 960 triangles.
 """
+import difflib
 import functools
 from stat import S_ISREG
 from dataclasses import dataclass
 import os
 import re
 import urllib.parse
-from typing import Dict, Sequence
+from typing import Dict, Optional, Sequence
 
 import numpy as np
 
 from collision_sensor.model.stl import read_stl
 
 from collision_sensor.errors import ConfigError, MeshError
-from collision_sensor.model.package_lookup import find_package
+from collision_sensor.model.package_lookup import find_package, package_path_fix
 
 #: File types read by :func:`load_mesh_file` (through trimesh; DAE through pycollada).
 MESH_EXTENSIONS = ('.stl', '.obj', '.ply', '.dae')
@@ -111,10 +112,21 @@ def resolve_mesh_uri(uri: str, package_paths=None, base_dir=None, *, owner: str 
             tried.append(candidate)
         where = '' if base_dir is not None else (
             ' (robot given as XML text: nothing next to a file is searched)')
+        if directory is not None and os.path.isdir(directory):
+            # The package is there and the file is not: a misspelt name, or a mesh the
+            # package does not install. Giving the package's directory again cannot help.
+            close = closest_file(directory, rest)
+            fix = (f'did you mean "package://{package}/{close}"? Fix the file name in the '
+                   'description' if close is not None else
+                   f'check the file name, and that package "{package}" installs its meshes '
+                   f'(look in {os.path.dirname(os.path.join(directory, rest))})')
+            beside = (f' (nor has {base_dir} or a directory above it)' if base_dir is not None
+                      else where)
+            raise error(f'{owner}: mesh "{uri}" not found: package "{package}" is at '
+                        f'{directory} and has no file {rest}{beside}; {fix}')
         raise error(
             f'{owner}: mesh "{uri}" of package "{package}" not found{where}; searched: '
-            f'{"; ".join(tried)}; add package_paths={{"{package}": DIR}} '
-            f'(--package-path {package}=DIR) with the directory of package "{package}"')
+            f'{"; ".join(tried)}; {package_path_fix(package)}')
     if uri.startswith('file://'):
         path = urllib.parse.unquote(uri[len('file://'):])
     else:
@@ -130,6 +142,50 @@ def resolve_mesh_uri(uri: str, package_paths=None, base_dir=None, *, owner: str 
     else:
         hint = 'fix the path, or use package:// with package_paths'
     raise error(f'{owner}: mesh "{uri}" not found; tried: {path}; {hint}')
+
+
+def closest_file(directory: str, rest: str) -> Optional[str]:
+    """Return the existing file under ``directory`` whose relative path is nearest to ``rest``
+    (each missing component replaced by the closest name beside it), or None.
+
+    ``closest_file('/pkg', 'meshes/forarm.stl') == 'meshes/forearm.stl'`` when that exists.
+    """
+    current, found = directory, []
+    parts = [part for part in rest.split('/') if part not in ('', '.')]
+    for k, part in enumerate(parts):
+        last = k == len(parts) - 1
+        path = os.path.join(current, part)
+        if not (os.path.isfile(path) if last else os.path.isdir(path)):
+            try:
+                names = [name for name in os.listdir(current)
+                         if (os.path.isfile if last else os.path.isdir)(
+                             os.path.join(current, name))]
+            except OSError:
+                return None
+            part = _closest_name(part, names)
+            if part is None:
+                return None
+            path = os.path.join(current, part)
+        found.append(part)
+        current = path
+    return '/'.join(found) if found and os.path.isfile(current) else None
+
+
+#: How alike a name must be to one written (difflib's ratio of the names without extension).
+CLOSE_NAME_RATIO = 0.75
+
+
+def _closest_name(written: str, names: Sequence[str]) -> Optional[str]:
+    """The name of ``names`` nearest to ``written``: the same but for case (a file system that
+    tells case apart), else the most alike stem (extensions alike would make any two mesh
+    names look close), or None."""
+    same = sorted(name for name in names if name.lower() == written.lower())
+    if same:
+        return same[0]
+    stem = os.path.splitext(written)[0].lower()
+    scored = sorted((difflib.SequenceMatcher(None, stem, os.path.splitext(name)[0].lower())
+                     .ratio(), name) for name in names)
+    return scored[-1][1] if scored and scored[-1][0] >= CLOSE_NAME_RATIO else None
 
 
 def _beside_description(rest, base_dir):

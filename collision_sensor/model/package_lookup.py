@@ -65,6 +65,15 @@ def find_package(name: str, package_paths: Optional[Mapping[str, str]] = None
     return None, places
 
 
+def package_path_fix(name: str) -> str:
+    """Return how to give the directory of package ``name``, in each place that takes it: the
+    tools' command line, the node's ``package_paths`` parameter, the Python API (a loader
+    cannot know which of them called it)."""
+    return (f'give the directory of package "{name}": --package-path {name}=DIR (command '
+            f'line), package_paths: ["{name}=DIR"] (node parameter), or package_paths='
+            f'{{"{name}": DIR}} (Python); or source the workspace that installs it')
+
+
 def package_name_of(directory: str) -> Optional[str]:
     """Return the ``<name>`` of ``directory/package.xml``, or None if it has none."""
     manifest = os.path.join(directory, 'package.xml')

@@ -12,7 +12,7 @@ import threading
 from typing import Mapping, Optional
 
 from collision_sensor.errors import RobotDescriptionError
-from collision_sensor.model.package_lookup import find_package
+from collision_sensor.model.package_lookup import find_package, package_path_fix
 
 _LOCK = threading.Lock()
 
@@ -70,8 +70,7 @@ def expand_xacro(path, xacro_args: Optional[Mapping[str, str]] = None,
         directory, places = find_package(package, package_paths)
         if directory is None:
             raise _FindError(f'$(find {package}): package "{package}" not found; searched: '
-                             f'{"; ".join(places)}; add package_paths={{"{package}": DIR}} '
-                             f'(--package-path {package}=DIR)')
+                             f'{"; ".join(places)}; {package_path_fix(package)}')
         return directory
 
     with _LOCK:

@@ -40,7 +40,6 @@ kinematic tree, collision elements and a few link poses (needs example-robot-dat
 import argparse
 import os
 import random
-import shutil
 import signal
 import subprocess
 import sys
@@ -91,19 +90,12 @@ def set_ros_environment(environ=os.environ) -> List[str]:
     return notes
 
 
-def node_executable() -> str:
-    """Return the ``collision_sensor_node`` console script next to this Python, or on PATH.
-
-    :raises DemoError: if neither has it (the package is not installed).
-    """
-    beside = os.path.join(os.path.dirname(sys.executable), 'collision_sensor_node')
-    if os.access(beside, os.X_OK):
-        return beside
-    found = shutil.which('collision_sensor_node')
-    if found is None:
-        raise DemoError('collision_sensor_node not found next to the Python executable or on '
-                        'PATH; install the package: pip install -e ".[ros]" (or make demo)')
-    return found
+def node_command() -> List[str]:
+    """Return the command that runs ``collision_sensor_node`` of this very install (venv, pip
+    or colcon: :func:`collision_sensor.ros.console_scripts.console_command`), never one that
+    happens to be on PATH."""
+    from collision_sensor.ros.console_scripts import console_command
+    return console_command('collision_sensor_node')
 
 
 def demo_cell_parameters() -> Dict[str, str]:
@@ -126,7 +118,7 @@ class NodeProcess:
     """
 
     def __init__(self, parameters: Dict[str, str], namespace: str, echo=sys.stdout):
-        command = [node_executable(), '--ros-args', '-r', f'__ns:={namespace}']
+        command = node_command() + ['--ros-args', '-r', f'__ns:={namespace}']
         for name, value in parameters.items():
             command += ['-p', f'{name}:={value}']
         env = dict(os.environ)

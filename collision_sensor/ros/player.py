@@ -12,18 +12,37 @@ recorded (default)
 ``--rate HZ``
     frame i is published at ``start + i / HZ``, whatever the recorded times.
 ``--as-fast-as-possible``
-    as fast as the subscribers keep up, without loss. The publisher is reliable (depth
-    ``QUEUE_DEPTH``), playback starts once ``--wait-for-subscribers`` (default 1)
-    subscriptions are matched, and frame i + 1 is published only when
+    as fast as the subscribers keep up, without loss: frame i + 1 is published only when
     ``publisher.wait_for_all_acked()`` reports that every matched reliable subscription has
     acknowledged frame i. Why that loses nothing: a reliable reader acknowledges a frame once
     it holds it in its history, and the next frame is sent only then, so no frame is lost in
     transit; a ``KEEP_ALL`` subscription never evicts a frame it has not taken, so it receives
-    every frame, in order (``test/test_player.py`` checks this). A ``KEEP_LAST`` subscription
-    of depth N evicts its oldest frame when its callback falls N frames behind: it is lossless
-    only while it keeps within N (DDS acknowledges receipt, not processing, so no publisher can
-    do better). Best-effort subscriptions (``qos_profile_sensor_data``) never acknowledge and
-    may lose any frame; the player warns when one is matched.
+    every frame, in order (``test/ros/test_player.py`` checks this, with the node and the
+    player in processes of their own). A ``KEEP_LAST`` subscription of depth N evicts its
+    oldest frame when its callback falls N frames behind: it is lossless only while it keeps
+    within N (DDS acknowledges receipt, not processing, so no publisher can do better).
+    Best-effort subscriptions (``qos_profile_sensor_data``) never acknowledge and may lose any
+    frame; the player warns when one is matched.
+
+    The writer keeps a history of one frame here (:data:`FAST_QOS`), and that is what makes it
+    fast across processes. A reliable reader acknowledges only in answer to the writer's
+    HEARTBEAT. Fast DDS 2.14.5 (the Jazzy wheels) sends one every ``heartbeatPeriod`` (3 s by
+    default), or along with a sample when the writer's history is full; ``wait_for_all_acked``
+    itself asks for nothing (it does from Fast DDS 2.14.6 on, eProsima/Fast-DDS#6098). With a
+    history of 1000 frames every frame waited for the periodic heartbeat: one frame per 3 s
+    whenever the subscriber lived in another process (a reader in the same process is
+    acknowledged at once, which is why a test with both in one process never saw it). A full
+    history of one frame carries a heartbeat with every frame, and loses nothing: frame i is
+    acknowledged before frame i + 1 replaces it.
+
+Every timing waits for ``--wait-for-subscribers`` (default 1) matched subscriptions before the
+first frame: a frame published before the subscriber is matched is lost to it. At recorded
+timing the history holds ``QUEUE_DEPTH`` frames, so a frame the subscriber missed is resent
+when it asks; the player counts a frame acknowledged once every matched reliable subscription
+has acknowledged it. At the end it waits up to :data:`FINAL_ACK_TIMEOUT` for the last frames
+(longer than Fast DDS's heartbeat period) and logs ``published N frames; M acknowledged``;
+stopped with Ctrl-C (or SIGTERM) it logs the same, after waiting up to
+:data:`STOP_ACK_TIMEOUT` for acknowledgements (a second Ctrl-C skips the wait).
 
 Scene changes: a bag's ``scene`` arrays (:data:`~collision_sensor.model.sequences.SCENE_TOPIC`,
 ``--scene-topic``) are published on the relative topic ``scene`` (reliable, transient local,
@@ -39,7 +58,10 @@ The sequence is read before ROS starts, so a bad file fails fast with one line
 ``collision_sensor_play: error: ...`` on stderr and exit status 2.
 """
 import argparse
+import contextlib
+import signal
 import sys
+import threading
 import time
 from typing import List, Optional, Sequence
 
@@ -49,6 +71,7 @@ from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point
@@ -67,11 +90,17 @@ SCENE = 'scene'
 QUEUE_DEPTH = 1000
 ACK_TIMEOUT = 1.0        # s per wait; waiting goes on while subscribers are matched
 SLOW_WARNING = 5.0       # s without an acknowledgement before the player says so
-FINAL_ACK_TIMEOUT = 2.0  # s granted to subscribers for the last frames before exiting
+FINAL_ACK_TIMEOUT = 5.0  # s for the last frames' acknowledgements (Fast DDS heartbeat: 3 s)
+STOP_ACK_TIMEOUT = 5.0   # s for them after Ctrl-C (a second Ctrl-C skips the wait)
 _POLL = 0.05             # s between checks of the context while sleeping
 
+#: Recorded timing and --rate: frames the writer keeps to resend (a subscriber that missed one).
 PLAYBACK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=QUEUE_DEPTH,
                           reliability=ReliabilityPolicy.RELIABLE)
+#: --as-fast-as-possible: one frame, acknowledged before the next replaces it; a full history
+#: makes Fast DDS ask for the acknowledgement with the frame itself (module docstring).
+FAST_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                      reliability=ReliabilityPolicy.RELIABLE)
 #: The node's verdicts, each one (the player counts them to keep scene arrays in order).
 VERDICT_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
 DIAGNOSTICS_DEPTH = 100
@@ -132,17 +161,60 @@ def _stamp_from_seconds(seconds: float):
     return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
 
 
+class _Stop(KeyboardInterrupt):
+    """Ctrl-C or SIGTERM, named."""
+
+
+class _Interrupts:
+    """The player's SIGINT and SIGTERM handler: raises :class:`_Stop`, except while a frame is
+    published and counted (:meth:`held`), where it waits for the end of that, so that the
+    count printed on stopping is exactly what was published."""
+
+    def __init__(self):
+        self.holding = 0
+        self.pending: Optional[str] = None
+
+    def __call__(self, signum, frame):
+        name = signal.Signals(signum).name
+        if self.holding:
+            self.pending = self.pending or name
+            return
+        raise _Stop(name)
+
+    @contextlib.contextmanager
+    def held(self):
+        self.holding += 1
+        try:
+            yield
+        finally:
+            self.holding -= 1
+            if not self.holding and self.pending:
+                name, self.pending = self.pending, None
+                raise _Stop(name)
+
+
+_INTERRUPTS = _Interrupts()
+
+
 class SequencePlayer:
     """Publishes the frames of a sequence from a node of its own.
 
     :param context: the rclpy context (initialised) the node lives in.
+    :param fast: the writer of ``--as-fast-as-possible`` (:data:`FAST_QOS`), else
+        :data:`PLAYBACK_QOS`.
+    :ivar published: frames published.
+    :ivar acknowledged: frames acknowledged by every reliable subscription matched when they
+        were published (counted when :meth:`note_acknowledged` finds all acknowledged).
+    :ivar unmatched: frames published while no subscription was matched (nobody got them).
     """
 
-    def __init__(self, seq: JointSequence, context=None, stamp: str = 'now'):
+    def __init__(self, seq: JointSequence, context=None, stamp: str = 'now',
+                 fast: bool = False):
         self.seq = seq
         self.context = context if context is not None else rclpy.get_default_context()
         self.node = Node('sequence_player', context=self.context)
-        self.publisher = self.node.create_publisher(JointState, TOPIC, PLAYBACK_QOS)
+        self.publisher = self.node.create_publisher(JointState, TOPIC,
+                                                    FAST_QOS if fast else PLAYBACK_QOS)
         self.scene_publisher = (self.node.create_publisher(MarkerArray, SCENE, SCENE_QOS)
                                 if seq.scene else None)
         # The node's verdicts on frames (header frame_id empty) and on scene arrays (its root
@@ -159,7 +231,7 @@ class SequencePlayer:
             self._executor = SingleThreadedExecutor(context=self.context)
             self._executor.add_node(self.node)
         self.stamp = stamp
-        self.published = 0
+        self.published = self.acknowledged = self.unmatched = 0
         self._names = list(seq.joint_names)
         self._scene_before = seq.scene_before()
 
@@ -280,8 +352,46 @@ class SequencePlayer:
             msg.header.stamp = self.node.get_clock().now().to_msg()
         msg.name = self._names
         msg.position = self.seq.positions[index].tolist()
-        self.publisher.publish(msg)
-        self.published += 1
+        with _INTERRUPTS.held():    # a Ctrl-C here must not split publishing from counting
+            if not self.publisher.get_subscription_count():
+                self.unmatched += 1
+            self.publisher.publish(msg)
+            self.published += 1
+
+    def note_acknowledged(self, timeout: float = 0.0) -> bool:
+        """Wait up to ``timeout`` s for every frame so far to be acknowledged by every matched
+        reliable subscription; count them acknowledged if so (not those published while no
+        subscription was matched: nobody acknowledged them). Return whether they are."""
+        delivered = self.published - self.unmatched
+        if not self.publisher.wait_for_all_acked(Duration(seconds=timeout)):
+            return False
+        self.acknowledged = delivered
+        return True
+
+    def settle(self, timeout: float) -> bool:
+        """Wait up to ``timeout`` s, in short waits, for the frames not yet acknowledged."""
+        deadline = time.monotonic() + timeout
+        while not self.note_acknowledged(min(ACK_TIMEOUT / 10, max(0.0, deadline -
+                                                                   time.monotonic()))):
+            self._ok()
+            if time.monotonic() >= deadline:
+                return False
+        return True
+
+    def summary(self, stopped: Optional[str] = None) -> str:
+        """Return what was published and acknowledged, in one line (``stopped``: by what)."""
+        text = (f'published {self.published} frame{"s" * (self.published != 1)}; '
+                f'{self.acknowledged} acknowledged by every matched reliable subscription')
+        if self.context.ok():
+            matched = self.publisher.get_subscription_count()
+            text += f' ({matched} subscription{"s" * (matched != 1)} matched now)'
+        if self.unmatched:
+            text += (f'; {self.unmatched} published while no subscription was matched, '
+                     'received by nobody')
+        if self.acknowledged < self.published - self.unmatched:
+            text += (f'; {self.published - self.unmatched - self.acknowledged} not '
+                     'acknowledged (yet): a subscriber did not keep up, or left')
+        return f'stopped ({stopped}): {text}' if stopped else text
 
     def wait_for_acknowledgement(self, publisher=None) -> None:
         """Block until every matched reliable subscription acknowledged all frames so far (or
@@ -289,6 +399,7 @@ class SequencePlayer:
         waited = 0.0
         warned = False
         publisher = publisher or self.publisher
+        delivered = self.published - self.unmatched
         while not publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT)):
             self._ok()
             waited += ACK_TIMEOUT
@@ -296,6 +407,8 @@ class SequencePlayer:
                 self.node.get_logger().warning(
                     f'no acknowledgement for {waited:.0f} s: a subscriber is not keeping up')
                 warned = True
+        if publisher is self.publisher:
+            self.acknowledged = delivered
 
     def play(self, rate: Optional[float] = None, fast: bool = False, loop: bool = False,
              progress_mode: str = 'auto') -> int:
@@ -322,6 +435,8 @@ class SequencePlayer:
                     self.publish_frame(index)
                     if fast:
                         self.wait_for_acknowledgement()
+                    else:
+                        self.note_acknowledged()
                     progress.update(index + 1)
             if not loop:
                 return self.published
@@ -340,6 +455,8 @@ def build_parser() -> argparse.ArgumentParser:
                'reliable subscription acknowledged the previous one. Lossless for reliable '
                'KEEP_ALL subscriptions; a KEEP_LAST depth-N subscription loses frames only if '
                'it falls N frames behind; best-effort subscriptions get no promise. '
+               'At the end, or on Ctrl-C, the player logs how many frames it published and '
+               'how many every matched subscription acknowledged. '
                'Exit status: 0 done or interrupted, 2 error.')
     parser.add_argument('sequence', metavar='SEQUENCE',
                         help='CSV file or rosbag2 bag (directory, .mcap or .db3)')
@@ -352,9 +469,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--loop', action='store_true', help='start again after the last frame')
     parser.add_argument('--start-delay', type=float, default=0.0, metavar='S',
                         help='seconds to wait before the first frame (after subscribers)')
-    parser.add_argument('--wait-for-subscribers', type=int, default=None, metavar='N',
-                        help='wait until N subscribers are matched (default: 1 with '
-                             '--as-fast-as-possible, else 0)')
+    parser.add_argument('--wait-for-subscribers', type=int, default=1, metavar='N',
+                        help='wait until N subscribers are matched before the first frame '
+                             '(default %(default)s; 0: start at once, frames published before '
+                             'a subscriber is matched are lost to it)')
     parser.add_argument('--joints', metavar='A,B,...',
                         help='the joints expected, comma-separated: CSV columns must be '
                              'exactly these; the message lists them in this order')
@@ -395,30 +513,41 @@ def main(argv: Optional[Sequence[str]] = None, context=None) -> int:
         joints = [name.strip() for name in args.joints.split(',') if name.strip()]
         if not joints:
             return _error('--joints: give joint names separated by commas')
+    if args.wait_for_subscribers < 0:
+        return _error(f'--wait-for-subscribers {args.wait_for_subscribers}: must not be '
+                      'negative (0: start at once)')
     try:
         seq = read_sequence(args.sequence, topic=args.bag_topic, joint_names=joints,
                             scene_topic=args.scene_topic)
     except SequenceError as err:
         return _error(str(err))
-    subscribers = args.wait_for_subscribers
-    if subscribers is None:
-        subscribers = 1 if args.as_fast_as_possible else 0
 
-    rclpy.init(args=[PROG] + argv, context=context)
+    # As a program (the default context, the main thread), Ctrl-C and SIGTERM are the
+    # player's own: they raise KeyboardInterrupt with the context still up, so that the
+    # acknowledgements can still be waited for and counted. rclpy's handlers would shut the
+    # context down first, and a publisher of a shut-down context answers nothing.
+    own_signals = context is None and threading.current_thread() is threading.main_thread()
+    rclpy.init(args=[PROG] + argv, context=context,
+               signal_handler_options=SignalHandlerOptions.NO if own_signals else None)
+    if own_signals:
+        signal.signal(signal.SIGINT, _INTERRUPTS)
+        signal.signal(signal.SIGTERM, _INTERRUPTS)
     player = None
     try:
-        player = SequencePlayer(seq, context=context, stamp=args.stamp)
-        player.wait_for_subscribers(subscribers)
+        player = SequencePlayer(seq, context=context, stamp=args.stamp,
+                                fast=args.as_fast_as_possible)
+        player.wait_for_subscribers(args.wait_for_subscribers)
         if args.as_fast_as_possible:
             player.warn_best_effort()
         player.sleep_until(time.monotonic() + args.start_delay)
-        count = player.play(rate=args.rate, fast=args.as_fast_as_possible, loop=args.loop,
-                            progress_mode=args.progress)
+        player.play(rate=args.rate, fast=args.as_fast_as_possible, loop=args.loop,
+                    progress_mode=args.progress)
         # let reliable subscribers receive the last frames before the publisher goes away
-        player.publisher.wait_for_all_acked(Duration(seconds=FINAL_ACK_TIMEOUT))
-        player.node.get_logger().info(f'published {count} frames')
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        player.settle(FINAL_ACK_TIMEOUT)
+        player.node.get_logger().info(player.summary())
+    except (KeyboardInterrupt, ExternalShutdownException) as stop:
+        if player is not None:
+            _report_stop(player, stop)
     except CollisionSensorError as err:
         return _error(str(err))
     finally:
@@ -426,6 +555,17 @@ def main(argv: Optional[Sequence[str]] = None, context=None) -> int:
             player.destroy()
         rclpy.try_shutdown(context=context)
     return 0
+
+
+def _report_stop(player: 'SequencePlayer', stop: BaseException) -> None:
+    """Log what was published and acknowledged when playback was stopped."""
+    stopped = (str(stop) or 'SIGINT') if isinstance(stop, KeyboardInterrupt) else 'shutdown'
+    if player.context.ok():
+        try:
+            player.settle(STOP_ACK_TIMEOUT)
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass            # stopped again: report what is known
+    player.node.get_logger().info(player.summary(stopped))
 
 
 if __name__ == '__main__':

@@ -5,6 +5,7 @@ alone::
 
     collision_sensor_acm panda.urdf --package-path example-robot-data=DIR --output panda.srdf
     collision_sensor_acm arm.urdf --srdf arm.srdf --in-place --never --yaml acm.yaml
+    collision_sensor_acm ur5.urdf --srdf ur5.srdf --warning-distance 0.05 --yaml ur5_acm.yaml
 
 Each pair of links with geometry gets at most one reason, the first that applies:
 
@@ -29,9 +30,19 @@ random generator is seeded (``--seed``), so a run can be repeated exactly. The s
 the raw matrix: no SRDF pairs and no adjacency exceptions, only the pairs not yet explained by
 an earlier reason are sampled, with :meth:`CollisionChecker.check_batch`.
 
-The engine answers contact, not distance. With ``--clearance`` and python-fcl installed, each
-Never pair's smallest distance is measured with python-fcl on the same triangles, over a
-subset of the samples (``--clearance-samples``); the output says over how many.
+With ``--clearance``, each Never pair's smallest distance is measured by the engine
+(:meth:`CollisionChecker.proximity`, the triangles' distance), over a subset of the samples
+(``--clearance-samples``); the output says over how many.
+
+The warning zone (``--warning-distance D``): the pairs that stay checked (neither found above
+nor disabled by ``--srdf``) whose distance is below ``D`` in every one of
+``--warning-samples`` random configurations (the default pose first), measured by the engine
+as the node measures its ``warning_distance``. Such a pair, e.g. the UR5's ``ee_link`` and
+``wrist_2_link`` (0.0198 m apart wherever the arm goes), would keep the node's warning zone on
+for good; the list goes to the node's ``warning_ignore`` parameter (``link_a:link_b`` strings:
+printed, and in ``--yaml``). Distances are the links' surfaces', unpadded: the node subtracts
+both links' paddings, so with padding give ``D`` plus the two paddings. Sampling is not proof:
+a pair listed may still move farther apart in a configuration that was not drawn.
 
 Exit status 0 on success, 2 on error (one line on stderr: ``collision_sensor_acm: error:
 ...``).
@@ -47,7 +58,7 @@ from typing import Dict, List, Optional, Sequence, Set, Tuple
 import numpy as np
 
 from collision_sensor.engine.sampling import sampling_bounds, uniform_configurations
-from collision_sensor.errors import CollisionSensorError, ConfigError
+from collision_sensor.errors import ConfigError
 from collision_sensor.model.exception_list import adjacent_pairs, sorted_pair
 from collision_sensor.model.mesh_loading import parse_package_paths
 from collision_sensor.model.xacro_expansion import parse_xacro_args
@@ -66,13 +77,13 @@ DEFAULT_SAMPLES_PER_ROUND = 2000
 DEFAULT_MAX_ROUNDS = 20
 DEFAULT_NEVER_SAMPLES = 10000
 DEFAULT_CLEARANCE_SAMPLES = 500
+DEFAULT_WARNING_SAMPLES = 2000
 #: Configurations per check_batch call: the progress bar moves between calls.
 BATCH = 250
 
 NOT_PROOF = ('sampling is not proof: a Never pair did not collide in the configurations '
              'drawn, it can still collide in one that was not drawn')
-NO_DISTANCE = ('clearance not measured: the engine answers contact, not distance (add '
-               '--clearance to measure it with python-fcl)')
+NO_DISTANCE = 'clearance not measured (add --clearance to measure it)'
 
 Pair = Tuple[str, str]
 
@@ -83,7 +94,7 @@ class PairFinding:
 
     :ivar hits: sampled configurations in which the pair collided (Always, Never).
     :ivar samples: sampled configurations in which the pair was checked (Always, Never).
-    :ivar clearance: smallest distance [m] python-fcl measured (Never, with ``--clearance``),
+    :ivar clearance: smallest distance [m] the engine measured (Never, with ``--clearance``),
         over ``clearance_samples`` of the samples; None when not measured.
     """
 
@@ -122,10 +133,31 @@ class CollisionMatrix:
     stable: bool
     samples: int
     never_samples: int  # 0: Never not sought
+    warning_zone: Optional['WarningZone'] = None
 
     def pairs(self, reason: Optional[str] = None) -> List[Pair]:
         """Return the pairs found, all or of one reason."""
         return [f.pair for f in self.findings if reason is None or f.reason == reason]
+
+
+@dataclass(frozen=True)
+class WarningZone:
+    """The pairs nearer than ``distance`` in every sample (``--warning-distance``).
+
+    :ivar farthest: ``{pair: largest distance [m] over the samples}``, sorted by pair; every
+        value is below ``distance``.
+    :ivar candidates: pairs measured (those that stay checked).
+    :ivar samples: configurations measured (the default pose and random ones).
+    """
+
+    distance: float
+    farthest: Dict[Pair, float]
+    candidates: int
+    samples: int
+
+    def warning_ignore(self) -> List[str]:
+        """Return the ``"link_a:link_b"`` strings of the node's ``warning_ignore``."""
+        return [f'{a}:{b}' for a, b in self.farthest]
 
 
 # ------------------------------------------------------------------ the matrix, no I/O
@@ -208,18 +240,22 @@ def compute_matrix(base, *, srdf=None, default_state: Optional[str] = None,
                    max_rounds: int = DEFAULT_MAX_ROUNDS, never: bool = False,
                    never_samples: int = DEFAULT_NEVER_SAMPLES, clearance: bool = False,
                    clearance_samples: int = DEFAULT_CLEARANCE_SAMPLES, seed: int = 0,
+                   warning_distance: Optional[float] = None,
+                   warning_samples: int = DEFAULT_WARNING_SAMPLES,
                    progress: str = 'never') -> CollisionMatrix:
     """Classify every pair of ``base``'s links with geometry (see the module docstring).
 
     :param base: a checker of the robot alone, built without SRDF (its exceptions are not
         used: the pairs sampled are chosen here).
-    :param srdf: the loaded SRDF, only for ``default_state``.
+    :param srdf: the loaded SRDF, for ``default_state``, and its disabled pairs, which the
+        warning zone leaves out.
+    :param warning_distance: measure the warning zone (:class:`WarningZone`) at this distance
+        [m]; None: not measured.
     :param progress: progress bar mode on stderr (``auto``, ``always``, ``never``).
     :raises ConfigError: a bad setting or an unknown default state, naming it.
-    :raises CollisionSensorError: ``clearance`` without python-fcl.
     """
     _check_settings(always_fraction, samples_per_round, max_rounds, never_samples,
-                    clearance_samples)
+                    clearance_samples, warning_distance, warning_samples)
     q_default = default_configuration(base, srdf, default_state)
     rng = np.random.default_rng(seed)
     lower, upper = sampling_bounds(base)
@@ -282,67 +318,90 @@ def compute_matrix(base, *, srdf=None, default_state: Optional[str] = None,
                 *pair, NEVER, hits=0, samples=n_total, clearance=d,
                 clearance_samples=len(subset) if d is not None else 0)
 
+    zone = None
+    if warning_distance is not None:
+        disabled = ({sorted_pair(p.link1, p.link2) for p in srdf.disabled_pairs}
+                    if srdf is not None else set())
+        checked = [p for p in all_pairs if p not in findings and p not in disabled]
+        Q = np.concatenate([q_default[None, :],
+                            uniform_configurations(lower, upper, warning_samples - 1, rng)])
+        zone = find_warning_zone(base, checked, warning_distance, Q, progress)
+
     order = {reason: k for k, reason in enumerate(REASONS)}
     ordered = tuple(sorted(findings.values(), key=lambda f: (order[f.reason], f.pair)))
     return CollisionMatrix(
         robot_name=base.model.name, pair_count=len(all_pairs), findings=ordered,
         default_state=default_state or 'zero', seed=seed, always_fraction=always_fraction,
         samples_per_round=samples_per_round, rounds=rounds, stable=stable, samples=n_total,
-        never_samples=never_samples if never else 0)
+        never_samples=never_samples if never else 0, warning_zone=zone)
 
 
 def smallest_distances(base, pairs: Sequence[Pair], Q: np.ndarray,
                        progress: str = 'never') -> Dict[Pair, float]:
-    """Return each pair's smallest python-fcl distance [m] over the configurations ``Q``.
-
-    The meshes are the triangles ``base`` loaded; link poses come from ``base.kinematics``.
-    A pair with several collision elements takes the smallest over element pairs.
-
-    :raises CollisionSensorError: python-fcl is not installed.
-    """
-    try:
-        import fcl
-    except ImportError:
-        raise CollisionSensorError('--clearance needs python-fcl; install it with '
-                                   '`pip install python-fcl`, or leave --clearance out') from None
-    models: Dict[str, list] = {}
-    for element in base.model.elements:
-        T = element.T_link_element
-        vertices = np.ascontiguousarray(element.vertices @ T[:3, :3].T + T[:3, 3])
-        model = fcl.BVHModel()
-        model.beginModel(len(vertices), len(element.faces))
-        model.addSubModel(vertices, np.asarray(element.faces, dtype=np.int32))
-        model.endModel()
-        models.setdefault(element.link, []).append(model)
-    link_index = {name: i for i, name in enumerate(base.kinematics.link_names)}
-    poses = base.kinematics.forward_kinematics_batch(Q)  # (n, L, 4, 4)
-    request = fcl.DistanceRequest()
-    smallest = {pair: math.inf for pair in pairs}
+    """Return each pair's smallest distance [m] over the configurations ``Q``: the engine's
+    :meth:`~CollisionChecker.proximity` on a checker of exactly ``pairs`` (0 in contact)."""
+    checker = pair_checker(base, pairs)
+    smallest = {pair: math.inf for pair in checker.checked_pairs}
     with ProgressBar(len(Q), 'clearance', progress) as bar:
-        for k in range(len(Q)):
-            objects = {}
-            for link in {name for pair in pairs for name in pair}:
-                T = poses[k, link_index[link]]
-                transform = fcl.Transform(T[:3, :3], T[:3, 3])
-                objects[link] = [fcl.CollisionObject(m, transform) for m in models[link]]
-            for a, b in pairs:
-                for oa in objects[a]:
-                    for ob in objects[b]:
-                        d = fcl.distance(oa, ob, request, fcl.DistanceResult())
-                        smallest[(a, b)] = min(smallest[(a, b)], max(d, 0.0))
+        for k, q in enumerate(Q):
+            for record in checker.proximity(q, math.inf):
+                pair = (record.link_a, record.link_b)
+                smallest[pair] = min(smallest[pair], max(record.distance, 0.0))
             bar.update(k + 1)
     return smallest
 
 
+#: The warning zone's checker is rebuilt on the pairs still in the running once fewer than
+#: this share of the pairs it measures are: most pairs drop out within the first samples.
+REBUILD_SHARE = 0.5
+
+
+def find_warning_zone(base, pairs: Sequence[Pair], distance: float, Q: np.ndarray,
+                      progress: str = 'never') -> WarningZone:
+    """Return the pairs of ``pairs`` nearer than ``distance`` in every configuration of ``Q``.
+
+    A pair drops out at the first configuration where the engine's
+    :meth:`~CollisionChecker.proximity` (as the node's warning zone measures it, unpadded here)
+    finds it at ``distance`` or farther; the others keep their largest distance seen.
+
+    :param Q: ``(n, J) float`` configurations.
+    """
+    near = {sorted_pair(*pair) for pair in pairs}
+    farthest: Dict[Pair, float] = {pair: -math.inf for pair in near}
+    checker = pair_checker(base, sorted(near)) if near else None
+    with ProgressBar(len(Q), 'warning zone', progress) as bar:
+        for k, q in enumerate(Q):
+            if not near:
+                bar.update(len(Q))
+                break
+            seen = {}
+            for record in checker.proximity(q, distance):
+                seen[(record.link_a, record.link_b)] = max(record.distance, 0.0)
+            near = {pair for pair in near if pair in seen}
+            for pair in near:
+                farthest[pair] = max(farthest[pair], seen[pair])
+            if near and len(near) < REBUILD_SHARE * len(checker.checked_pairs):
+                checker = pair_checker(base, sorted(near))
+            bar.update(k + 1)
+    return WarningZone(distance=distance,
+                       farthest={pair: farthest[pair] for pair in sorted(near)},
+                       candidates=len(farthest), samples=len(Q))
+
+
 def _check_settings(always_fraction, samples_per_round, max_rounds, never_samples,
-                    clearance_samples):
+                    clearance_samples, warning_distance=None, warning_samples=1):
     if not (isinstance(always_fraction, (int, float)) and 0.0 < always_fraction <= 1.0):
         raise ConfigError(f'--always-fraction {always_fraction}: expected a fraction in (0, 1], '
                           'e.g. 0.95')
+    if warning_distance is not None and not (
+            isinstance(warning_distance, (int, float)) and 0.0 < warning_distance < math.inf):
+        raise ConfigError(f'--warning-distance {warning_distance}: expected a distance in '
+                          'metres > 0, e.g. 0.05 (the node\'s warning_distance)')
     for option, value, least in (('--samples-per-round', samples_per_round, 1),
                                  ('--max-rounds', max_rounds, 2),
                                  ('--never-samples', never_samples, 1),
-                                 ('--clearance-samples', clearance_samples, 1)):
+                                 ('--clearance-samples', clearance_samples, 1),
+                                 ('--warning-samples', warning_samples, 1)):
         if isinstance(value, bool) or not isinstance(value, int) or value < least:
             raise ConfigError(f'{option} {value}: expected a whole number >= {least}')
 
@@ -355,20 +414,27 @@ def allowed_collisions(matrix: CollisionMatrix) -> List[str]:
 
 
 def params_yaml(matrix: CollisionMatrix, command: str = '') -> str:
-    """Return a ros2 params file setting ``allowed_collisions`` to every pair found."""
-    lines = [f'# allowed_collisions of robot "{matrix.robot_name}", generated by {PROG}'
+    """Return a ros2 params file setting ``allowed_collisions`` to every pair found (and
+    ``warning_ignore`` to the warning zone's pairs, when measured)."""
+    listed = 'allowed_collisions' + (' and warning_ignore' if matrix.warning_zone else '')
+    lines = [f'# {listed} of robot "{matrix.robot_name}", generated by {PROG}'
              + (f': {command}' if command else ''),
              f'# {_provenance(matrix)}',
-             '# Use as one more --params-file of collision_sensor_node, or copy the list.',
+             '# Use as one more --params-file of collision_sensor_node, or copy the lists.',
              '/**:', '  ros__parameters:']
-    entries = allowed_collisions(matrix)
-    if entries:
-        lines.append('    allowed_collisions: [')
-        lines.extend(f'      "{entry}",' for entry in entries)
-        lines.append('    ]')
-    else:
-        lines.append('    allowed_collisions: []')
+    lines += _yaml_list('allowed_collisions', allowed_collisions(matrix))
+    zone = matrix.warning_zone
+    if zone is not None:
+        lines.append(f'    # pairs nearer than {zone.distance:g} m in all {zone.samples} samples '
+                     '(surfaces, unpadded; not proof)')
+        lines += _yaml_list('warning_ignore', zone.warning_ignore())
     return '\n'.join(lines) + '\n'
+
+
+def _yaml_list(name: str, entries: Sequence[str]) -> List[str]:
+    if not entries:
+        return [f'    {name}: []']
+    return [f'    {name}: ['] + [f'      "{entry}",' for entry in entries] + ['    ]']
 
 
 def srdf_entries(matrix: CollisionMatrix) -> List[Tuple[str, str, str]]:
@@ -417,8 +483,20 @@ def report(matrix: CollisionMatrix) -> str:
             detail = f'0 collisions in {f.samples} samples'
             if f.clearance is not None:
                 detail += (f'; smallest clearance {f.clearance:.4f} m over {f.clearance_samples}'
-                           ' of them (python-fcl)')
+                           ' of them')
         lines.append(f'  {f.reason:<8}  {name:<{width}}  {detail}')
+    zone = matrix.warning_zone
+    if zone is not None:
+        lines.append(f'warning zone: {len(zone.farthest)} of the {zone.candidates} pairs that '
+                     f'stay checked are nearer than {zone.distance:g} m in all {zone.samples} '
+                     'samples (the default pose and random ones; surfaces, unpadded; not proof)'
+                     + (': with warning_distance ' f'{zone.distance:g} the node warns about them '
+                        'wherever the robot is; leave them out with warning_ignore'
+                        if zone.farthest else ''))
+        width = max((len(f'{a} -- {b}') for a, b in zone.farthest), default=0)
+        for (a, b), farthest in zone.farthest.items():
+            lines.append(f'  {"Warning":<8}  {a + " -- " + b:<{width}}  at most '
+                         f'{farthest:.4f} m apart in every sample')
     return '\n'.join(lines)
 
 
@@ -436,6 +514,16 @@ def _fraction(text: str) -> float:
         value = math.nan
     if not 0.0 < value <= 1.0:
         raise argparse.ArgumentTypeError(f'"{text}" is not a fraction in (0, 1], e.g. 0.95')
+    return value
+
+
+def _distance(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0.0 < value < math.inf:
+        raise argparse.ArgumentTypeError(f'"{text}" is not a distance in metres > 0, e.g. 0.05')
     return value
 
 
@@ -492,12 +580,21 @@ def build_parser() -> argparse.ArgumentParser:
                         metavar='N', help='samples a Never pair must stay clear in, the Always '
                                           'rounds\' included (default %(default)s)')
     parser.add_argument('--clearance', action='store_true',
-                        help='with --never: measure each Never pair\'s smallest distance with '
-                             'python-fcl (the engine has no distance query) over '
-                             '--clearance-samples of the samples')
+                        help='with --never: measure each Never pair\'s smallest distance (the '
+                             'engine\'s proximity query) over --clearance-samples of the '
+                             'samples')
     parser.add_argument('--clearance-samples', type=_at_least(1),
                         default=DEFAULT_CLEARANCE_SAMPLES, metavar='N',
                         help='samples the clearance is measured over (default %(default)s)')
+    parser.add_argument('--warning-distance', type=_distance, metavar='D',
+                        help='also list the pairs that stay checked yet are nearer than D '
+                             'metres in every sample (the node\'s warning zone would be on for '
+                             'good): printed and written to --yaml as the node\'s '
+                             'warning_ignore; surfaces unpadded, with padding add the two '
+                             'links\' paddings to D')
+    parser.add_argument('--warning-samples', type=_at_least(1), default=DEFAULT_WARNING_SAMPLES,
+                        metavar='N', help='configurations a pair must stay nearer than D in, '
+                                          'the default pose first (default %(default)s)')
     parser.add_argument('--seed', type=int, default=0,
                         help='seed of the random configurations (default %(default)s)')
     written = parser.add_mutually_exclusive_group()
@@ -509,7 +606,7 @@ def build_parser() -> argparse.ArgumentParser:
                               'already there are kept as they are, every other byte stays')
     parser.add_argument('--yaml', metavar='FILE',
                         help='write a ros2 params file setting allowed_collisions to every '
-                             'pair found')
+                             'pair found (and warning_ignore, with --warning-distance)')
     parser.add_argument('--progress', choices=MODES, default='auto',
                         help='progress bar on stderr: auto (on a terminal), always, never')
     return parser
@@ -554,7 +651,9 @@ def _run(args, argv: Sequence[str], start: float) -> int:
         base, srdf=srdf, default_state=args.default_state, always_fraction=args.always_fraction,
         samples_per_round=args.samples_per_round, max_rounds=args.max_rounds, never=args.never,
         never_samples=args.never_samples, clearance=args.clearance,
-        clearance_samples=args.clearance_samples, seed=args.seed, progress=args.progress)
+        clearance_samples=args.clearance_samples, seed=args.seed,
+        warning_distance=args.warning_distance, warning_samples=args.warning_samples,
+        progress=args.progress)
 
     command = ' '.join([PROG] + list(argv))
     outcome = []
@@ -577,6 +676,9 @@ def _run(args, argv: Sequence[str], start: float) -> int:
     print(report(matrix))
     print('allowed_collisions: [' + ', '.join(f'"{e}"' for e in allowed_collisions(matrix))
           + ']')
+    if matrix.warning_zone is not None:
+        print('warning_ignore: [' + ', '.join(f'"{e}"' for e in
+                                              matrix.warning_zone.warning_ignore()) + ']')
     for line in outcome:
         print(line)
     print(f'took {time.monotonic() - start:.1f} s')

@@ -286,6 +286,84 @@ def test_missing_package_mesh_names_owner_uri_places_and_fix(package_tree):
     assert 'package_paths={"lost": DIR}' in message and '--package-path lost=DIR' in message
 
 
+def test_unresolved_package_gives_the_fix_for_every_place_that_takes_package_paths(
+        monkeypatch):
+    monkeypatch.delenv('AMENT_PREFIX_PATH', raising=False)
+    monkeypatch.delenv('ROS_PACKAGE_PATH', raising=False)
+    with pytest.raises(MeshError) as raised:
+        resolve_mesh_uri('package://lost/x.stl', None, None, owner='link "a"')
+    message = str(raised.value)
+    assert '--package-path lost=DIR (command line)' in message
+    assert 'package_paths: ["lost=DIR"] (node parameter)' in message
+    assert 'package_paths={"lost": DIR} (Python)' in message
+
+
+@pytest.fixture
+def forearm_package(tmp_path):
+    root = tmp_path / 'arm'
+    (root / 'meshes' / 'collision').mkdir(parents=True)
+    for name in ('forearm.stl', 'upper_arm.stl', 'Wrist.STL'):
+        (root / 'meshes' / 'collision' / name).write_bytes(b'')
+    return root
+
+
+@pytest.mark.parametrize('rest, close', [
+    ('meshes/collision/forarm.stl', 'meshes/collision/forearm.stl'),       # a letter lost
+    ('mesh/collision/forearm.stl', 'meshes/collision/forearm.stl'),        # the folder
+    ('meshes/collison/upperarm.stl', 'meshes/collision/upper_arm.stl'),    # both
+    ('meshes/collision/wrist.stl', 'meshes/collision/Wrist.STL'),          # case only
+    ('meshes/collision/gripper.stl', None),                                # nothing close
+    ('nothing/here/at_all.stl', None),
+])
+def test_closest_file_replaces_each_missing_component(forearm_package, rest, close):
+    assert mesh_loading.closest_file(str(forearm_package), rest) == close
+
+
+def test_a_misspelt_mesh_in_a_found_package_names_the_file_not_package_paths(forearm_package):
+    """The package was found: giving its directory again cannot help, so the message does not
+    say to (it ended with package_paths syntax before)."""
+    with pytest.raises(MeshError) as raised:
+        resolve_mesh_uri('package://arm/meshes/collision/forarm.stl',
+                         {'arm': str(forearm_package)}, None, owner='link "forearm"')
+    message = str(raised.value)
+    assert message.startswith('link "forearm": mesh "package://arm/meshes/collision/forarm.stl" '
+                              f'not found: package "arm" is at {forearm_package} and has no '
+                              'file meshes/collision/forarm.stl'), message
+    assert message.endswith('did you mean "package://arm/meshes/collision/forearm.stl"? Fix '
+                            'the file name in the description'), message
+    assert 'package_paths' not in message and '--package-path' not in message
+    with pytest.raises(MeshError) as raised:
+        resolve_mesh_uri('package://arm/meshes/collision/gripper.stl',
+                         {'arm': str(forearm_package)}, None, owner='link "hand"')
+    assert str(raised.value).endswith(
+        'check the file name, and that package "arm" installs its meshes (look in '
+        f'{forearm_package}/meshes/collision)')
+
+
+def test_a_misspelt_mesh_of_a_real_robot_from_the_command_line(erd_share, tmp_path):
+    """As a user meets it: the UR5 of example-robot-data with one mesh name misspelt, through
+    collision_sensor_acm in a process of its own."""
+    import subprocess
+    from collision_sensor.ros.console_scripts import console_command
+    source = os.path.join(erd_share, 'robots', 'ur_description', 'urdf', 'ur5_robot.urdf')
+    with open(source) as stream:
+        text = stream.read()
+    good = 'ur_description/meshes/ur5/collision/forearm.stl'
+    assert good in text
+    urdf = tmp_path / 'ur5_typo.urdf'
+    urdf.write_text(text.replace(good, good.replace('forearm', 'forarm')))
+    run = subprocess.run(console_command('collision_sensor_acm') + [
+        str(urdf), '--package-path', f'example-robot-data={erd_share}', '--progress', 'never'],
+        capture_output=True, text=True, timeout=120, cwd=str(tmp_path))
+    assert run.returncode == 2, run.stdout + run.stderr
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith('collision_sensor_acm: error: '), run.stderr
+    assert 'link "forearm_link"' in lines[0]
+    assert lines[0].endswith('did you mean "package://example-robot-data/robots/ur_description/'
+                             'meshes/ur5/collision/forearm.stl"? Fix the file name in the '
+                             'description'), lines[0]
+
+
 def test_missing_mesh_of_text_description_says_what_was_searched():
     with pytest.raises(MeshError, match='XML text'):
         resolve_mesh_uri('package://lost/m.stl', None, None, owner='link "a"')

@@ -14,18 +14,18 @@ import pytest
 
 from collision_sensor.model.sequences import read_sequence
 from collision_sensor.ros import demo
-from collision_sensor.ros.console_scripts import console_script
+from collision_sensor.ros.console_scripts import console_command
 from collision_sensor.tools import offline_check
 
 pytest.importorskip('rclpy')
 
-DEMO = console_script('collision_sensor_demo')
+DEMO = console_command('collision_sensor_demo')
 
 
 def run_demo(*args, timeout=300):
     env = dict(os.environ, FASTDDS_BUILTIN_TRANSPORTS='SHM',
                ROS_DOMAIN_ID=str(random.SystemRandom().randint(1, 100)))
-    return subprocess.run([DEMO, *args], capture_output=True, text=True, env=env,
+    return subprocess.run([*DEMO, *args], capture_output=True, text=True, env=env,
                           timeout=timeout)
 
 

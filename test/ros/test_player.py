@@ -120,3 +120,179 @@ def test_loop_runs_until_shutdown(ros, tmp_path):
     assert status == 0
     values = [msg.position[0] for msg in received.messages[:7]]
     assert values == [1.0, 2.0, 3.0, 1.0, 2.0, 3.0, 1.0]
+
+
+# --- the player and its subscribers in processes of their own, as a user runs them -------------
+
+class ScriptProcess:
+    """A console script of this install (``console_command``) in a process of its own; its
+    output (stdout and stderr, the ROS log lines without time stamps) kept in ``lines``."""
+
+    def __init__(self, name, *args):
+        import subprocess
+        import threading
+        from collision_sensor.ros.console_scripts import console_command
+        env = dict(os.environ, PYTHONUNBUFFERED='1',
+                   RCUTILS_CONSOLE_OUTPUT_FORMAT='[{severity}] {message}')
+        self.lines = []
+        self.process = subprocess.Popen(console_command(name) + list(args),
+                                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                        text=True, env=env)
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self):
+        for line in self.process.stdout:
+            self.lines.append(line.rstrip('\n'))
+
+    @property
+    def output(self):
+        return '\n'.join(self.lines)
+
+    def wait(self, timeout):
+        """Return the exit status, or None if the process still runs after ``timeout`` s."""
+        import subprocess
+        try:
+            status = self.process.wait(timeout)
+        except subprocess.TimeoutExpired:
+            return None
+        self._reader.join(5.0)
+        return status
+
+    def stop(self):
+        """SIGINT, then SIGKILL if it hangs; return the exit status."""
+        import signal
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGINT)
+            if self.wait(20.0) is None:
+                self.process.kill()
+        return self.wait(5.0)
+
+
+def _summary(output):
+    """The player's last line: published and acknowledged counts (and what stopped it)."""
+    import re
+    found = re.findall(r'(?:stopped \((\w+)\): )?published (\d+) frames?; (\d+) acknowledged '
+                       r'by every matched reliable subscription', output)
+    assert found, output
+    stopped, published, acknowledged = found[-1]
+    return stopped, int(published), int(acknowledged)
+
+
+def _node_totals(status_name):
+    """A /diagnostics recorder that keeps the node's last counters."""
+    totals = {}
+
+    def record(msg):
+        for status in msg.status:
+            if status.name == status_name:
+                totals.update({kv.key: kv.value for kv in status.values})
+    return totals, record
+
+
+def test_as_fast_as_possible_into_the_node_in_another_process(ros):
+    """The issue: one frame per 3 s (Fast DDS's heartbeat period) whenever the node ran in
+    another process. The timeout only catches a hang: the 571 frames took 4 s here, and
+    took 28 min before the fix."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from collision_sensor.ros.demo import demo_cell_parameters
+    seq = read_sequence(PAPER)
+    totals, record = _node_totals(f'{ros.namespace.strip("/")}/collision_sensor: '
+                                  'collision sensor')
+    ros.probe.create_subscription(DiagnosticArray, '/diagnostics', record, 100)
+    node_args = ['--ros-args', '-r', f'__ns:={ros.namespace}']
+    # One verdict per frame (README: "for one verdict per frame of a replay as fast as
+    # possible"): the player's acknowledgement is the middleware's, on receipt.
+    for name, value in dict(demo_cell_parameters(), overload_policy='every').items():
+        node_args += ['-p', f'{name}:={value}']
+    node = ScriptProcess('collision_sensor_node', *node_args)
+    play = None
+    try:
+        assert ros.spin_until(
+            lambda: ros.probe.count_subscribers(f'{ros.namespace}/joint_states') > 0, 60.0), \
+            node.output
+        play = ScriptProcess('collision_sensor_play', PAPER, '--as-fast-as-possible',
+                             '--progress', 'never', '--ros-args', '-r', f'__ns:={ros.namespace}')
+        status = None
+        for _ in range(240):      # 120 s, spinning the probe meanwhile
+            status = play.wait(0.0)
+            if status is not None:
+                break
+            ros.spin_for(0.5)
+        assert status == 0, f'player still running or failed:\n{play.output}'
+        assert _summary(play.output) == ('', len(seq), len(seq)), play.output
+        # The node's own count: every frame received and answered.
+        assert ros.spin_until(lambda: totals.get('verdicts_total') == str(len(seq)), 10.0), \
+            (totals, node.output)
+        assert totals['received_total'] == str(len(seq)) and totals['lost_total'] == '0'
+    finally:
+        if play is not None:
+            play.stop()
+        assert node.stop() == 0, node.output
+
+
+def _keep_all_recorder(ros):
+    return ros.record(player.JointState, 'joint_states', _keep_all())
+
+
+def test_recorded_timing_waits_for_the_subscriber_and_loses_no_frame(ros, tmp_path):
+    """A subscriber already running, the player started after it with its defaults: before,
+    it published at once, before discovery had matched the two (frames lost)."""
+    n = 100
+    seq = JointSequence(('a', 'b'), np.arange(n) * 0.01,
+                        np.column_stack([np.arange(n), -np.arange(n)]).astype(float))
+    path = tmp_path / 'hundred.csv'
+    write_sequence(seq, path)
+    received = _keep_all_recorder(ros)
+    play = ScriptProcess('collision_sensor_play', str(path), '--progress', 'never',
+                         '--ros-args', '-r', f'__ns:={ros.namespace}')
+    try:
+        assert ros.spin_until(lambda: len(received) >= n or play.wait(0.0) is not None, 60.0)
+        ros.spin_for(0.5)
+        assert play.wait(30.0) == 0, play.output
+    finally:
+        play.stop()
+    assert [msg.position[0] for msg in received.messages] == list(range(n)), play.output
+    assert _summary(play.output) == ('', n, n)
+
+
+def test_ctrl_c_says_what_was_published_and_acknowledged(ros):
+    seq = read_sequence(PAPER)     # 11.4 s at its recorded timing
+    received = _keep_all_recorder(ros)
+    play = ScriptProcess('collision_sensor_play', PAPER, '--progress', 'never',
+                         '--ros-args', '-r', f'__ns:={ros.namespace}')
+    try:
+        assert ros.spin_until(lambda: len(received) >= 50, 60.0), play.output
+        import signal
+        play.process.send_signal(signal.SIGINT)
+        status = None
+        for _ in range(60):
+            status = play.wait(0.0)
+            if status is not None:
+                break
+            ros.spin_for(0.5)
+    finally:
+        play.stop()
+    assert status == 0, play.output
+    stopped, published, acknowledged = _summary(play.output)
+    assert stopped == 'SIGINT' and 50 <= published < len(seq), play.output
+    ros.spin_for(0.5)
+    # Acknowledged means received: the subscriber holds exactly the frames acknowledged.
+    assert acknowledged == published == len(received), play.output
+    positions = np.array([msg.position for msg in received.messages])
+    assert np.array_equal(positions, seq.positions[:published])
+
+
+def test_frames_nobody_was_matched_for_are_said_to_be_received_by_nobody(ros, tmp_path):
+    seq = JointSequence(('a',), np.arange(5) * 0.01, np.arange(5.0)[:, None])
+    path = tmp_path / 'five.csv'
+    write_sequence(seq, path)
+    play = ScriptProcess('collision_sensor_play', str(path), '--wait-for-subscribers', '0',
+                         '--progress', 'never', '--ros-args', '-r', f'__ns:={ros.namespace}')
+    try:
+        assert play.wait(60.0) == 0, play.output
+    finally:
+        play.stop()
+    assert _summary(play.output) == ('', 5, 0)
+    assert '5 published while no subscription was matched, received by nobody' in play.output
+    assert 'not acknowledged' not in play.output

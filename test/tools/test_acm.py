@@ -6,6 +6,7 @@ random samples, and a hand-built slider robot whose collision rates and clearanc
 its geometry (closed form). Sample counts are modest (a few thousand) to keep the module fast.
 """
 import math
+import re
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -220,7 +221,39 @@ def test_slider_matrix_is_the_one_the_geometry_implies(slider_base):
     assert matrix.stable and matrix.rounds >= 2
     never, = [f for f in matrix.findings if f.reason == acm.NEVER]
     assert never.clearance == pytest.approx(GATE_MAST_CLEARANCE, abs=1e-6)
-    assert 'python-fcl' in acm.report(matrix)
+    assert f'smallest clearance {GATE_MAST_CLEARANCE:.4f} m over ' in acm.report(matrix)
+
+
+# Gate and slider: the bar's end is 1.5 - (q + 1) = 0.5 - q from the gate for q < 0.5, in
+# contact beyond: 0.5 m apart at most (at q = 0, the default pose, the first sample). Gate and
+# mast: GATE_MAST_CLEARANCE apart whatever q.
+@pytest.mark.parametrize('distance, listed', [
+    (0.4, {}),                                                  # 0.5 > 0.4 at q = 0
+    (0.6, {('gate', 'slider'): 0.5}),
+    (3.0, {('gate', 'slider'): 0.5, ('gate', 'mast'): GATE_MAST_CLEARANCE}),
+])
+def test_slider_warning_zone_is_the_one_the_geometry_implies(slider_base, distance, listed):
+    matrix = acm.compute_matrix(slider_base, samples_per_round=300, seed=5,
+                                warning_distance=distance, warning_samples=500)
+    zone = matrix.warning_zone
+    # Checked: every pair but the Adjacent ones and the Always one (base, slider).
+    assert zone.candidates == 2 and zone.samples == 500
+    assert list(zone.farthest) == sorted(listed)
+    for pair, farthest in listed.items():
+        assert zone.farthest[pair] == pytest.approx(farthest, abs=1e-9)
+    assert zone.warning_ignore() == [f'{a}:{b}' for a, b in sorted(listed)]
+
+
+def test_warning_zone_leaves_out_the_srdf_pairs(slider_base, slider_urdf, tmp_path):
+    srdf_path = tmp_path / 'slider.srdf'
+    srdf_path.write_text('<robot name="slider_bench"><disable_collisions link1="slider" '
+                         'link2="gate" reason="User"/></robot>')
+    from collision_sensor.model.srdf import load_srdf_for_model
+    srdf = load_srdf_for_model(str(srdf_path), slider_base.model)
+    matrix = acm.compute_matrix(slider_base, srdf=srdf, samples_per_round=300, seed=5,
+                                warning_distance=3.0, warning_samples=200)
+    assert matrix.warning_zone.candidates == 1
+    assert list(matrix.warning_zone.farthest) == [('gate', 'mast')]
 
 
 def test_slider_always_rates_match_the_closed_form(slider_base):
@@ -286,6 +319,64 @@ def test_generated_list_clears_the_zero_pose(capsys, tmp_path, robot, ur5_urdf,
     raw = CollisionChecker.from_urdf(urdf, package_paths=packages,
                                      config={'ignore_adjacent': False})
     assert raw.check(zero(len(raw.joint_names))).in_collision is True
+
+
+# --- the warning zone of a real robot, from the command line -----------------------------------
+
+def test_ur5_warning_ignore_from_the_command_line_against_python_fcl(ur5_urdf, ur5_srdf,
+                                                                     erd_share, tmp_path):
+    """The issue's UR5: ee_link and wrist_2_link are 0.0198 m apart wherever the arm goes. The
+    tool runs as a user runs it; python-fcl (with pinocchio's kinematics) measures the pairs
+    on fresh samples."""
+    import subprocess
+    from collision_sensor.ros.console_scripts import console_command
+    distance = 0.05
+    params = tmp_path / 'ur5_acm.yaml'
+    run = subprocess.run(console_command('collision_sensor_acm') + [
+        ur5_urdf, '--srdf', ur5_srdf, '--package-path', f'example-robot-data={erd_share}',
+        '--warning-distance', str(distance), '--warning-samples', '500',
+        '--samples-per-round', '500', '--yaml', str(params), '--progress', 'never'],
+        capture_output=True, text=True, timeout=300, cwd=str(tmp_path))
+    assert run.returncode == 0, run.stderr
+    document = yaml.safe_load(params.read_text())
+    listed = document['/**']['ros__parameters']['warning_ignore']
+    assert 'ee_link:wrist_2_link' in listed
+    assert f'warning_ignore: [{", ".join(chr(34) + e + chr(34) for e in listed)}]' in run.stdout
+    farthest = re.search(r'Warning\s+ee_link -- wrist_2_link\s+at most (\d\.\d+) m', run.stdout)
+    assert farthest and float(farthest.group(1)) == pytest.approx(0.0198, abs=1e-4), run.stdout
+    # A ros2 params file as rclpy reads it: a string array.
+    from rclpy.parameter import parameter_dict_from_yaml_file
+    parameters = parameter_dict_from_yaml_file(str(params), use_wildcard=True)
+    assert list(parameters['warning_ignore'].value.string_array_value) == listed
+
+    # The oracle: every checked pair's distance on fresh samples. Listed pairs stay below the
+    # distance in all of them; every other pair reaches it in at least one.
+    checker = CollisionChecker.from_urdf(ur5_urdf, srdf=ur5_srdf,
+                                         package_paths={'example-robot-data': erd_share})
+    oracle = FclOracle(checker, ur5_urdf)
+    fresh = uniform_configurations(*sampling_bounds(checker), 200, np.random.default_rng(31))
+    farthest_fcl = {pair: 0.0 for pair in checker.checked_pairs}
+    for q in fresh:
+        poses = oracle.poses(q)
+        for pair in checker.checked_pairs:
+            farthest_fcl[pair] = max(farthest_fcl[pair], oracle.pair_distance(poses, *pair))
+    below = sorted(f'{a}:{b}' for (a, b), d in farthest_fcl.items() if d < distance)
+    assert below == sorted(listed), farthest_fcl
+    assert farthest_fcl[('ee_link', 'wrist_2_link')] == pytest.approx(0.0198, abs=1e-4)
+
+
+@pytest.mark.parametrize('value', ['0', '-0.1', 'inf', 'nan', 'near'])
+def test_bad_warning_distance(capsys, value):
+    status, out, err = _run(capsys, [config_path('demo_arm.urdf'), '--warning-distance', value])
+    assert status == 2
+    assert '--warning-distance' in _error_line(err)
+
+
+def test_help_no_longer_says_the_engine_has_no_distance_query(capsys):
+    status, out, err = _run(capsys, ['--help'])
+    text = ' '.join(out.split())
+    assert status == 0 and 'no distance' not in text and 'python-fcl' not in text
+    assert '--warning-distance D' in text and 'warning_ignore' in text
 
 
 # --- merging into an SRDF ------------------------------------------------------------------------

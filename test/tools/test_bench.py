@@ -1,4 +1,5 @@
 """Smoke tests of collision_sensor_bench: it runs, writes its table and plot; no timing checks."""
+import re
 import sys
 
 import numpy as np
@@ -163,3 +164,78 @@ def test_the_pinocchio_peer_places_the_links_where_our_kinematics_does(robot):
             if frame < model.nframes and link in ours:
                 np.testing.assert_allclose(peer.data.oMf[frame].homogeneous, ours[link],
                                            atol=1e-9, err_msg=link)
+
+
+# --- the user's robot: --urdf, --srdf, --package-path -------------------------------------------
+
+def _bench(*args, cwd):
+    import os
+    import subprocess
+    from collision_sensor.ros.console_scripts import console_command
+    return subprocess.run(console_command('collision_sensor_bench') + list(args),
+                          capture_output=True, text=True, timeout=600, cwd=str(cwd),
+                          env=dict(os.environ))
+
+
+def test_urdf_runs_the_robot_scenarios_on_the_users_robot_against_both_peers(erd_share,
+                                                                             tmp_path):
+    """As a user runs it, on the UR5 moved into a package of the user's own naming (pinocchio
+    needs a folder named after the package: the bench makes one)."""
+    pytest.importorskip('fcl')
+    pytest.importorskip('pinocchio')
+    import os
+    robots = os.path.join(erd_share, 'robots', 'ur_description')
+    with open(os.path.join(robots, 'urdf', 'ur5_robot.urdf')) as stream:
+        text = stream.read().replace('package://example-robot-data/robots/ur_description/',
+                                     'package://my_ur/')
+    urdf = tmp_path / 'my_ur5.urdf'
+    urdf.write_text(text)
+    run = _bench('--quick', '--urdf', str(urdf), '--srdf', os.path.join(robots, 'srdf', 'ur5.srdf'),
+                 '--package-path', f'my_ur={robots}', '--markdown', str(tmp_path / 'b.md'),
+                 cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    out = run.stdout
+    assert f'Robot: {urdf} with ' in out
+    headers = re.findall(r'^### (Scenario \d)', out, re.M)
+    assert headers == ['Scenario 1', 'Scenario 2', 'Scenario 8'], headers
+    assert '#### ur5' in out and '#### panda' not in out and 'demo_arm' not in out
+    # Both peers loaded the robot and agree with us on every configuration.
+    s1 = out.split('### Scenario 1')[1].split('### Scenario 2')[0]
+    for row in ('| pinocchio+coal `computeCollisions` | pinocchio | 17 (17 geometry pairs) |',
+                '| python-fcl, one `collide` per pair | pinocchio (counted) | 17 |'):
+        assert row in s1, s1
+    assert re.findall(r'\| (\d+)/\1 \|$', s1, re.M) and not re.search(r'\| (\d+)/(?!\1)\d+ \|$',
+                                                                        s1, re.M), s1
+    s8 = out.split('### Scenario 8')[1]
+    assert re.search(r'^\| ur5 \| 17 \|.*\| 30/30 \|$', s8, re.M), s8
+    targets = out.split('### Targets')[1].split('### Scenario')[0]
+    assert targets.count('| S1 ur5') == 1 and targets.count('| S8 ur5') == 2
+    assert '**n/a**' not in targets, targets           # every peer measured
+    assert 'could not load' not in out and 'not installed' not in out
+
+
+REGEX = r'collision_sensor_bench: error: '
+
+
+@pytest.mark.parametrize('args, words', [
+    (['--srdf', 'x.srdf'], '--srdf describe your robot: add --urdf FILE'),
+    (['--urdf', 'URDF', '--scenario', '3'], '--scenario 3: with --urdf only the robot '
+                                            'scenarios 1, 2 and 8 run'),
+    (['--urdf', 'missing.urdf'], '--urdf "missing.urdf": file not found'),
+    (['--urdf', 'URDF', '--package-path', 'nodir'], 'expected NAME=DIR'),
+    (['--urdf', 'TYPO', '--package-path', 'ERD'], 'did you mean "package://example-robot-data/robots/ur_description/'
+                         'meshes/ur5/collision/forearm.stl"'),
+])
+def test_urdf_errors_are_one_line_naming_the_fix(erd_share, tmp_path, args, words):
+    import os
+    source = os.path.join(erd_share, 'robots', 'ur_description', 'urdf', 'ur5_robot.urdf')
+    typo = tmp_path / 'typo.urdf'
+    with open(source) as stream:
+        typo.write_text(stream.read().replace('collision/forearm.stl', 'collision/forarm.stl'))
+    args = [{'URDF': source, 'TYPO': str(typo), 'ERD': f'example-robot-data={erd_share}'}
+            .get(arg, arg) for arg in args]
+    run = _bench('--quick', *args, cwd=tmp_path)
+    assert run.returncode == 2, run.stdout + run.stderr
+    lines = [line for line in run.stderr.splitlines() if not line.startswith('[')]
+    assert len(lines) == 1 and re.match(REGEX, lines[0]), run.stderr
+    assert words in lines[0], lines[0]

@@ -1,7 +1,13 @@
 """collision_sensor_bench: this package against pinocchio+coal and python-fcl, in one run.
 
 ``collision_sensor_bench [--quick] [--scenario N ...] [--seed S] [--markdown FILE]
-[--plot FILE.png]``
+[--plot FILE.png] [--urdf FILE [--srdf FILE] [--package-path NAME=DIR ...]
+[--xacro-arg NAME:=VALUE ...]]``
+
+With ``--urdf`` the robot scenarios (1, 2 and 8) run on that robot instead of the bundled ones,
+against pinocchio+coal and python-fcl, both loading the same files (pinocchio reads the URDF
+itself; python-fcl gets the triangles our loader read); a peer that cannot load the robot is
+reported so, never left out silently.
 
 Every scenario measures our checker and the peers on the same meshes and configurations in
 the same process, so the ratios hold on this machine whatever its speed. The markdown
@@ -29,15 +35,24 @@ import tempfile
 import time
 from typing import List, Optional, Sequence
 
+from collision_sensor.errors import CollisionSensorError, ConfigError
 from collision_sensor.tools.bench.scenario_report import Section
 from collision_sensor.tools.bench.scenario_settings import Settings
 
 SCENARIOS = (1, 2, 3, 4, 5, 6, 7, 8, 9)
+#: The scenarios that take a robot, run on the user's with --urdf.
+ROBOT_SCENARIOS = (1, 2, 8)
+PROG = 'collision_sensor_bench'
 PEERS = (('pinocchio', 'pin'), ('coal', 'coal'), ('python-fcl', 'python-fcl'))
 
 
-def run_scenarios(numbers: Sequence[int], settings: Settings, log=None) -> List[Section]:
-    """Run the scenarios ``numbers`` in order; return their sections."""
+def run_scenarios(numbers: Sequence[int], settings: Settings, log=None,
+                  robot: Optional[dict] = None) -> List[Section]:
+    """Run the scenarios ``numbers`` in order; return their sections.
+
+    :param robot: the user's robot, ``{urdf, srdf, package_paths, xacro_args}``: the robot
+        scenarios run on it alone.
+    """
     from collision_sensor.tools.bench import (
         scenario_cells, scenario_contact, scenario_dynamic, scenario_large, scenario_paper,
         scenario_parts, scenario_proximity, scenario_random, scenario_scale, scenario_streams)
@@ -45,6 +60,8 @@ def run_scenarios(numbers: Sequence[int], settings: Settings, log=None) -> List[
     sections = []
     with tempfile.TemporaryDirectory(prefix='collision_sensor_bench_') as workdir:
         cells = None
+        if robot is not None:
+            cells = [scenario_cells.user_cell(workdir=workdir, **robot)]
         for number in numbers:
             log(f'scenario {number} ...')
             start = time.perf_counter()
@@ -67,7 +84,7 @@ def run_scenarios(numbers: Sequence[int], settings: Settings, log=None) -> List[
             elif number == 7:
                 section = scenario_large.run(settings)
             elif number == 8:
-                section = scenario_proximity.run(settings)
+                section = scenario_proximity.run(settings, cells if robot is not None else None)
             else:
                 section = scenario_dynamic.run(settings)
             section.plot['seconds'] = time.perf_counter() - start
@@ -94,8 +111,10 @@ def _cpu() -> str:
     return platform.processor() or 'unknown CPU'
 
 
-def header(settings: Settings, numbers: Sequence[int]) -> List[str]:
-    """Return the report's opening lines: machine, versions, run settings."""
+def header(settings: Settings, numbers: Sequence[int],
+           robot: Optional[dict] = None) -> List[str]:
+    """Return the report's opening lines: machine, versions, run settings (and the user's
+    robot)."""
     from collision_sensor.engine.compiled import engine
     import numpy
     try:
@@ -112,7 +131,9 @@ def header(settings: Settings, numbers: Sequence[int]) -> List[str]:
         f'peers: {peers}. Settings: {"--quick, " if settings.quick else ""}seed '
         f'{settings.seed}, scenarios {", ".join(map(str, numbers))}. Every figure is measured '
         'in this run; ratios are ours / peer (below 1: we are faster).',
-    ]
+    ] + ([f'Robot: {robot["urdf"]}' + (f' with {robot["srdf"]}' if robot['srdf'] else
+                                       ' (no SRDF: every pair but adjacent links checked)')]
+         if robot is not None else [])
 
 
 def summary(sections: Sequence[Section]) -> List[str]:
@@ -126,9 +147,10 @@ def summary(sections: Sequence[Section]) -> List[str]:
     return lines
 
 
-def markdown(settings: Settings, numbers: Sequence[int], sections: Sequence[Section]) -> str:
+def markdown(settings: Settings, numbers: Sequence[int], sections: Sequence[Section],
+             robot: Optional[dict] = None) -> str:
     """Return the whole report as markdown."""
-    lines = header(settings, numbers) + summary(sections)
+    lines = header(settings, numbers, robot) + summary(sections)
     for section in sections:
         lines += ['', f'### {section.title}', ''] + section.lines
     text = '\n'.join(lines)
@@ -190,25 +212,44 @@ def plot(sections: Sequence[Section], path: str) -> None:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the benchmark; print the markdown and write the requested files."""
     parser = argparse.ArgumentParser(
-        prog='collision_sensor_bench', description=__doc__.split('\n\n')[0],
+        prog=PROG, description=__doc__.split('\n\n')[0],
         epilog='Scenarios: ' + __doc__.split('\n\n')[-1].strip().replace('\n  ', ' '))
     parser.add_argument('--quick', action='store_true',
                         help='small counts and meshes, for a smoke run (figures are rough)')
     parser.add_argument('--scenario', type=int, action='append', choices=SCENARIOS,
-                        metavar='N', help='run scenario N (1-9); repeatable; default: all')
+                        metavar='N', help='run scenario N (1-9); repeatable; default: all (with '
+                                          '--urdf: 1, 2 and 8)')
+    robot = parser.add_argument_group(
+        'your robot', 'run the robot scenarios (1 random configurations, 2 coherent streams, '
+        '8 proximity) on your robot, against pinocchio+coal and python-fcl')
+    robot.add_argument('--urdf', metavar='FILE', help='the robot\'s URDF (or .xacro)')
+    robot.add_argument('--srdf', metavar='FILE',
+                       help='its SRDF: disable_collisions entries are not checked (by the peers '
+                            'either)')
+    robot.add_argument('--package-path', metavar='NAME=DIR', action='append', default=[],
+                       help='directory of a package named in package:// URIs (repeatable)')
+    robot.add_argument('--xacro-arg', metavar='NAME:=VALUE', action='append', default=[],
+                       help='argument of a .xacro robot description (repeatable)')
     parser.add_argument('--seed', type=int, default=Settings.seed,
                         help=f'seed of every random input (default {Settings.seed})')
     parser.add_argument('--markdown', metavar='FILE', help='also write the table here')
     parser.add_argument('--plot', metavar='FILE.png', help='write the plot here')
     args = parser.parse_args(argv)
-    numbers = sorted(set(args.scenario or SCENARIOS))
+    try:
+        robot = _user_robot(args)
+    except CollisionSensorError as err:
+        return _error(str(err))
+    numbers = sorted(set(args.scenario or (ROBOT_SCENARIOS if robot else SCENARIOS)))
     settings = Settings.for_run(args.quick, args.seed)
 
     def log(message):
-        print(f'[collision_sensor_bench] {message}', file=sys.stderr, flush=True)
+        print(f'[{PROG}] {message}', file=sys.stderr, flush=True)
 
-    sections = run_scenarios(numbers, settings, log)
-    text = markdown(settings, numbers, sections)
+    try:
+        sections = run_scenarios(numbers, settings, log, robot)
+    except CollisionSensorError as err:   # the user's robot did not load: the file, the fix
+        return _error(str(err))
+    text = markdown(settings, numbers, sections, robot)
     print(text)
     if args.markdown:
         with open(args.markdown, 'w', encoding='utf-8') as stream:
@@ -216,6 +257,40 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if args.plot:
         plot(sections, args.plot)
     return 0
+
+
+def _user_robot(args) -> Optional[dict]:
+    """Return the user's robot from the options, or None; check the options fit together.
+
+    :raises ConfigError: robot options without --urdf, a scenario without a robot, a missing
+        file or a malformed option.
+    """
+    from collision_sensor.model.mesh_loading import parse_package_paths
+    from collision_sensor.model.xacro_expansion import parse_xacro_args
+    if args.urdf is None:
+        given = [option for option, value in (('--srdf', args.srdf),
+                                              ('--package-path', args.package_path),
+                                              ('--xacro-arg', args.xacro_arg)) if value]
+        if given:
+            raise ConfigError(f'{", ".join(given)} describe your robot: add --urdf FILE')
+        return None
+    other = sorted(set(args.scenario or ()) - set(ROBOT_SCENARIOS))
+    if other:
+        raise ConfigError(f'--scenario {", ".join(map(str, other))}: with --urdf only the robot '
+                          'scenarios 1, 2 and 8 run (on your robot); the others have scenes '
+                          'of their own, run them without --urdf')
+    for option, path in (('--urdf', args.urdf), ('--srdf', args.srdf)):
+        if path is not None and not os.path.isfile(path):
+            raise ConfigError(f'{option} "{path}": file not found; give the robot\'s '
+                              f'{option[2:].upper()} file')
+    return {'urdf': args.urdf, 'srdf': args.srdf,
+            'package_paths': parse_package_paths(args.package_path),
+            'xacro_args': parse_xacro_args(args.xacro_arg)}
+
+
+def _error(message: str) -> int:
+    print(f'{PROG}: error: {" ".join(message.split())}', file=sys.stderr)
+    return 2
 
 
 if __name__ == '__main__':

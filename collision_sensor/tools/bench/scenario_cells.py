@@ -9,9 +9,11 @@ Cells:
 - ``panda``, ``ur5``: example-robot-data, with their SRDFs, no scene;
 - ``demo_arm``: ``config/demo_arm.urdf`` + SRDF in ``config/demo_scene.yaml`` (washer + floor);
 - ``demo_arm_washer``: the demo arm and the washer's three parts only (the paper's experiment);
-- :func:`terrain_cell`: the Panda and one wavy terrain mesh of a chosen triangle count.
+- :func:`terrain_cell`: the Panda and one wavy terrain mesh of a chosen triangle count;
+- :func:`user_cell`: the user's robot (``collision_sensor_bench --urdf``), no scene.
 """
 import os
+import re
 from dataclasses import dataclass, field
 from typing import Dict, Optional, Sequence, Tuple
 
@@ -37,6 +39,8 @@ class Cell:
     :ivar pinocchio_package_paths: a mapping whose directories' *parents* hold a folder named
         after each package (what ``pinocchio.buildGeomFromUrdf`` searches), or None if the same
         as ``package_paths``.
+    :ivar xacro_args: ``{name: value}`` of a ``.xacro`` URDF.
+    :ivar pinocchio_urdf: the URDF pinocchio reads (a ``.xacro`` expanded), or None: ``urdf``.
     """
 
     name: str
@@ -46,11 +50,13 @@ class Cell:
     scene: Tuple[SceneObject, ...] = ()
     pinocchio_package_paths: Optional[Dict[str, str]] = None
     _model: Optional[RobotModel] = field(default=None, repr=False)
+    xacro_args: Optional[Dict[str, str]] = None
+    pinocchio_urdf: Optional[str] = None
 
     def model(self) -> RobotModel:
         """Return the robot model (loaded on first use)."""
         if self._model is None:
-            self._model = load_urdf(self.urdf, self.package_paths)
+            self._model = load_urdf(self.urdf, self.package_paths, xacro_args=self.xacro_args)
         return self._model
 
     def checker(self, config=None, scene: Optional[Sequence[SceneObject]] = None
@@ -89,6 +95,53 @@ def demo_arm_cell(workdir: str, washer_only: bool = False) -> Cell:
     return Cell('demo_arm_washer' if washer_only else 'demo_arm',
                 config_path('demo_arm.urdf'), config_path('demo_arm.srdf'),
                 {PACKAGE: share_directory()}, scene, {PACKAGE: link})
+
+
+def user_cell(urdf: str, srdf: Optional[str], package_paths: Dict[str, str],
+              xacro_args: Optional[Dict[str, str]], workdir: str) -> Cell:
+    """Return the user's robot as a cell, loaded (a bad file raises its error here, naming it).
+
+    pinocchio reads the same files: a ``.xacro`` expanded into ``workdir``, and every package
+    our loader resolved a ``package://`` mesh in (``package_paths``, the ament index,
+    ``ROS_PACKAGE_PATH``, or beside the description) linked as ``workdir/packages/NAME``.
+
+    :param workdir: an existing temporary directory that outlives the cell.
+    """
+    from collision_sensor.model.xacro_expansion import expand_xacro, is_xacro_path
+    cell = Cell(os.path.splitext(os.path.basename(urdf))[0], urdf, srdf, dict(package_paths),
+                xacro_args=dict(xacro_args or {}) or None)
+    model = cell.model()
+    cell.checker()      # the SRDF, checked against the robot now
+    cell.name = model.name or cell.name
+    if is_xacro_path(urdf):
+        cell.pinocchio_urdf = os.path.join(workdir, f'{cell.name}.urdf')
+        with open(cell.pinocchio_urdf, 'w', encoding='utf-8') as stream:
+            stream.write(expand_xacro(urdf, cell.xacro_args, package_paths))
+    cell.pinocchio_package_paths = _linked_packages(model, package_paths, urdf,
+                                                    os.path.join(workdir, 'packages'))
+    return cell
+
+
+def _linked_packages(model: RobotModel, package_paths: Dict[str, str], urdf: str,
+                     folder: str) -> Dict[str, str]:
+    """Link each package our loader found a ``package://`` mesh in as ``folder/NAME``; return
+    ``{NAME: link}``."""
+    from collision_sensor.model.mesh_loading import resolve_mesh_uri
+    base_dir = os.path.dirname(os.path.abspath(urdf))
+    links: Dict[str, str] = {}
+    for element in model.elements:
+        found = re.match(r'mesh (package://([^/\s]+)/(\S+))', element.source)
+        if found is None or found.group(2) in links:
+            continue
+        uri, name, rest = found.groups()
+        path = resolve_mesh_uri(uri, package_paths or None, base_dir)
+        if not path.endswith(rest):
+            continue
+        os.makedirs(folder, exist_ok=True)
+        links[name] = os.path.join(folder, name)
+        if not os.path.lexists(links[name]):
+            os.symlink(path[:-len(rest)].rstrip(os.sep) or os.sep, links[name])
+    return links
 
 
 def robot_pair_exceptions(checker: CollisionChecker) -> Tuple[str, ...]:

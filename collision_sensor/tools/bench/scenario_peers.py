@@ -30,7 +30,8 @@ def pinocchio_peer(cell, checker: CollisionChecker) -> PinocchioPeer:
     """
     import coal
     import pinocchio as pin
-    peer = PinocchioPeer(cell.urdf, cell.srdf, cell.pinocchio_package_paths or cell.package_paths)
+    peer = PinocchioPeer(cell.pinocchio_urdf or cell.urdf, cell.srdf,
+                         cell.pinocchio_package_paths or cell.package_paths)
     geom = peer.geom
     owners = [peer.model.frames[g.parentFrame].name for g in geom.geometryObjects]
     for obj in cell.scene:
@@ -188,11 +189,15 @@ class PinocchioFkFcl:
 
 
 def optional_peer(build, *args) -> Tuple[Optional[object], Optional[str]]:
-    """Return ``(build(*args), None)``, or ``(None, why)`` when the peer is not installed."""
+    """Return ``(build(*args), None)``, or ``(None, why)`` when the peer is not installed or
+    cannot load the robot (a user's robot, ``--urdf``, may hold what a peer does not read)."""
     try:
         return build(*args), None
     except ImportError as exc:
         return None, f'not installed ({exc.name or exc})'
+    except Exception as exc:  # noqa: B902 - the peer's own errors, of any type: reported
+        first = (str(exc).strip().splitlines() or [''])[0][:160]
+        return None, f'could not load the robot ({type(exc).__name__}: {first})'
 
 
 def agreement(ours: Iterable[FrozenSet[Pair]], theirs: Iterable[FrozenSet[Pair]]) -> str:

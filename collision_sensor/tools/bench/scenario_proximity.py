@@ -1,6 +1,7 @@
 """Scenario 8: proximity (``CollisionChecker.proximity``) against python-fcl and pinocchio+coal.
 
-Per robot (Panda, UR5, each with its SRDF), the same seeded random configurations go to:
+Per robot (Panda, UR5, each with its SRDF; or the user's robot, ``collision_sensor_bench
+--urdf``), the same seeded random configurations go to:
 
 - ours, ``proximity(q, inf)``: FK, the collision query, then every checked pair's distance and
   nearest points (the same work as the peers: every pair measured);
@@ -100,9 +101,11 @@ def _agreement(checker, configurations, fcl_peer, poses) -> str:
     return f'{same}/{len(configurations)}'
 
 
-def run(settings) -> Section:
-    """Measure proximity on the Panda and the UR5; return the section (target: ours, every
-    pair measured, <= 0.5x python-fcl's distance calls on the same pairs)."""
+def run(settings, cells=None) -> Section:
+    """Measure proximity on ``cells`` (default: the Panda and the UR5); return the section
+    (target: ours, every pair measured, <= 0.5x python-fcl's distance calls on the same
+    pairs)."""
+    cells = cells or [robot_cell('panda'), robot_cell('ur5')]
     section = Section(8, TITLE)
     n = 30 if settings.quick else 300
     section.text(f'{n} seeded random configurations per robot; time per configuration, best '
@@ -110,8 +113,8 @@ def run(settings) -> Section:
                  f'pair (as the peers do), "ours < {MAX_DISTANCE:g} m" only pairs nearer than '
                  f'that; python-fcl without FK, ours and pinocchio with it.')
     rows = []
-    for name in ('panda', 'ur5'):
-        cell = robot_cell(name)
+    for cell in cells:
+        name = cell.name
         checker = cell.checker()
         configurations = list(random_configurations(checker, n, settings.seed))
         poses = []
@@ -146,15 +149,16 @@ def run(settings) -> Section:
     section.table(['robot', 'pairs', 'ours all us', f'ours < {MAX_DISTANCE:g} m us',
                    'python-fcl us', 'pinocchio+coal us', 'all / fcl', 'near / fcl',
                    'all / pinocchio', 'min distance equal (fcl)'], rows)
-    _warning_zone(section, settings)
+    _warning_zone(section, settings, cells)
     return section
 
 
-def _warning_zone(section, settings):
+def _warning_zone(section, settings, cells):
     n = 300 if settings.quick else WALK_STATES
     rows = []
-    for name in ('panda', 'ur5'):
-        checker = robot_cell(name).checker()
+    for cell in cells:
+        name = cell.name
+        checker = cell.checker()
         walk = stream(checker, n, len(checker.joint_names), settings.seed, step=WALK_STEP,
                       bounds=sampling_bounds(checker))
 
