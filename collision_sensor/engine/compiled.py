@@ -9,16 +9,14 @@ missing or was built from other sources than the ones beside it (an editable ins
 import hashlib
 import os
 
-from collision_sensor.errors import CollisionSensorError
+from collision_sensor.errors import EngineBuildError
+
+__all__ = ['ENGINE_API', 'EngineBuildError', 'engine', 'load_engine', 'source_digest']
 
 #: The binding's interface version this Python code expects (cpp/bindings.cpp: ENGINE_API).
 ENGINE_API = 2
 _REBUILD = ('rebuild it: "make" (or "pip install -e ." in the source tree, '
             '"colcon build --packages-select collision_sensor" in a workspace)')
-
-
-class EngineBuildError(CollisionSensorError):
-    """The compiled engine is missing, stale or does not match this Python code."""
 
 
 def _sources_beside_package():
