@@ -207,7 +207,7 @@ def body_triangles(checker, name):
 
 def distance_to_body(checker, x, name):
     """Distance from point x (world) to the body's triangles at the checker's state."""
-    from collision_sensor.engine.distance import triangle_distance
+    from engine_kernels import triangle_distance
     tris = body_triangles(checker, name)
     d, _, _ = triangle_distance(np.broadcast_to(x, (len(tris), 3, 3)).copy(), tris)
     return float(d.min())

@@ -11,8 +11,8 @@ import pytest
 
 from collision_sensor import CollisionChecker, ConfigError, JointStateError
 from collision_sensor.engine.sampling import random_configurations, sampling_bounds
-from collision_sensor.engine.triangle_test import triangles_intersect
 from collision_sensor.model.mesh_loading import SOLID_BOX, SOLID_SPHERE
+from engine_kernels import triangles_intersect
 from engine_oracles import FclOracle
 from small_robot import SMALL_ROBOT, SMALL_SCENE
 
