@@ -9,7 +9,7 @@ This is the API the node, the command-line tools and the benchmarks build on::
     result.in_collision, result.colliding_pairs
 
 Everything between ``positions`` and the pair statuses runs in one call into the compiled
-engine (``cpp/query.hpp``: ``Engine::query``, C++17); this module turns files into flat arrays
+engine (``cpp/engine.hpp``: ``Engine::query``, C++17); this module turns files into flat arrays
 once, and names back into answers.
 """
 import dataclasses
@@ -18,14 +18,13 @@ from typing import Dict, Iterable, List, Mapping, NamedTuple, Optional, Sequence
 
 import numpy as np
 
-from collision_sensor.engine.array_pack import ArrayPack
+from collision_sensor.engine import array_pack
 from collision_sensor.engine.bounding_volumes import fit_obb
 from collision_sensor.engine.checker_config import CheckerConfig
 from collision_sensor.engine.compiled import engine
 from collision_sensor.engine.dynamic_scene import (
-    MAX_COORDINATE, ROTATION_TOLERANCE, AddObject, MoveObject, PlacedObject, PreparedSceneChanges,
-    RemoveObject, SceneChange, SceneChangeError, build_object_block, check_geometry, checked_pose,
-    same_geometry, solid_row)
+    AddObject, MoveObject, PlacedObject, PreparedSceneChanges, RemoveObject, SceneChange,
+    SceneChangeError, build_object_block, check_geometry, checked_pose, same_geometry, solid_row)
 from collision_sensor.engine.kinematics import (JOINT_FIXED, JOINT_FLOATING, JOINT_PLANAR,
                                                 JOINT_PRISMATIC, KinematicTree,
                                                 build_kinematic_tree)
@@ -302,33 +301,15 @@ class CollisionChecker:
         return checker
 
     # ------------------------------------------------------------------ set-up helpers
-    @staticmethod
-    def _pack(dtype, slots, arrays):
-        pack = ArrayPack(dtype)
-        for name in slots:  # the order of the engine's slots (cpp/query.hpp)
-            pack.add(name, arrays[name])
-        return pack.pack()
-
     def packed_array(self, name: str) -> np.ndarray:
-        """Return the engine's array ``name`` (``cpp/query.hpp``: CS_FLOAT_SLOTS, CS_INT_SLOTS)
-        as a view of the buffer the engine reads and writes in place: for tests, benchmarks and
-        inspection (writing to it changes what the engine sees)."""
+        """Return the engine's array ``name`` (``cpp/layout.hpp``: CS_FLOAT_SLOTS,
+        CS_INT_SLOTS) as a view of the buffer the engine reads and writes in place: for tests,
+        benchmarks and inspection (writing to it changes what the engine sees)."""
         return self._views[name]
 
     def _solid_row(self, solid, faces, T_body_element) -> np.ndarray:
         """The engine's row for one element (see :func:`dynamic_scene.solid_row`)."""
-        return solid_row(solid, faces, T_body_element, self.config.mesh_containment,
-                         engine.SOLID_WIDTH)
-
-    def _write_header(self, I: np.ndarray, F_layout: np.ndarray, I_layout: np.ndarray,
-                      n_links: int) -> None:
-        """Fill the int buffer's header (cpp/query.hpp: H_*), after packing."""
-        e = engine
-        I[e.H_N_LINKS], I[e.H_BOX_METHOD], I[e.H_EXPANSION] = (
-            n_links, self.config.box_test_code, self.config.expansion_code)
-        I[e.H_CHECKED_ONCE], I[e.H_RESYNC_COUNTDOWN] = 0, e.TRAVEL_RESYNC_CALLS
-        I[e.H_LAYOUTS:e.H_I_LAYOUT] = F_layout.ravel()
-        I[e.H_I_LAYOUT:e.HEADER_SIZE] = I_layout.ravel()
+        return solid_row(solid, faces, T_body_element, self.config.mesh_containment)
 
     def _link_padding(self, link_names: List[str], object_names: List[str]) -> np.ndarray:
         """(L,) float64: each robot link's padding (m), from ``padding`` and
@@ -537,7 +518,7 @@ class CollisionChecker:
             except (TypeError, ValueError):
                 pass
             if T is None or T.shape != (4, 4) or self._engine.move_world_body(
-                    self._body_index[name], T, MAX_COORDINATE, ROTATION_TOLERANCE):
+                    self._body_index[name], T):
                 T = None
             else:
                 T.setflags(write=False)
@@ -644,7 +625,7 @@ class CollisionChecker:
         if (old is not None and old.attach_to == attach_to and old.touch_links == touch_links
                 and same_geometry(old.obj, obj)):
             return PlacedObject(obj, old.block, attach_to, touch_links, pose), True
-        block = build_object_block(obj, self.config, engine.SOLID_WIDTH)
+        block = build_object_block(obj, self.config)
         return PlacedObject(obj, block, attach_to, touch_links, pose), False
 
     def commit_scene_changes(self, prepared: PreparedSceneChanges) -> None:
@@ -667,24 +648,30 @@ class CollisionChecker:
         self._objects = prepared.objects
 
     def _move_in_place(self, placed: PlacedObject) -> None:
-        """Write an object's new pose into the engine's tables and force its pairs."""
-        views, pairs = self._views, self._object_pairs[placed.name]
+        """Give an object its new pose in the engine, which forces its pairs."""
+        pairs = self._object_pairs[placed.name]
         b = self._body_index[placed.name]
         if placed.attach_to is None:
-            views['T_world_body'][b] = placed.pose
+            code = self._engine.move_world_body(b, np.ascontiguousarray(placed.pose))
         else:
             # The fixed joint's origin, and the reach bounds whose lever arms run through it.
-            views['T_parent_joint'][b] = placed.pose
-            views['stale'][b] = 1
-            _, reach, reach_ext = self._pair_rows(self._engine_tree(), self._radius,
-                                                  self._pair_a[pairs], self._pair_b[pairs])
-            views['reach'][pairs] = reach
-            views['reach_ext'][pairs] = reach_ext
+            tree = self._engine_tree()._replace(T_parent_joint=self._placed_tree_origins(
+                b, placed.pose))
+            _, reach, reach_ext = self._pair_rows(tree, self._radius, self._pair_a[pairs],
+                                                  self._pair_b[pairs])
+            code = self._engine.place_attached_body(b, placed.pose, pairs, reach, reach_ext)
             for row, p in enumerate(pairs):
                 path = self._rows[self.checked_pairs[p]][0]
                 self._rows[self.checked_pairs[p]] = (path, reach[row], reach_ext[row])
-        views['forced'][pairs] = 1
-        self._I[engine.H_FORCED] = 1
+        if code:   # checked_pose and the engine check a pose with the same arithmetic
+            raise SceneError(f'object "{placed.name}": the engine refused its pose; '
+                             'report this as a bug')
+
+    def _placed_tree_origins(self, b: int, pose: np.ndarray) -> np.ndarray:
+        """The engine's joint origins with body b's replaced by ``pose``."""
+        origins = self._views['T_parent_joint'].copy()
+        origins[b] = pose
+        return origins
 
     def _engine_tree(self) -> '_EngineTree':
         """The engine's kinematic arrays (robot links, then attached objects)."""
@@ -732,9 +719,7 @@ class CollisionChecker:
             leaf = p.block.nodes[:, NODE_LEFT] < 0
             shifted[leaf, NODE_LEFT:NODE_RIGHT + 1] = -1
             nodes.append(shifted)
-        n_elements = len(robot.roots) + len(placed)
-        elem_solid = np.concatenate([robot.elem_solid] + [p.block.solid_row[None] for p in placed]
-                                    + [np.zeros((0 if n_elements else 1, engine.SOLID_WIDTH))])
+        elem_solid = np.concatenate([robot.elem_solid] + [p.block.solid_row[None] for p in placed])
         first_object_element = len(robot.roots) + np.arange(len(placed), dtype=np.int64)
         body_elem_start = np.concatenate([robot.elem_start, first_object_element])
         body_elem_end = np.concatenate([robot.elem_end, first_object_element + 1])
@@ -768,25 +753,14 @@ class CollisionChecker:
                                  axis=1)
         joint_links = depends.nonzero()
         joint_links_start = np.searchsorted(joint_links[0], np.arange(n_joints + 1))
-        depth = max([robot.depth] + [p.block.depth for p in placed])
-        # Each pair's front (cpp/query.cpp: trees_of_pair) gets the same number of rows; the
-        # traversal's stack takes a front's node pairs, or a pair's root pairs, as seeds.
-        front_rows = int(np.clip(engine.FRONT_POOL_ROWS // max(n_pairs, 1),
-                                 engine.FRONT_ROWS_MIN, engine.FRONT_ROWS_MAX))
-        elements = body_elem_end - body_elem_start
-        seeds = max([front_rows] + list(elements[pair_a] * elements[pair_b]))
 
-        is_scene = np.zeros(n_bodies, dtype=np.int64)
-        is_scene[n_links:] = 1
         T_world_body = np.tile(np.eye(4), (n_bodies, 1, 1))
         stale = np.zeros(n_bodies, dtype=np.int64)
         stale[:n_links] = 1
         for b, p in enumerate(world, start=n_links):
             T_world_body[b] = p.pose
-        scalars = np.zeros(engine.N_SCALARS)
-        scalars[engine.S_TOLERANCE] = self.config.motion_tolerance
-        floats = dict(
-            scalars=scalars, q_last=kin.neutral(), q_ref=kin.neutral(),
+        arrays = dict(
+            q_last=kin.neutral(), q_ref=kin.neutral(), extension=np.zeros(1),
             T_parent_joint=tree.T_parent_joint, axis=np.concatenate(
                 [kin.axis, np.tile([0.0, 0.0, 1.0], (n_attached, 1))]),
             multiplier=tree.multiplier,
@@ -798,44 +772,32 @@ class CollisionChecker:
             gain=np.concatenate([robot.gain] + [p.block.gain for p in placed]),
             tris=np.concatenate([robot.tris] + [p.block.tris for p in placed]),
             elem_solid=elem_solid,
-            subtree_boxes=np.zeros((max(n_links, 1), BOX_WIDTH)),
             padding=np.concatenate([robot.padding, np.zeros(len(placed))]),
             clearance=np.zeros(n_pairs), q_eval=np.zeros((n_pairs, n_joints)),
             reach=reach, reach_ext=reach_ext, travel=np.zeros((n_pairs, 2)),
-            front_until=np.zeros((n_pairs + 1) * front_rows), front_travel=np.zeros(n_pairs))
-        ints = dict(
-            header=np.zeros(engine.HEADER_SIZE), parent=tree.parent,
-            joint_type=tree.joint_type, q_index=tree.q_index,
-            is_scene=is_scene, body_elem_start=body_elem_start,
-            body_elem_end=body_elem_end,
+            parent=tree.parent, joint_type=tree.joint_type, q_index=tree.q_index,
+            body_elem_start=body_elem_start, body_elem_end=body_elem_end,
             roots=np.concatenate([robot.roots, node_start[:-1]]),
             nodes=np.concatenate(nodes), pair_a=pair_a, pair_b=pair_b,
             joint_pairs_start=joint_pairs_start, joint_pairs=on_path[1],
             joint_links_start=joint_links_start, joint_links=joint_links[1],
-            joint_prismatic=self._joint_prismatic,
-            status=np.zeros(n_pairs), witness=np.full((n_pairs, 2), -1),
-            moved=np.zeros(n_joints), stale=stale, chain=np.zeros(max(n_links, 1)),
-            pending=np.zeros(n_pairs), todo=np.zeros(n_pairs),
-            scene_culled=np.zeros((len(world), max(n_links, 1))),
-            stack=np.zeros((seeds + 2 * depth + 8, 3)),
-            counters=np.zeros(engine.N_COUNTERS), front=np.zeros(((n_pairs + 1) * front_rows, 3)),
-            front_state=np.zeros((n_pairs, 2)), nearest=np.full((n_pairs, 2), -1),
-            forced=np.ones(n_pairs))
+            joint_prismatic=self._joint_prismatic, query_flags=np.zeros(engine.N_QUERY_FLAGS),
+            stale=stale, status=np.zeros(n_pairs), witness=np.full((n_pairs, 2), -1),
+            forced=np.ones(n_pairs), counters=np.zeros(engine.N_COUNTERS),
+            scene_culled=np.zeros((len(world), n_links)), nearest=np.full((n_pairs, 2), -1))
         tri_starts = {p.name: int(t0) for p, t0 in zip(placed, tri_start)}
         forced_names = prepared.rebuilt | prepared.moved
         if self._views is not None:
-            self._carry_state(floats, ints, checked, body_index, tri_starts, forced_names)
-        F, F_layout, float_views = self._pack(np.float64, engine.FLOAT_SLOTS, floats)
-        I, I_layout, int_views = self._pack(np.int64, engine.INT_SLOTS, ints)
-        self._write_header(I, F_layout, I_layout, n_links)
-        if self._views is not None:
-            I[engine.H_CHECKED_ONCE] = self._I[engine.H_CHECKED_ONCE]
-            I[engine.H_RESYNC_COUNTDOWN] = self._I[engine.H_RESYNC_COUNTDOWN]
-        I[engine.H_FORCED] = int(int_views['forced'].any())
-        new_engine = engine.Engine(F, I)
+            self._carry_state(arrays, checked, body_index, tri_starts, forced_names)
+        packed = array_pack.pack(arrays)
+        config = self.config
+        new_engine = engine.Engine(packed.F, packed.F_layout, packed.I, packed.I_layout,
+                                   box_test=config.box_test_code,
+                                   expansion=config.expansion_code,
+                                   motion_tolerance=config.motion_tolerance)
 
         # Nothing above changed the checker; from here on, nothing can fail.
-        self._F, self._I, self._views = F, I, {**float_views, **int_views}
+        self._views = float_views = int_views = packed.views
         self._engine, self._query = new_engine, new_engine.query
         # The forest is only a view of the engine's tables: nothing is held twice (scenario 4).
         self.forest = forest_view(float_views['boxes'], int_views['nodes'],
@@ -919,13 +881,13 @@ class CollisionChecker:
         return checked, excluded, {name: np.asarray(indices, dtype=np.int64)
                                    for name, indices in object_pairs.items()}
 
-    def _carry_state(self, floats, ints, checked, body_index, tri_starts, forced_names) -> None:
+    def _carry_state(self, arrays, checked, body_index, tri_starts, forced_names) -> None:
         """Copy the current state into the arrays of a new layout (see :meth:`_install`)."""
+        floats = ints = arrays
         old = self._views
         old_index = {pair: p for p, pair in enumerate(self.checked_pairs)}
-        for name in ('scalars', 'q_last', 'q_ref'):
-            floats[name] = old[name].copy()
-        ints['counters'] = old['counters'].copy()
+        for name in ('q_last', 'q_ref', 'extension', 'query_flags'):
+            arrays[name] = old[name].copy()
         n_robot = len(self.kinematics.link_names)
         floats['T_world_body'][:n_robot] = old['T_world_body'][:n_robot]
         ints['stale'][:n_robot] = old['stale'][:n_robot]
@@ -1015,7 +977,7 @@ class CollisionChecker:
         return self._settle(self._query(positions, full), positions, full)
 
     def _settle(self, code: int, positions: Positions, full: bool) -> CheckResult:
-        """Return the answer for the engine's ``code`` (``cpp/query.hpp``: Engine::query)."""
+        """Return the answer for the engine's ``code`` (``cpp/engine.hpp``: Engine::query)."""
         if code > 0:
             if code & 1:
                 # The engine reports whether any status changed, so the answer is looked up
@@ -1082,7 +1044,7 @@ class CollisionChecker:
         status, and every pose not below a moved joint, carries over (paper sec. 4.2). A pair
         last found apart by ``update`` with a known clearance is not re-checked either while
         the joints on its path have not moved far enough, summed, to close that gap (see
-        ``plan_update`` in ``cpp/query.cpp``).
+        ``cpp/planning.hpp``).
         Same arguments and errors as :meth:`check`.
         """
         code = self._query(positions, False)

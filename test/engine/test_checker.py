@@ -323,7 +323,7 @@ def test_running_travel_sums_equal_the_sums_recomputed_from_scratch(panda):
             extension = np.abs(kin.multiplier[sliders] * q_ref[kin.q_index[sliders]]
                                + kin.offset[sliders]).sum()
             assert len(sliders) == 2
-            assert panda.packed_array('scalars')[1] == pytest.approx(extension, abs=1e-12)
+            assert panda.packed_array('extension')[0] == pytest.approx(extension, abs=1e-12)
             exact = fixed + extension * ext
             assert np.all(exact[on] < clearance[on])  # skipped pairs are still apart
             tracked += int(on.sum())
