@@ -339,6 +339,9 @@ void export_constants(py::module_& m) {
     CS_EXPORT(JOINT_FIXED) CS_EXPORT(JOINT_REVOLUTE) CS_EXPORT(JOINT_PRISMATIC)
     CS_EXPORT(JOINT_PLANAR) CS_EXPORT(JOINT_FLOATING)
     CS_EXPORT(PRISMATIC_VALUE_MAX) CS_EXPORT(QUATERNION_NORM_MIN)
+    m.attr("JOINT_VARIABLES") = py::make_tuple(cs::JOINT_VARIABLES[0], cs::JOINT_VARIABLES[1],
+                                               cs::JOINT_VARIABLES[2], cs::JOINT_VARIABLES[3],
+                                               cs::JOINT_VARIABLES[4]);
     // tolerances.hpp
     CS_EXPORT(BOX_EPS_REL) CS_EXPORT(BOX_EPS_PARALLEL) CS_EXPORT(TRIANGLE_EPS_REL)
     CS_EXPORT(SPHERE_EPS_REL)

@@ -76,7 +76,7 @@ class Engine {
     // Give attached object b (a link on a fixed joint, without links below it) the pose T in
     // its link's frame, its pairs pairs[:n] the reach rows reach, reach_ext (n, J) (the
     // checker's lever arms run through the object's origin:
-    // collision_sensor/engine/checker.py: _pair_rows), and force those pairs. Returns 0, or
+    // collision_sensor/engine/pair_reach.py), and force those pairs. Returns 0, or
     // MOVE_REFUSED when b is no such link, T no rigid transform, a pair not one of b's or a
     // reach not finite and >= 0 (nothing changed then).
     int64_t place_attached_body(int64_t b, const double* T, const int64_t* pairs, int64_t n,

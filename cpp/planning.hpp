@@ -14,13 +14,13 @@
 // distance between its two bodies' triangles, and q_eval[p] = q_ref then (full checks record
 // none). Moving variable j by dq moves no point of either body by more than
 // |dq| (reach[p, j] + reach_ext[p, j] E) relative to the other (E: the sum of the prismatic
-// joints' |value| at q_ref; the checker computes reach: collision_sensor/engine/checker.py,
-// _pair_rows), so while the sum of these, travel(p) from q_eval[p] to q_ref, stays below
-// clearance[p] the pair is still apart. Each pair keeps the two sums of |dq| times reach and
-// times reach_ext, travel(p) = fixed + E ext, so a slider moving changes E without touching
-// any sum. Only the pairs on a moved variable's list are visited, and their sums move by that
-// variable's terms alone. The running sums are recomputed exactly when a pair's travel comes
-// within TRAVEL_GUARD of its clearance, and every TRAVEL_RESYNC_CALLS calls.
+// joints' |value| at q_ref; the checker computes reach: collision_sensor/engine/pair_reach.py),
+// so while the sum of these, travel(p) from q_eval[p] to q_ref, stays below clearance[p] the
+// pair is still apart. Each pair keeps the two sums of |dq| times reach and times reach_ext,
+// travel(p) = fixed + E ext, so a slider moving changes E without touching any sum. Only the
+// pairs on a moved variable's list are visited, and their sums move by that variable's terms
+// alone. The running sums are recomputed exactly when a pair's travel comes within
+// TRAVEL_GUARD of its clearance, and every TRAVEL_RESYNC_CALLS calls.
 //
 // Running sums and huge motions: a skipped pair's sum is below its clearance, so every term
 // in it is too, and its rounding is a few ulps of the clearance. A motion that takes a term

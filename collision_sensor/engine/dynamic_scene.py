@@ -35,7 +35,8 @@ checker's exception list (``allowed_collisions``) applies to objects by name.
 """
 import math
 from dataclasses import dataclass
-from typing import Dict, FrozenSet, Mapping, NamedTuple, Optional, Tuple, Union
+from typing import (Collection, Dict, FrozenSet, Iterable, Mapping, NamedTuple, Optional, Tuple,
+                    Union)
 
 import numpy as np
 
@@ -303,3 +304,92 @@ class PreparedSceneChanges:
     moved: FrozenSet[str]
     rebuilt: FrozenSet[str]
     version: int
+
+
+class PreparedObjects(NamedTuple):
+    """What a batch of changes makes of a scene (:func:`prepare_changes`)."""
+
+    objects: Dict[str, PlacedObject]
+    structural: bool
+    moved: FrozenSet[str]
+    rebuilt: FrozenSet[str]
+
+
+def prepare_changes(changes: Iterable[SceneChange], base: Mapping[str, PlacedObject],
+                    links: Collection[str], world_frames: Collection[str], robot: str,
+                    config) -> PreparedObjects:
+    """Apply ``changes`` in order to a copy of the objects ``base``, validating each and building
+    the trees of the objects added or replaced; nothing else changes.
+
+    :param links: the robot's links (an object may hang on one, and touch others).
+    :param world_frames: the frames an object fixed in the world may name as its link.
+    :param robot: the robot's name, for messages.
+    :param config: the checker's :class:`~collision_sensor.engine.checker_config.CheckerConfig`.
+    :raises SceneChangeError: the first change that cannot apply (``index``), naming the
+        object and the fix.
+    """
+    objects = dict(base)
+    moved, rebuilt = set(), set()
+    structural = False
+    for k, change in enumerate(changes):
+        try:
+            if isinstance(change, AddObject):
+                placed, same = _placed(change, objects, links, world_frames, robot, config)
+                objects[placed.name] = placed
+                (moved if same else rebuilt).add(placed.name)
+                structural |= not same
+            elif isinstance(change, (MoveObject, RemoveObject)):
+                name = change.name
+                old = objects.get(name)
+                if old is None:
+                    verb = 'move' if isinstance(change, MoveObject) else 'remove'
+                    raise SceneError(f'no object "{name}" to {verb}; add it first '
+                                     f'(objects: {", ".join(objects) or "none"})')
+                if isinstance(change, MoveObject):
+                    pose = checked_pose(change.pose, f'object "{name}"')
+                    objects[name] = PlacedObject(old.obj, old.block, old.attach_to,
+                                                 old.touch_links, pose)
+                    moved.add(name)
+                else:
+                    del objects[name]
+                    moved.discard(name)
+                    rebuilt.discard(name)
+                    structural = True
+            else:
+                raise SceneError(f'{type(change).__name__} is not a scene change; give '
+                                 'AddObject, MoveObject or RemoveObject')
+        except SceneError as error:
+            raise SceneChangeError(k, str(error)) from None
+    return PreparedObjects(objects, structural, frozenset(moved - rebuilt), frozenset(rebuilt))
+
+
+def _placed(change: AddObject, objects: Mapping[str, PlacedObject], links: Collection[str],
+            world_frames: Collection[str], robot: str, config) -> Tuple[PlacedObject, bool]:
+    """The object ``change`` adds, and whether it only moves the one of its name."""
+    obj = change.obj
+    name = getattr(obj, 'name', None)
+    if not isinstance(name, str) or not name:
+        raise SceneError('the object has no name; give it a unique name')
+    owner = f'object "{name}"'
+    if name in links or name in world_frames:
+        raise SceneError(f'{owner} has the name of a link or frame of robot "{robot}"; rename '
+                         'the object')
+    check_geometry(obj, owner)
+    attach_to = None if change.attach_to in world_frames else change.attach_to
+    touch_links = tuple(dict.fromkeys(change.touch_links))
+    if attach_to is not None and attach_to not in links:
+        raise SceneError(f'{owner}: "{attach_to}" is not a link of robot "{robot}"; attach it '
+                         f'to one of its links, or to {" or ".join(sorted(world_frames))} (the '
+                         'world)')
+    unknown = [link for link in touch_links if link not in links]
+    if unknown or (touch_links and attach_to is None):
+        why = (f'touch link "{unknown[0]}" is not a link of robot "{robot}"'
+               if unknown else 'touch links are given for an object fixed in the world')
+        raise SceneError(f'{owner}: {why}; give touch links of the robot, and only for an '
+                         'object attached to a link other than the root')
+    pose = checked_pose(obj.T_world_object if change.pose is None else change.pose, owner)
+    old = objects.get(name)
+    if (old is not None and old.attach_to == attach_to and old.touch_links == touch_links
+            and same_geometry(old.obj, obj)):
+        return PlacedObject(obj, old.block, attach_to, touch_links, pose), True
+    return PlacedObject(obj, build_object_block(obj, config), attach_to, touch_links, pose), False

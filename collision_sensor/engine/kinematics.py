@@ -39,6 +39,8 @@ from collision_sensor.model.robot_model import RobotModel, resolve_mimics
 JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC, JOINT_PLANAR, JOINT_FLOATING = (
     engine.JOINT_FIXED, engine.JOINT_REVOLUTE, engine.JOINT_PRISMATIC, engine.JOINT_PLANAR,
     engine.JOINT_FLOATING)
+#: How many consecutive variables of q a joint of each type reads (the engine's).
+VARIABLE_COUNT = dict(enumerate(engine.JOINT_VARIABLES))
 _JOINT_CODES = {'fixed': JOINT_FIXED, 'revolute': JOINT_REVOLUTE,
                 'continuous': JOINT_REVOLUTE, 'prismatic': JOINT_PRISMATIC,
                 'planar': JOINT_PLANAR, 'floating': JOINT_FLOATING}
@@ -133,6 +135,16 @@ class KinematicTree:
     def _shape_message(self, shape, expected):
         return (f'joint values of shape {shape}, expected {expected} with J = '
                 f'{len(self.joint_names)} values in the order {", ".join(self.joint_names)}')
+
+
+def variables(tree, k: int) -> slice:
+    """Return the variables of q that the joint above link k reads (consecutive).
+
+    :param tree: a :class:`KinematicTree`, or any tree with its ``q_index`` and
+        ``joint_type`` arrays; link k's joint must be movable.
+    """
+    j = int(tree.q_index[k])
+    return slice(j, j + VARIABLE_COUNT[int(tree.joint_type[k])])
 
 
 def build_kinematic_tree(model: RobotModel) -> KinematicTree:
