@@ -1,4 +1,4 @@
-// Forward kinematics over flat arrays (collision_sensor/kinematics.py builds them).
+// Forward kinematics over flat arrays (collision_sensor/engine/kinematics.py builds them).
 //
 // Per link i (L links, root first, every parent before its children), reached through the
 // joint above it:

@@ -17,7 +17,7 @@
 //          culling verdicts of the last full check, the proximity query's warm start (fresh
 //          after a scene change).
 // The engine's other work areas (stack, re-check lists, fronts, distance rows) are its own
-// (state.hpp: Scratch, Fronts), sized from the model: they never cross the binding.
+// (context.hpp: Scratch, Fronts), sized from the model: they never cross the binding.
 #pragma once
 
 #include <cstdint>

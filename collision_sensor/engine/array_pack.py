@@ -19,6 +19,7 @@ from typing import Dict, Mapping, NamedTuple, Tuple
 import numpy as np
 
 from collision_sensor.engine.compiled import engine
+from collision_sensor.errors import EngineBuildError
 
 
 class Slot(NamedTuple):
@@ -89,8 +90,8 @@ def _pack_one(dtype: np.dtype, table, arrays: Mapping[str, np.ndarray]):
     offset = 0
     for k, array in enumerate(converted):
         if not 1 <= array.ndim <= 3:
-            raise ValueError(f'{table[k][0]}: only 1 to 3 dimensions can be packed, got '
-                             f'{array.ndim}')
+            raise EngineBuildError(f'{table[k][0]}: only 1 to 3 dimensions can be packed, '
+                                   f'got {array.ndim}')
         layout[k] = (offset, array.size) + array.shape + (1,) * (3 - array.ndim)
         offset += -(-array.size // line) * line
     buffer = _aligned_zeros(max(offset, 1), dtype)
@@ -106,12 +107,15 @@ def pack(arrays: Mapping[str, np.ndarray]) -> Packed:
     """Pack one array per slot (converted to the slot's dtype) into the two buffers.
 
     :param arrays: ``{slot name: array}``, every slot of :data:`SLOTS` and no other.
-    :raises ValueError: a slot missing or unknown (the engine then checks every shape).
+    :raises EngineBuildError: a slot missing or unknown, or of more than 3 dimensions (the
+        engine then checks every shape).
     """
     names = {slot.name for slot in SLOTS}
     missing, unknown = names - arrays.keys(), arrays.keys() - names
     if missing or unknown:
-        raise ValueError(f'packed arrays: missing {sorted(missing)}, unknown {sorted(unknown)}')
+        raise EngineBuildError(f'packed arrays: missing {sorted(missing)}, unknown '
+                               f'{sorted(unknown)}; the checker and the engine disagree on the '
+                               'layout')
     F, F_layout, float_views = _pack_one(np.dtype(np.float64), engine.FLOAT_SLOTS, arrays)
     I, I_layout, int_views = _pack_one(np.dtype(np.int64), engine.INT_SLOTS, arrays)
     return Packed(F, F_layout, I, I_layout, {**float_views, **int_views})

@@ -24,6 +24,7 @@ import numpy as np
 
 from collision_sensor.engine.bounding_volumes import OBB_HULL_PCA, OBB_MIN_VOLUME, OBB_PCA, fit_obb
 from collision_sensor.engine.compiled import engine
+from collision_sensor.errors import EngineInputError
 
 
 # Columns of a box table (:func:`box_table`), one row per box, what the compiled traversal
@@ -140,7 +141,7 @@ def build_forest(meshes, leaf_size: int = 2, fit: int = OBB_PCA) -> ObbForest:
     :return: the forest; ``roots[i]`` is mesh ``i``'s root node.
     """
     if leaf_size < 1:
-        raise ValueError(f'leaf_size must be at least 1, got {leaf_size}')
+        raise EngineInputError(f'leaf_size must be at least 1, got {leaf_size}')
     parts = []
     node_offset = 0
     tri_offset = 0
