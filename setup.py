@@ -14,7 +14,7 @@ from setuptools import find_packages, setup
 from setuptools.command.build_ext import build_ext
 
 try:
-    from pybind11.setup_helpers import Pybind11Extension
+    from pybind11.setup_helpers import ParallelCompile, Pybind11Extension
 except ImportError:  # colcon and 'python setup.py' run without pip's build isolation
     sys.exit('collision_sensor: building the engine needs pybind11 (>= 2.11): '
              '"pip install pybind11", or "apt install python3-pybind11" in a ROS workspace')
@@ -45,15 +45,19 @@ def source_digest(paths):
     return sha.hexdigest()
 
 
+# The engine's translation units (one per concern) compile two at a time: setuptools' own
+# parallel build runs whole extensions in parallel, and the engine is one extension.
+# NPY_NUM_BUILD_JOBS overrides the count, as for numpy's builds.
+ParallelCompile('NPY_NUM_BUILD_JOBS', default=min(2, os.cpu_count() or 1)).install()
+
+
 class BuildEngine(build_ext):
-    """Compile the engine's translation units two at a time; say what to do without a compiler."""
+    """Compile the engine (every time); say what to do without a compiler."""
 
     def build_extensions(self):
         # Always compile: the sources' digest is baked into the module (a macro, which
         # setuptools' timestamp check does not see), so a stale object would carry an old one.
         self.force = True
-        if self.parallel is None:
-            self.parallel = min(2, os.cpu_count() or 1)
         try:
             super().build_extensions()
         except Exception as error:  # CompileError, a missing compiler (OSError), ...

@@ -47,6 +47,16 @@ class SequenceError(CollisionSensorError):
     """A recorded joint-state sequence that cannot be read or written."""
 
 
+class EngineBuildError(CollisionSensorError):
+    """The compiled engine is missing, stale or does not match this Python code (its packed
+    arrays' layout included)."""
+
+
+class EngineInputError(CollisionSensorError, ValueError):
+    """An argument the compiled engine cannot take: an array of the wrong shape, points that
+    are not finite, an index out of range; the message names the argument."""
+
+
 #: Lines of one warning printed at most; the rest are counted (all kept in ``.warnings``).
 MAX_WARNING_LINES = 20
 

@@ -1,7 +1,7 @@
 // Bounding volumes of point sets: oriented boxes (paper sec. 3, Wu's principal axes) and spheres.
 //
-// The C++ side of collision_sensor/bounding_volumes.py; its module docstring is the contract.
-// Every array is contiguous, row-major float64:
+// The C++ side of collision_sensor/engine/bounding_volumes.py; its module docstring is the
+// contract. Every array is contiguous, row-major float64:
 //
 //   points : (n, 3)   point i is points[3 * i + 0 .. 3 * i + 2]
 //   C, V   : (3, 3)   element (i, k) is C[3 * i + k]
@@ -19,7 +19,7 @@
 //
 // Degenerate input is handled on purpose: one point (or all points equal) gives a point box
 // with the identity axes; two points or collinear points a segment box; coplanar points a flat
-// box. No points, or NaN / infinity in them, throw std::invalid_argument (ValueError in
+// box. No points, or NaN / infinity in them, throw std::invalid_argument (EngineInputError in
 // Python).
 #pragma once
 

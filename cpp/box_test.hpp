@@ -93,122 +93,84 @@ CS_ALWAYS_INLINE bool beyond_face_planes(const double* x, double h, double thr) 
 //   r_A   = ha[i1] |R[i2, j]| + ha[i2] |R[i1, j]|
 //   r_B   = hb[j1] |R[i, j2]| + hb[j2] |R[i, j1]|
 //   |L|   = sqrt(R[i, j1]^2 + R[i, j2]^2)   (a_i in F_B minus its b_j component)
-// The four |R| entries come in as abs_*: the caller takes the nine absolute values once.
-CS_ALWAYS_INLINE bool edge_axis_separates(double ti1, double ti2, double r_i1j, double r_i2j,
-                                          double ha_i1, double ha_i2, double hb_j1,
-                                          double hb_j2, double r_ij1, double r_ij2,
-                                          double abs_i1j, double abs_i2j, double abs_ij1,
-                                          double abs_ij2, double tol) {
-    const double d = (std::fabs(ti2 * r_i1j - ti1 * r_i2j) -
-                      (ha_i1 * abs_i2j + ha_i2 * abs_i1j)) -
-                     (hb_j1 * abs_ij2 + hb_j2 * abs_ij1);
-    if (d > tol * BOX_EPS_PARALLEL)
+// Q holds |R|, taken once by the caller; i and j are constants, so each of the nine axes
+// compiles to its own straight code.
+template <int i, int j>
+CS_ALWAYS_INLINE bool edge_axis_separates(const double* ha, const double* hb, const double* R,
+                                          const double* Q, const double* t, double tol) {
+    constexpr int i1 = (i + 1) % 3, i2 = (i + 2) % 3, j1 = (j + 1) % 3, j2 = (j + 2) % 3;
+    const double d = (std::fabs(t[i2] * R[3 * i1 + j] - t[i1] * R[3 * i2 + j]) -
+                      (ha[i1] * Q[3 * i2 + j] + ha[i2] * Q[3 * i1 + j])) -
+                     (hb[j1] * Q[3 * i + j2] + hb[j2] * Q[3 * i + j1]);
+    if (d > tol * BOX_EPS_PARALLEL) {
+        const double r_ij1 = R[3 * i + j1], r_ij2 = R[3 * i + j2];
         return d > tol * (std::sqrt(r_ij1 * r_ij1 + r_ij2 * r_ij2) + BOX_EPS_PARALLEL);
+    }
     return false;
 }
 
-// finite() on the 18 numbers themselves (registers, in the traversal's inner loop), summed
-// pairwise: a short dependency chain on the way to "separated".
-CS_ALWAYS_INLINE bool finite_scalars(double a0, double a1, double a2, double b0, double b1,
-                                     double b2, double r00, double r01, double r02, double r10,
-                                     double r11, double r12, double r20, double r21, double r22,
-                                     double t0, double t1, double t2) {
-    const double s0 = (a0 * 0.0 + a1 * 0.0) + (a2 * 0.0 + b0 * 0.0);
-    const double s1 = (b1 * 0.0 + b2 * 0.0) + (r00 * 0.0 + r01 * 0.0);
-    const double s2 = (r02 * 0.0 + r10 * 0.0) + (r11 * 0.0 + r12 * 0.0);
-    const double s3 = (r20 * 0.0 + r21 * 0.0) + (r22 * 0.0 + t0 * 0.0);
-    return ((s0 + s1) + (s2 + s3)) + (t1 * 0.0 + t2 * 0.0) == 0.0;
+// finite() summed pairwise: a short dependency chain on the way to "separated".
+CS_ALWAYS_INLINE bool finite_pairwise(const double* ha, const double* hb, const double* R,
+                                      const double* t) {
+    const double s0 = (ha[0] * 0.0 + ha[1] * 0.0) + (ha[2] * 0.0 + hb[0] * 0.0);
+    const double s1 = (hb[1] * 0.0 + hb[2] * 0.0) + (R[0] * 0.0 + R[1] * 0.0);
+    const double s2 = (R[2] * 0.0 + R[3] * 0.0) + (R[4] * 0.0 + R[5] * 0.0);
+    const double s3 = (R[6] * 0.0 + R[7] * 0.0) + (R[8] * 0.0 + t[0] * 0.0);
+    return ((s0 + s1) + (s2 + s3)) + (t[1] * 0.0 + t[2] * 0.0) == 0.0;
+}
+
+// The first of the nine edge-edge axes e_i x b_j (from 6 + 3 i0 on) that separates, or -1.
+template <int i>
+CS_ALWAYS_INLINE int edge_axes_of(const double* ha, const double* hb, const double* R,
+                                  const double* Q, const double* t, double tol) {
+    if (!(ha[i] > 0.0)) return -1;   // A has no edge along e_i
+    if (edge_axis_separates<i, 0>(ha, hb, R, Q, t, tol)) return 6 + 3 * i;
+    if (edge_axis_separates<i, 1>(ha, hb, R, Q, t, tol)) return 7 + 3 * i;
+    if (edge_axis_separates<i, 2>(ha, hb, R, Q, t, tol)) return 8 + 3 * i;
+    return -1;
 }
 
 }  // namespace box_detail
 
 // The first axis of the 15-axis test that separates boxes A and B, or -1. Axes are numbered
 // in the order they are tried: 0-2 A's face normals e_k, 3-5 B's face normals b_j, 6 + 3 i + j
-// the edge-edge axis e_i x b_j. Takes the 18 numbers themselves (registers, in the traversal's
-// inner loop). The traversal keeps the axis of a node pair it pruned, and an incremental
-// re-check tries that axis alone first (traversal.hpp: axis_gap, the same arithmetic).
-CS_ALWAYS_INLINE int separating_axis(double a0, double a1, double a2, double b0, double b1,
-                                     double b2, double r00, double r01, double r02, double r10,
-                                     double r11, double r12, double r20, double r21, double r22,
-                                     double t0, double t1, double t2) {
-    using box_detail::edge_axis_separates;
+// the edge-edge axis e_i x b_j. The traversal keeps the axis of a node pair it pruned, and an
+// incremental re-check tries that axis alone first (traversal.hpp: axis_gap, the same
+// arithmetic).
+CS_ALWAYS_INLINE int separating_axis(const double* ha, const double* hb, const double* R,
+                                     const double* t) {
     using std::fabs;
-    const double tol = BOX_EPS_REL * (a0 + a1 + a2 + b0 + b1 + b2);
+    const double tol = BOX_EPS_REL * (ha[0] + ha[1] + ha[2] + hb[0] + hb[1] + hb[2]);
     const double thr_face = tol * (1.0 + BOX_EPS_PARALLEL);
     // |R|, taken once rather than per use: |r h| = |r| h to the last bit for h >= 0 (rounding
     // is symmetric in sign), so every margin below is the number it was with |r h|, and the
     // face axes still decide exactly as the paper's type 1 and type 2.
-    const double q00 = fabs(r00), q01 = fabs(r01), q02 = fabs(r02), q10 = fabs(r10),
-                 q11 = fabs(r11), q12 = fabs(r12), q20 = fabs(r20), q21 = fabs(r21),
-                 q22 = fabs(r22);
-    int k;
+    double Q[9];
+    for (int k = 0; k < 9; ++k) Q[k] = fabs(R[k]);
+    int k = -1;
     // L = e_k: r_A = ha_k, r_B = sum_j |R[k, j]| hb_j.
-    if ((fabs(t0) - ((q00 * b0 + q01 * b1) + q02 * b2)) - a0 > thr_face)
-        k = 0;
-    else if ((fabs(t1) - ((q10 * b0 + q11 * b1) + q12 * b2)) - a1 > thr_face)
-        k = 1;
-    else if ((fabs(t2) - ((q20 * b0 + q21 * b1) + q22 * b2)) - a2 > thr_face)
-        k = 2;
+    for (int a = 0; a < 3 && k < 0; ++a)
+        if ((fabs(t[a]) - ((Q[3 * a] * hb[0] + Q[3 * a + 1] * hb[1]) + Q[3 * a + 2] * hb[2])) -
+                ha[a] > thr_face)
+            k = a;
     // L = b_j: t . b_j = (R' t)_j, r_A = sum_k |R[k, j]| ha_k, r_B = hb_j.
-    else if ((fabs((r00 * t0 + r10 * t1) + r20 * t2) - ((q00 * a0 + q10 * a1) + q20 * a2)) -
-                 b0 > thr_face)
-        k = 3;
-    else if ((fabs((r01 * t0 + r11 * t1) + r21 * t2) - ((q01 * a0 + q11 * a1) + q21 * a2)) -
-                 b1 > thr_face)
-        k = 4;
-    else if ((fabs((r02 * t0 + r12 * t1) + r22 * t2) - ((q02 * a0 + q12 * a1) + q22 * a2)) -
-                 b2 > thr_face)
-        k = 5;
+    for (int j = 0; j < 3 && k < 0; ++j)
+        if ((fabs((R[j] * t[0] + R[3 + j] * t[1]) + R[6 + j] * t[2]) -
+             ((Q[j] * ha[0] + Q[3 + j] * ha[1]) + Q[6 + j] * ha[2])) -
+                hb[j] > thr_face)
+            k = 3 + j;
     // L = e_i x b_j, only where A has edges along e_i (ha[i] > 0).
-    else if (a0 > 0.0 &&
-             edge_axis_separates(t1, t2, r10, r20, a1, a2, b1, b2, r01, r02,
-                                 q10, q20, q01, q02, tol))
-        k = 6;
-    else if (a0 > 0.0 &&
-             edge_axis_separates(t1, t2, r11, r21, a1, a2, b2, b0, r02, r00,
-                                 q11, q21, q02, q00, tol))
-        k = 7;
-    else if (a0 > 0.0 &&
-             edge_axis_separates(t1, t2, r12, r22, a1, a2, b0, b1, r00, r01,
-                                 q12, q22, q00, q01, tol))
-        k = 8;
-    else if (a1 > 0.0 &&
-             edge_axis_separates(t2, t0, r20, r00, a2, a0, b1, b2, r11, r12,
-                                 q20, q00, q11, q12, tol))
-        k = 9;
-    else if (a1 > 0.0 &&
-             edge_axis_separates(t2, t0, r21, r01, a2, a0, b2, b0, r12, r10,
-                                 q21, q01, q12, q10, tol))
-        k = 10;
-    else if (a1 > 0.0 &&
-             edge_axis_separates(t2, t0, r22, r02, a2, a0, b0, b1, r10, r11,
-                                 q22, q02, q10, q11, tol))
-        k = 11;
-    else if (a2 > 0.0 &&
-             edge_axis_separates(t0, t1, r00, r10, a0, a1, b1, b2, r21, r22,
-                                 q00, q10, q21, q22, tol))
-        k = 12;
-    else if (a2 > 0.0 &&
-             edge_axis_separates(t0, t1, r01, r11, a0, a1, b2, b0, r22, r20,
-                                 q01, q11, q22, q20, tol))
-        k = 13;
-    else if (a2 > 0.0 &&
-             edge_axis_separates(t0, t1, r02, r12, a0, a1, b0, b1, r20, r21,
-                                 q02, q12, q20, q21, tol))
-        k = 14;
-    else
-        return -1;
-    if (box_detail::finite_scalars(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20,
-                                   r21, r22, t0, t1, t2))
-        return k;
+    if (k < 0) k = box_detail::edge_axes_of<0>(ha, hb, R, Q, t, tol);
+    if (k < 0) k = box_detail::edge_axes_of<1>(ha, hb, R, Q, t, tol);
+    if (k < 0) k = box_detail::edge_axes_of<2>(ha, hb, R, Q, t, tol);
+    if (k >= 0 && box_detail::finite_pairwise(ha, hb, R, t)) return k;
     return -1;
 }
 
 // True iff boxes A and B are separated: the classical 15-axis test.
 CS_ALWAYS_INLINE bool boxes_disjoint_sat(const double* ha, const double* hb, const double* R,
-                               const double* t) {
-    return separating_axis(ha[0], ha[1], ha[2], hb[0], hb[1], hb[2], R[0], R[1], R[2], R[3],
-                           R[4], R[5], R[6], R[7], R[8], t[0], t[1], t[2]) >= 0;
+                                         const double* t) {
+    return separating_axis(ha, hb, R, t) >= 0;
 }
 
 // True iff boxes A and B are separated: the paper's sec. 5 test.

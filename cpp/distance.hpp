@@ -83,7 +83,7 @@ constexpr int PLACED_WIDTH = 12;
 // on it, never the answer (measured on the Panda and the UR5, collision_sensor_bench S8).
 constexpr double SLAB_TRUST_REL = 0.05;
 
-// Work rows of the proximity traversal, one per node of the forest (distance.cpp sizes them
+// Work rows of the proximity traversal, one per node of the forest (proximity.cpp sizes them
 // on the first call): placed boxes (placed, placed_stamp) and each node's support along the
 // slab direction (support, support_stamp). A row is current iff its stamp equals the tag.
 struct DistanceWork {
@@ -202,13 +202,27 @@ CS_ALWAYS_INLINE double placed_node_gap(const Forest& f, int64_t na, int64_t nb,
 // leaf reached), the slab's (node_support), and, unless that one comes within SLAB_TRUST_REL
 // of the best, the boxes' own (placed_node_gap); the larger decides.
 //
-// stack: (S, 3) int64 work, S >= depth(a) + depth(b) + 2; rows (na, nb, bits of the node
-// pair's lower bound). work: rows for every node of the forest (its tags are advanced).
-// counters: COUNT_BOX_TESTS (node pairs bounded by their boxes) and COUNT_TRIANGLE_TESTS
-// (triangle pairs measured) grow.
-inline void trees_distance(int64_t ra, int64_t rb, const double* P, double pad_a, double pad_b,
-                           const Forest& f, int64_t* stack, int64_t* counters,
-                           NearestPoints& best, DistanceWork& work) {
+// A distance traversal node (as traversal.hpp's TreePairTraversal): the forest holding both
+// trees, body b's pose in body a's frame, the two bodies' paddings, and the work areas.
+// work.stack: rows >= depth(a) + depth(b) + 2, each (na, nb, bits of the node pair's lower
+// bound); work.counters: COUNT_BOX_TESTS (node pairs bounded by their boxes) and
+// COUNT_TRIANGLE_TESTS (triangle pairs measured) grow. rows: one per node of the forest (its
+// tags are advanced).
+struct DistanceTraversal {
+    const Forest& forest;
+    const double* pose;
+    double pad_a, pad_b;
+    TraversalWork work;
+    DistanceWork& rows;
+};
+
+inline void trees_distance(const DistanceTraversal& node, int64_t ra, int64_t rb,
+                           NearestPoints& best) {
+    const Forest& f = node.forest;
+    const double* P = node.pose;
+    const double pad_a = node.pad_a, pad_b = node.pad_b;
+    int64_t* stack = node.work.stack;
+    DistanceWork& work = node.rows;
     ++work.placed_tag;
     const double pad = pad_a + pad_b;
     Slab slab;
@@ -289,8 +303,8 @@ inline void trees_distance(int64_t ra, int64_t rb, const double* P, double pad_a
         if (g1 < best.distance) push(top++, c1a, c1b, g1);
         if (g2 < best.distance) push(top++, c2a, c2b, g2);
     }
-    counters[COUNT_BOX_TESTS] += n_boxes;
-    counters[COUNT_TRIANGLE_TESTS] += n_triangles;
+    node.work.counters[COUNT_BOX_TESTS] += n_boxes;
+    node.work.counters[COUNT_TRIANGLE_TESTS] += n_triangles;
 }
 
 }  // namespace collision_sensor

@@ -1,4 +1,4 @@
-// Forward kinematics over flat arrays (collision_sensor/kinematics.py builds them).
+// Forward kinematics over flat arrays (collision_sensor/engine/kinematics.py builds them).
 //
 // Per link i (L links, root first, every parent before its children), reached through the
 // joint above it:
@@ -27,10 +27,9 @@ namespace collision_sensor {
 constexpr int64_t JOINT_FIXED = 0, JOINT_REVOLUTE = 1, JOINT_PRISMATIC = 2, JOINT_PLANAR = 3,
                   JOINT_FLOATING = 4;
 
-// How many consecutive variables of q a joint of this type reads.
-inline int64_t joint_variable_count(int64_t kind) {
-    return kind == JOINT_FIXED ? 0 : kind == JOINT_PLANAR ? 3 : kind == JOINT_FLOATING ? 7 : 1;
-}
+// How many consecutive variables of q a joint of each type reads (JOINT_VARIABLES[kind]).
+constexpr int64_t JOINT_VARIABLES[5] = {0, 1, 1, 3, 7};
+inline int64_t joint_variable_count(int64_t kind) { return JOINT_VARIABLES[kind]; }
 
 // The largest |value| of a prismatic joint (m) the engine takes. Every coordinate, box and
 // gap it computes then stays far from overflow (their squares included), so its answers keep
@@ -41,7 +40,7 @@ constexpr double PRISMATIC_VALUE_MAX = 1e6;
 
 // The smallest norm of a floating joint's quaternion the engine takes (below it, its direction
 // is rounding noise). It also keeps the checker's bound on how far a quaternion component moves
-// a point (checker.py: QUATERNION_REACH, 1e300 per unit) valid: changing the quaternion by dq
+// a point (pair_reach.py: QUATERNION_REACH, 1e300 per unit) valid: changing the quaternion by dq
 // turns the rotation by at most about pi |dq| / |quaternion| <= pi 1e100 |dq|, which times any
 // lever arm under 1e199 m stays below it.
 constexpr double QUATERNION_NORM_MIN = 1e-100;

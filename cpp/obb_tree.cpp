@@ -2,6 +2,7 @@
 #include "obb_tree.hpp"
 
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "bounding_volumes.hpp"
@@ -30,15 +31,25 @@ int64_t partition(const double* keys, int64_t* order, int64_t start, int64_t end
     return cut;
 }
 
-TreeSize build_obb_tree(const double* tris, int64_t m, int64_t leaf_size, double* center,
-                        double* axes, double* half, int64_t* left, int64_t* right,
-                        int64_t* first, int64_t* count, int64_t* order) {
+TreeSize build_obb_tree(const double* tris, int64_t m, int64_t leaf_size, const TreeArrays& out) {
     if (m < 1) {
         throw std::invalid_argument("OBB tree: a mesh without triangles has no tree");
     }
     if (leaf_size < 1) {
         throw std::invalid_argument("OBB tree: leaf_size must be at least 1");
     }
+    if (out.capacity < 2 * m - 1) {
+        throw std::invalid_argument("OBB tree: node arrays of " + std::to_string(out.capacity) +
+                                    " rows, it needs 2 m - 1 = " + std::to_string(2 * m - 1));
+    }
+    double* center = out.center;
+    double* axes = out.axes;
+    double* half = out.half;
+    int64_t* left = out.left;
+    int64_t* right = out.right;
+    int64_t* first = out.first;
+    int64_t* count = out.count;
+    int64_t* order = out.order;
     check_points(tris, 3 * m);
     // Build-time work arrays (allocation is fine here; the query path never builds trees).
     std::vector<double> centroids(3 * m);

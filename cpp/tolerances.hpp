@@ -1,5 +1,5 @@
-// Every tolerance of the engine, as collision_sensor/tolerances.py states and explains them;
-// test_compiled.py checks that the two agree.
+// Every tolerance of the engine. collision_sensor/engine/tolerances.py reads them from the
+// extension (bindings.cpp exports them) and states and explains them.
 #pragma once
 
 // Small functions of the inner loops: the compiler's own inlining budget leaves some of them

@@ -14,13 +14,11 @@
 //                     radius): unlike the volume, it sees the size of a flat box (the box of
 //                     a few coplanar triangles has almost none), as FCL's rule does.
 //
-// Data (collision_sensor/obb_tree.py builds it):
-//   boxes : (N, BOX_WIDTH) one row per box: centre, axes (row-major, column k is axis k),
-//           half extents, sphere radius (BOX_*)
-//   nodes : (N, 4) int64 left child (-1 for a leaf), right child, first triangle, count
-//   tris  : (T, 3, 3) triangles in their body frames
-//   pose  : (POSE_WIDTH,) body b in body a's frame: R_ab row-major, then t_ab
-// A box is passed as a pointer to its row, a pose as a pointer to its 12 numbers.
+// As coal's queries: a traversal is asked by a request (TraversalRequest: its options as named
+// fields) and runs as a node (TreePairTraversal: the two trees' forest, body b's pose in body
+// a's frame, the request, the work areas), descending from node pairs seeded on its stack.
+// Trees are obb_tree.hpp's tables; a box is passed as a pointer to its row, a pose as a
+// pointer to its POSE_WIDTH numbers: body b in body a's frame, R_ab row-major, then t_ab.
 #pragma once
 
 #include <algorithm>
@@ -29,14 +27,13 @@
 #include <limits>
 
 #include "box_test.hpp"
+#include "obb_tree.hpp"
 #include "tolerances.hpp"
 #include "triangle_distance.hpp"
 #include "triangle_test.hpp"
 
 namespace collision_sensor {
 
-constexpr int BOX_CENTER = 0, BOX_AXES = 3, BOX_HALF = 12, BOX_RADIUS = 15, BOX_WIDTH = 16;
-constexpr int NODE_LEFT = 0, NODE_RIGHT = 1, NODE_FIRST = 2, NODE_COUNT = 3, NODE_WIDTH = 4;
 constexpr int POSE_WIDTH = 12;
 constexpr int EXPAND_SAME = 0, EXPAND_ALTERNATE = 1, EXPAND_LARGER = 2, EXPAND_PROMISING = 3,
               EXPAND_WIDER = 4;
@@ -56,14 +53,28 @@ constexpr double FRONT_GUARD_REL = 1e-9;
 
 constexpr double INF = std::numeric_limits<double>::infinity();
 
-struct Forest {
-    const double* boxes;   // (N, BOX_WIDTH)
-    const int64_t* nodes;  // (N, NODE_WIDTH)
-    const double* volume;  // (N,)
-    const double* gain;    // (N,)
-    const double* tris;    // (T, 3, 3)
-    const double* box(int64_t n) const { return boxes + BOX_WIDTH * n; }
-    const int64_t* node(int64_t n) const { return nodes + NODE_WIDTH * n; }
+// What a traversal of two trees is asked (coal's CollisionRequest, for one body pair).
+struct TraversalRequest {
+    int box_test = BOX_TEST_SAT;   // BOX_TEST_PAPER or BOX_TEST_SAT: how two boxes are tested
+    int expansion = EXPAND_WIDER;  // EXPAND_*: which node of an overlapping pair is expanded
+    // The pair's two paddings summed: triangles within pad of each other meet
+    // (triangles_within); the boxes must hold the padded geometry (the checker grows each
+    // body's boxes by its padding), so that boxes apart prove the padded bodies apart.
+    double pad = 0.0;
+    // An extra distance (m, >= 0) within which the two bodies count as meeting, beyond pad:
+    // every box of both trees is taken grown by inflation / 2 (half extents and sphere
+    // radius), leaves within pad + inflation meet, and a gap is one of the padded distance
+    // minus inflation. 0 for the collision queries.
+    double inflation = 0.0;
+    // Measure the gap: a lower bound of the distance when no triangles meet (collide_trees).
+    bool track = false;
+    // Triangles (rows of tris, or -1) that met last time: the descent visits first the
+    // children holding them.
+    int64_t witness_a = -1, witness_b = -1;
+    // A front is recorded with each node pair's until = travel - rounding + its gap (the
+    // pair's travel now, and its rounding margin); see collide_trees and front_scan.
+    double travel = 0.0;
+    double rounding = 0.0;
 };
 
 // Rows where a front is recorded: node pairs (rows, 3) and their until (rows,).
@@ -71,6 +82,30 @@ struct FrontRows {
     int64_t* pairs;
     double* until;
     int64_t rows;
+};
+
+// A front being recorded: its rows and its length so far, -1 when none is recorded (or the
+// rows overflowed: the front is then incomplete).
+struct FrontRecord {
+    FrontRows rows;
+    int64_t length;
+};
+
+// Where a traversal works: stack (rows, 3) int64, and counters (N_COUNTERS,) it adds to.
+struct TraversalWork {
+    int64_t* stack;
+    int64_t* counters;
+};
+
+// A traversal node (coal's MeshCollisionTraversalNode): the forest holding both trees, body
+// b's pose in body a's frame, what is asked, where it works, and the front it records
+// (nullptr: none).
+struct TreePairTraversal {
+    const Forest& forest;
+    const double* pose;
+    const TraversalRequest& request;
+    TraversalWork work;
+    FrontRecord* front;
 };
 
 // d = R_ab cb + t_ab - ca: B's centre relative to A's, in body a's frame.
@@ -154,14 +189,36 @@ CS_ALWAYS_INLINE double box_pair_gap(const double* A, const double* B, const dou
 
 // The axis that separates boxes A and B (separating_axis), or -1; B in A's frame: T.
 CS_ALWAYS_INLINE int sat_axis(const double* A, const double* B, const double* T) {
-    const int h = BOX_HALF;
-    return separating_axis(A[h], A[h + 1], A[h + 2], B[h], B[h + 1], B[h + 2], T[0], T[1], T[2],
-                           T[3], T[4], T[5], T[6], T[7], T[8], T[9], T[10], T[11]);
+    return separating_axis(A + BOX_HALF, B + BOX_HALF, T, T + 9);
 }
 
 // True iff the paper's test separates boxes A and B (B in A's frame: T).
 CS_ALWAYS_INLINE bool paper_separates(const double* A, const double* B, const double* T) {
     return boxes_disjoint_paper(A + BOX_HALF, B + BOX_HALF, T, T + 9);
+}
+
+// True iff boxes A (body a) and B (body b at pose P in body a) are apart, by the spheres
+// around them or by the box test.
+inline bool boxes_apart(int box_test, const double* A, const double* B, const double* P) {
+    if (spheres(A, B, P).apart) return true;
+    double T[12];
+    box_in_frame(A, B, P, T);
+    if (box_test == BOX_TEST_PAPER) return paper_separates(A, B, T);
+    return sat_axis(A, B, T) >= 0;
+}
+
+// boxes_apart, and when apart their gap (the larger of the spheres' gap and face_gap, a lower
+// bound of their distance) into gap, the two sharing the work.
+inline bool boxes_apart_gap(int box_test, const double* A, const double* B, const double* P,
+                            double* gap) {
+    const Spheres s = spheres(A, B, P);
+    double T[12];
+    box_in_frame(A, B, P, T);
+    if (!s.apart && (box_test == BOX_TEST_PAPER ? !paper_separates(A, B, T)
+                                                : sat_axis(A, B, T) < 0))
+        return false;
+    *gap = std::max(std::sqrt(s.dd) - s.radii, face_gap(A, B, T));
+    return true;
 }
 
 // separating_axis's decision for axis k alone, for boxes A (body a) and B (body b at pose P),
@@ -278,15 +335,16 @@ struct LeafResult {
     double gap;
 };
 
-inline LeafResult leaves_collide(const double* tris, int64_t first_a, int64_t count_a,
-                                 int64_t first_b, int64_t count_b, const double* pose,
-                                 double pad) {
+inline LeafResult leaves_collide(const double* tris, const int64_t* leaf_a,
+                                 const int64_t* leaf_b, const double* pose, double pad) {
     Triangle Q;
     int64_t tested = 0;
     double nearest = INF;
-    for (int64_t ib = first_b; ib < first_b + count_b; ++ib) {
+    const int64_t first_a = leaf_a[NODE_FIRST], end_a = first_a + leaf_a[NODE_COUNT];
+    const int64_t first_b = leaf_b[NODE_FIRST], end_b = first_b + leaf_b[NODE_COUNT];
+    for (int64_t ib = first_b; ib < end_b; ++ib) {
         triangle_in_a(tris, ib, pose, Q);
-        for (int64_t ia = first_a; ia < first_a + count_a; ++ia) {
+        for (int64_t ia = first_a; ia < end_a; ++ia) {
             ++tested;
             double distance;
             if (triangles_within(triangle_at(tris, ia), Q, pad, distance))
@@ -307,84 +365,111 @@ CS_ALWAYS_INLINE bool closer(const Forest& f, int64_t m, int64_t n, double x0, d
     return a0 * a0 + a1 * a1 + a2 * a2 < b0 * b0 + b1 * b1 + b2 * b2;
 }
 
-// Append (na, nb, how) and until to the front; return its new length, -1 once it overflows
-// (or was not being recorded: n_front -1).
-CS_ALWAYS_INLINE int64_t record(const FrontRows& front, int64_t n_front, int64_t na, int64_t nb,
-                      int64_t how, double until) {
-    if (n_front < 0 || n_front >= front.rows) return -1;
-    int64_t* row = front.pairs + 3 * n_front;
+// Append (na, nb, how) and until to the front being recorded (nothing once its length is -1,
+// which it becomes when the rows overflow).
+CS_ALWAYS_INLINE void record(FrontRecord& front, int64_t na, int64_t nb, int64_t how,
+                             double until) {
+    if (front.length < 0) return;
+    if (front.length >= front.rows.rows) {
+        front.length = -1;
+        return;
+    }
+    int64_t* row = front.rows.pairs + 3 * front.length;
     row[0] = na;
     row[1] = nb;
     row[2] = how;
-    front.until[n_front] = until;
-    return n_front + 1;
+    front.rows.until[front.length] = until;
+    ++front.length;
+}
+
+// Box row A grown by g (half extents and sphere radius) into the row `into`, when g > 0 (a
+// request's inflation / 2); else A itself.
+CS_ALWAYS_INLINE const double* grown(const double* A, double g, double* into) {
+    if (!(g > 0.0)) return A;
+    std::copy(A, A + BOX_WIDTH, into);
+    into[BOX_HALF] += g;
+    into[BOX_HALF + 1] += g;
+    into[BOX_HALF + 2] += g;
+    into[BOX_RADIUS] += std::sqrt(3.0) * g;
+    return into;
 }
 
 struct TreesResult {
     bool hit;
     int64_t ia, ib;
     double gap;
-    int64_t n_front;
 };
 
-// Does any triangle under the node pairs stack[:n_seeds] (na in tree a, nb in tree b, a
-// level) meet one of the other's, and if not, how far apart are they at least?
+// Does any triangle under the node pairs on the stack (its first n_seeds rows: na in tree a,
+// nb in tree b, a level) meet one of the other's, and if not, how far apart are they at least?
 //
 // Contract, for a seed the two roots of a body's sub-group trees:
-//     hit = any(triangles_within(P, R_ab Q + t_ab, pad) for P in triangles(na)
+//     hit = any(triangles_within(P, R_ab Q + t_ab, pad + inflation) for P in triangles(na)
 //               for Q in triangles(nb) for (na, nb) in seeds)
 // computed by descending both trees and pruning node pairs whose boxes are disjoint; ia, ib
 // are the rows of tris of the first meeting pair found (-1 if none), a witness the caller may
 // test first next time.
 //
-// With track, gap is a lower bound of the distance between the two trees' triangles when they
-// do not meet: the smallest gap of the node pairs pruned (sphere gap |d| - r_a - r_b, or
-// face_gap for a box test, or the gap along the edge axis that separated them), 0 once a leaf
-// pair had to be tested triangle by triangle (without padding). Not rounded down: the caller
-// allows for that.
-// Without track (full checks), gap is 0 and costs nothing.
+// With request.track, gap is a lower bound of the distance between the two trees' triangles
+// (minus inflation) when they do not meet: the smallest gap of the node pairs pruned (sphere
+// gap |d| - r_a - r_b, or face_gap for a box test, or the gap along the edge axis that
+// separated them), 0 once a leaf pair had to be tested triangle by triangle (without
+// padding). Not rounded down: the caller allows for that. Without track (full checks), gap
+// is 0 and costs nothing.
 //
-// The front: with n_front >= 0, every node pair where the descent stopped (pruned, or a leaf
-// pair found apart) is recorded with how it was settled and travel plus its gap: the pair's
-// travel up to which it is still apart. When no triangles meet, those pairs cover every pair
-// of triangles under the seeds exactly once, whatever the pose: a later re-check may start
-// from them instead of the roots (front_scan). n_front comes back -1 when the rows are full
-// (the descent goes on, the front is then incomplete) or was -1.
+// The front: when node.front records (length >= 0), every node pair where the descent stopped
+// (pruned, or a leaf pair found apart) is recorded with how it was settled and until = travel
+// - rounding + its gap: the pair's travel up to which it is still apart. When no triangles
+// meet, those pairs cover every pair of triangles under the seeds exactly once, whatever the
+// pose: a later re-check may start from them instead of the roots (front_scan).
 //
 // Which child is visited first (only the work depends on it, never the answer): with a
-// witness wa, wb (rows of tris, or -1), the one whose triangles include it; without one, the
-// child whose centre is nearer the other box's centre. A colliding pair stops at its first
-// meeting triangles, so this finds them sooner.
+// witness, the one whose triangles include it; without one, the child whose centre is nearer
+// the other box's centre. A colliding pair stops at its first meeting triangles, so this
+// finds them sooner.
 //
-// Padding (pad: the pair's two paddings summed, 0 for none): triangles count as meeting when
-// they are within pad of each other (triangles_within), and the boxes must hold the padded
-// geometry (the checker grows each body's boxes by its padding), so that boxes apart still
+// Padding: triangles count as meeting when they are within pad of each other
+// (triangles_within), and the boxes must hold the padded geometry, so that boxes apart still
 // prove the padded bodies apart and every gap is one of the padded distance. A padded leaf
 // pair found apart has its distance measured: its gap is that distance minus pad, not 0.
 //
-// stack: (S, 3) int64 work, S >= n_seeds + depth(a) + depth(b) + 2.
-inline TreesResult trees_collide(int64_t n_seeds, const double* P, const Forest& f,
-                                 int box_method, int expansion, int64_t* stack,
-                                 int64_t* counters, bool track, int64_t wa, int64_t wb,
-                                 const FrontRows& front, int64_t n_front, double travel,
-                                 double pad) {
+// stack: rows >= n_seeds + depth(a) + depth(b) + 2.
+//
+// (Inflated: whether the request inflates the boxes, a constant of each of the two copies of
+// the descent: the collision queries do not, and pay nothing for it.)
+template <bool Inflated>
+inline TreesResult collide_trees_as(const TreePairTraversal& node, int64_t n_seeds) {
+    // The request's fields as locals: the loop below writes through pointers that could
+    // otherwise alias them.
+    const TraversalRequest& request = node.request;
+    const Forest& f = node.forest;
+    const double* P = node.pose;
+    const int box_test = request.box_test, expansion = request.expansion;
+    const bool track = request.track;
+    const int64_t wa = request.witness_a, wb = request.witness_b;
+    const double pad = request.pad + request.inflation, grow = 0.5 * request.inflation;
+    const double base = request.travel - request.rounding;
+    int64_t* stack = node.work.stack;
+    FrontRecord no_front = {{nullptr, nullptr, 0}, -1};
+    FrontRecord& front = node.front ? *node.front : no_front;
     double best = track ? INF : 0.0;
     int64_t n_boxes = 0, n_spheres = 0, n_triangles = 0;
     bool hit = false;
     int64_t ia = -1, ib = -1;
     int64_t top = n_seeds;
+    double grown_a[BOX_WIDTH], grown_b[BOX_WIDTH];
     while (top > 0) {
         --top;
         int64_t* slot = stack + 3 * top;
         const int64_t na = slot[0], nb = slot[1], level = slot[2];
-        const double* A = f.box(na);
-        const double* B = f.box(nb);
+        const double* A = Inflated ? grown(f.box(na), grow, grown_a) : f.box(na);
+        const double* B = Inflated ? grown(f.box(nb), grow, grown_b) : f.box(nb);
         const Spheres s = spheres(A, B, P);
         if (s.apart) {
             ++n_spheres;
-            if (n_front >= 0) {
+            if (front.length >= 0) {
                 const double g = std::sqrt(s.dd) - s.radii;
-                n_front = record(front, n_front, na, nb, FRONT_SPHERE, travel + g);
+                record(front, na, nb, FRONT_SPHERE, base + g);
                 best = std::min(best, g);
             } else if (track && best > 0.0) {
                 const double bound = best + s.radii;  // sqrt only when it can lower the bound
@@ -396,7 +481,7 @@ inline TreesResult trees_collide(int64_t n_seeds, const double* P, const Forest&
         double T[12];
         box_in_frame(A, B, P, T);
         int64_t how;
-        if (box_method == BOX_TEST_PAPER)
+        if (box_test == BOX_TEST_PAPER)
             how = paper_separates(A, B, T) ? FRONT_BOX : FRONT_LEAF;
         else
             how = sat_axis(A, B, T);
@@ -405,7 +490,7 @@ inline TreesResult trees_collide(int64_t n_seeds, const double* P, const Forest&
                 double g = face_gap(A, B, T);
                 if (how >= 6) g = std::max(g, axis_gap(how, A, B, P).gap);
                 best = std::min(best, g);
-                n_front = record(front, n_front, na, nb, how, travel + g);
+                record(front, na, nb, how, base + g);
             }
             continue;
         }
@@ -414,9 +499,7 @@ inline TreesResult trees_collide(int64_t n_seeds, const double* P, const Forest&
         const bool leaf_a = node_a[NODE_LEFT] < 0;
         const bool leaf_b = node_b[NODE_LEFT] < 0;
         if (leaf_a && leaf_b) {
-            const LeafResult leaf = leaves_collide(f.tris, node_a[NODE_FIRST], node_a[NODE_COUNT],
-                                                   node_b[NODE_FIRST], node_b[NODE_COUNT], P,
-                                                   pad);
+            const LeafResult leaf = leaves_collide(f.tris, node_a, node_b, P, pad);
             n_triangles += leaf.tested;
             if (leaf.hit) {
                 hit = true;
@@ -424,7 +507,7 @@ inline TreesResult trees_collide(int64_t n_seeds, const double* P, const Forest&
                 ib = leaf.ib;
                 break;
             }
-            n_front = record(front, n_front, na, nb, FRONT_LEAF, travel + leaf.gap);
+            record(front, na, nb, FRONT_LEAF, base + leaf.gap);
             best = std::min(best, leaf.gap);
             continue;
         }
@@ -483,10 +566,16 @@ inline TreesResult trees_collide(int64_t n_seeds, const double* P, const Forest&
         slot[5] = level + 1;
         top += 2;
     }
+    int64_t* counters = node.work.counters;
     counters[COUNT_BOX_TESTS] += n_boxes;
     counters[COUNT_SPHERE_SKIPS] += n_spheres;
     counters[COUNT_TRIANGLE_TESTS] += n_triangles;
-    return {hit, ia, ib, best, n_front};
+    return {hit, ia, ib, best};
+}
+
+inline TreesResult collide_trees(const TreePairTraversal& node, int64_t n_seeds) {
+    return node.request.inflation > 0.0 ? collide_trees_as<true>(node, n_seeds)
+                                        : collide_trees_as<false>(node, n_seeds);
 }
 
 struct FrontScan {
@@ -494,29 +583,34 @@ struct FrontScan {
     double gap;
 };
 
-// Re-settle a front (see trees_collide) at a new pose, cheaply where it can.
+// Re-settle a front (see collide_trees) at the node's pose, cheaply where it can.
 //
-// The pair's travel is a running sum of bounds of how far any point of one body can have
-// moved relative to the other (paper sec. 4.2, query.cpp: plan_update), so a node pair whose
-// gap, when last settled, exceeds the travel since then is still apart untested: its until
-// (the travel then plus the gap) is above travel. Every other node pair is tried the way it
-// was settled last time: its one separating axis (axis_gap), or its spheres. Those still apart
-// are copied to kept; the others (leaf pairs among them: a triangle test has no cheaper proof)
-// go on stack as seeds for trees_collide. Under coherent motion most node pairs stay apart,
-// and no node pair above the front is tested again.
+// The pair's travel (request.travel) is a running sum of bounds of how far any point of one
+// body can have moved relative to the other (paper sec. 4.2, planning.hpp), so a node pair
+// whose gap, when last settled, exceeds the travel since then is still apart untested: its
+// until (the travel then plus the gap) is above travel. Every other node pair is tried the way
+// it was settled last time: its one separating axis (axis_gap), or its spheres. Those still
+// apart are copied to kept (until = travel - rounding + gap); the others (leaf pairs among
+// them: a triangle test has no cheaper proof) go on the node's stack as seeds for
+// collide_trees. Under coherent motion most node pairs stay apart, and no node pair above the
+// front is tested again.
 //
-// front, front_until: (n_old, 3) and (n_old,), a complete front; travel: the pair's travel
-// now; margin: the pair's rounding margin (a node pair tried gets until = travel - margin +
-// gap); stack: (S, 3), S >= n_old; kept: rows >= n_old. gap: a lower bound of the distance
-// between the kept node pairs' triangles (INF if none).
-inline FrontScan front_scan(const int64_t* front, const double* front_until, int64_t n_old,
-                            const double* P, const Forest& f, double travel, double margin,
-                            int64_t* stack, const FrontRows& kept, int64_t* counters) {
+// old: a complete front (its rows: the node pairs); stack rows >= old.rows; kept rows >=
+// old.rows. gap: a lower bound of the distance between the kept node pairs' triangles (INF if
+// none). The request's inflation is honoured as collide_trees honours it.
+inline FrontScan front_scan(const TreePairTraversal& node, const FrontRows& old,
+                            const FrontRows& kept) {
+    const Forest& f = node.forest;
+    const double* P = node.pose;
+    const double travel = node.request.travel, rounding = node.request.rounding;
+    const double grow = 0.5 * node.request.inflation;
+    int64_t* stack = node.work.stack;
     double best = INF;
     int64_t n_seeds = 0, n_kept = 0, n_boxes = 0, n_spheres = 0, n_untested = 0;
-    for (int64_t e = 0; e < n_old; ++e) {
-        const int64_t na = front[3 * e], nb = front[3 * e + 1], how = front[3 * e + 2];
-        double until = front_until[e];
+    double grown_a[BOX_WIDTH], grown_b[BOX_WIDTH];
+    for (int64_t e = 0; e < old.rows; ++e) {
+        const int64_t na = old.pairs[3 * e], nb = old.pairs[3 * e + 1], how = old.pairs[3 * e + 2];
+        double until = old.until[e];
         bool apart = until - travel > FRONT_GUARD_REL * until;
         double g = 0.0;
         if (apart) {
@@ -524,8 +618,8 @@ inline FrontScan front_scan(const int64_t* front, const double* front_until, int
             ++n_untested;
         } else if (how >= 0) {
             ++n_boxes;
-            const double* A = f.box(na);
-            const double* B = f.box(nb);
+            const double* A = grown(f.box(na), grow, grown_a);
+            const double* B = grown(f.box(nb), grow, grown_b);
             const AxisGap ag = axis_gap(how, A, B, P);
             apart = ag.separated;
             g = ag.gap;
@@ -536,15 +630,16 @@ inline FrontScan front_scan(const int64_t* front, const double* front_until, int
                 centre_offset(A, B, P, d);
                 g = std::max(g, std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) -
                                     A[BOX_RADIUS] - B[BOX_RADIUS]);
-                until = travel - margin + g;
+                until = travel - rounding + g;
             }
         } else if (how == FRONT_SPHERE) {
             ++n_spheres;
-            const Spheres s = spheres(f.box(na), f.box(nb), P);
+            const Spheres s = spheres(grown(f.box(na), grow, grown_a),
+                                      grown(f.box(nb), grow, grown_b), P);
             apart = s.apart;
             if (apart) {
                 g = std::sqrt(s.dd) - s.radii;
-                until = travel - margin + g;
+                until = travel - rounding + g;
             }
         }
         if (apart) {
@@ -563,6 +658,7 @@ inline FrontScan front_scan(const int64_t* front, const double* front_until, int
             ++n_seeds;
         }
     }
+    int64_t* counters = node.work.counters;
     counters[COUNT_BOX_TESTS] += n_boxes;
     counters[COUNT_SPHERE_SKIPS] += n_spheres;
     counters[COUNT_FRONT_STARTS] += 1;

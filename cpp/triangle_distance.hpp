@@ -1,7 +1,7 @@
 // Distance between two triangles, with nearest points (issue 15): the leaf kernel of both
 // the proximity traversal (distance.hpp) and the padded contact test (traversal.hpp).
 //
-// Contract (collision_sensor/distance.py states it in plain Python):
+// Contract (test/engine_kernels.py states it in plain Python):
 //     triangle_distance(P, Q, x, y) == min |x - y| over x in P, y in Q (closed triangles)
 // with x, y written: a nearest pair of points, x on P and y on Q (x == y, a point of both,
 // when they touch or cross). P, Q: 3 vertices each, in the same frame.

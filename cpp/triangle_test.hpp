@@ -1,6 +1,6 @@
 // Triangle / triangle contact for the leaves of the box hierarchies.
 //
-// Contract (collision_sensor/triangle_test.py states it in plain Python):
+// Contract (test/engine_kernels.py states it in plain Python):
 //     triangles_intersect(P, Q) == (distance(P, Q) <= TRIANGLE_EPS_REL * m)
 // P, Q: 3 vertices each (P[k][i]: coordinate i of vertex k), both in the same frame; distance
 // is the Euclidean distance between the closed triangles (0 when they cross or touch), m the

@@ -57,8 +57,8 @@ class FclOracle:
                                                                  T))
         self.scene_poses = {}
         for name in checker.scene_object_names:
-            b = checker._body_index[name]
-            start, end = checker._body_elem_start[b], checker._body_elem_end[b]
+            b = checker._scene.body_index[name]
+            start, end = checker._scene.elem_start[b], checker._scene.elem_end[b]
             f = checker.forest
             meshes = []
             for e in range(start, end):
@@ -197,17 +197,17 @@ class FclOracle:
 
 def body_triangles(checker, name):
     """(n, 3, 3) the body's triangles in the world, at the checker's current state."""
-    b = checker._body_index[name]
+    b = checker._scene.body_index[name]
     f = checker.forest
     tris = np.concatenate([FclOracle._tris_of_tree(f, f.roots[e]) for e in range(
-        checker._body_elem_start[b], checker._body_elem_end[b])])
+        checker._scene.elem_start[b], checker._scene.elem_end[b])])
     T = checker._poses()[b]
     return tris @ T[:3, :3].T + T[:3, 3]
 
 
 def distance_to_body(checker, x, name):
     """Distance from point x (world) to the body's triangles at the checker's state."""
-    from collision_sensor.engine.distance import triangle_distance
+    from engine_kernels import triangle_distance
     tris = body_triangles(checker, name)
     d, _, _ = triangle_distance(np.broadcast_to(x, (len(tris), 3, 3)).copy(), tris)
     return float(d.min())

@@ -1,23 +1,77 @@
-"""Many arrays of one dtype carried in one flat buffer, which the compiled engine reads in place.
+"""The engine's arrays packed into two flat buffers, which the compiled engine reads in place.
 
-The checker packs its arrays (the model's and the carried state alike) into two flat buffers
-once; the engine (``cpp/query.hpp``) cuts them back into named arrays by the layout table in
-the int buffer's header, once, when it is made. Python keeps views of the same memory, so any
-array can be inspected without a copy, and a query crosses the binding with one array.
+The engine (``cpp/layout.hpp``) names every array it reads from the checker, its group and
+its shape in the model's dimensions, in two tables the extension exports
+(``engine.FLOAT_SLOTS``, ``engine.INT_SLOTS``: ``(name, group, shape)``, shape entries an
+int or a dimension's name such as ``'pairs'`` or ``'joints+1'``). :func:`pack` puts a dict
+of arrays into one float64 and one int64 buffer in the tables' order, each array with its
+layout row ``(offset, size, d0, d1, d2)``; the engine cuts the buffers back into named arrays
+by these rows, once, when it is made, and checks each against its table. Python keeps views of
+the same memory, so any array can be inspected without a copy, and a query crosses the binding
+with one array.
 
-``layout[k] = (offset, size, d0, d1, d2)`` describes the k-th array packed in a buffer.
+Groups: ``model`` (what a query reads and never writes), ``state`` (the carried incremental
+state, carried over a scene change pair by pair), ``work`` (what the engine works in and the
+checker may read; fresh after a scene change).
 """
-from typing import Dict, List, Tuple
+from typing import Dict, Mapping, NamedTuple, Tuple
 
 import numpy as np
 
-LAYOUT_WIDTH = 5
+from collision_sensor.engine.compiled import engine
+from collision_sensor.errors import EngineBuildError
 
+
+class Slot(NamedTuple):
+    """One packed array as the engine declares it.
+
+    :ivar shape: each extent an int, or a dimension's name, ``'name'`` or ``'name+k'``.
+    """
+
+    name: str
+    dtype: np.dtype
+    group: str
+    shape: Tuple
+
+
+#: Every slot, float64 ones first, in the engine's order.
+SLOTS: Tuple[Slot, ...] = tuple(
+    Slot(name, np.dtype(dtype), group, tuple(shape))
+    for dtype, table in ((np.float64, engine.FLOAT_SLOTS), (np.int64, engine.INT_SLOTS))
+    for name, group, shape in table)
+#: The model's dimensions the shapes are written in.
+DIMS: Tuple[str, ...] = tuple(engine.DIMS)
 
 #: Every packed array starts on a cache line of its own: the traversal reads table rows
 #: (16 floats a box, 4 ints a node) that must not straddle two lines. Without it, adding one
 #: small array before the node table once made every UR5 check 1.5 times slower.
 CACHE_LINE_BYTES = 64
+
+
+class Packed(NamedTuple):
+    """The two buffers, their layout rows and a view of each array by name."""
+
+    F: np.ndarray
+    F_layout: np.ndarray
+    I: np.ndarray
+    I_layout: np.ndarray
+    views: Dict[str, np.ndarray]
+
+
+def slots(group: str) -> Tuple[Slot, ...]:
+    """Return the slots of one group (``'model'``, ``'state'`` or ``'work'``)."""
+    return tuple(slot for slot in SLOTS if slot.group == group)
+
+
+def shape_of(slot: Slot, dims: Mapping[str, int]) -> Tuple[int, ...]:
+    """Return ``slot``'s shape for the dimensions ``dims`` (``{'links': 9, ...}``)."""
+    out = []
+    for extent in slot.shape:
+        if isinstance(extent, str):
+            name, _, plus = extent.partition('+')
+            extent = dims[name] + int(plus or 0)
+        out.append(int(extent))
+    return tuple(out)
 
 
 def _aligned_zeros(n: int, dtype: np.dtype) -> np.ndarray:
@@ -28,37 +82,40 @@ def _aligned_zeros(n: int, dtype: np.dtype) -> np.ndarray:
     return raw[start:start + n]
 
 
-class ArrayPack:
-    """Collects arrays of one dtype, then packs them into one buffer with a layout table."""
-
-    def __init__(self, dtype):
-        self.dtype = np.dtype(dtype)
-        self._arrays: List[np.ndarray] = []
-        self.index: Dict[str, int] = {}
-
-    def add(self, name: str, array) -> int:
-        """Add ``array`` (1-3 dimensions) under ``name``; return its slot in the layout."""
-        array = np.asarray(array, dtype=self.dtype)
+def _pack_one(dtype: np.dtype, table, arrays: Mapping[str, np.ndarray]):
+    """One buffer: its arrays in the table's order, each on a cache line of its own."""
+    line = CACHE_LINE_BYTES // dtype.itemsize
+    converted = [np.asarray(arrays[name], dtype=dtype) for name, _, _ in table]
+    layout = np.zeros((len(table), engine.LAYOUT_WIDTH), dtype=np.int64)
+    offset = 0
+    for k, array in enumerate(converted):
         if not 1 <= array.ndim <= 3:
-            raise ValueError(f'{name}: only 1 to 3 dimensions can be packed, got {array.ndim}')
-        self.index[name] = len(self._arrays)
-        self._arrays.append(array)
-        return self.index[name]
+            raise EngineBuildError(f'{table[k][0]}: only 1 to 3 dimensions can be packed, '
+                                   f'got {array.ndim}')
+        layout[k] = (offset, array.size) + array.shape + (1,) * (3 - array.ndim)
+        offset += -(-array.size // line) * line
+    buffer = _aligned_zeros(max(offset, 1), dtype)
+    views = {}
+    for (name, _, _), array, row in zip(table, converted, layout):
+        view = buffer[row[0]:row[0] + row[1]].reshape(array.shape)
+        view[...] = array
+        views[name] = view
+    return buffer, layout, views
 
-    def pack(self) -> Tuple[np.ndarray, np.ndarray, Dict[str, np.ndarray]]:
-        """Return ``(buffer, layout (K, 5) int64, {name: view into buffer})``."""
-        layout = np.zeros((len(self._arrays), LAYOUT_WIDTH), dtype=np.int64)
-        line = CACHE_LINE_BYTES // self.dtype.itemsize
-        offset = 0
-        for k, array in enumerate(self._arrays):
-            shape = array.shape + (1,) * (3 - array.ndim)
-            layout[k] = (offset, array.size) + shape
-            offset += -(-array.size // line) * line
-        buffer = _aligned_zeros(max(offset, 1), self.dtype)
-        views = {}
-        for name, k in self.index.items():
-            array = self._arrays[k]
-            view = buffer[layout[k, 0]:layout[k, 0] + layout[k, 1]].reshape(array.shape)
-            view[...] = array
-            views[name] = view
-        return buffer, layout, views
+
+def pack(arrays: Mapping[str, np.ndarray]) -> Packed:
+    """Pack one array per slot (converted to the slot's dtype) into the two buffers.
+
+    :param arrays: ``{slot name: array}``, every slot of :data:`SLOTS` and no other.
+    :raises EngineBuildError: a slot missing or unknown, or of more than 3 dimensions (the
+        engine then checks every shape).
+    """
+    names = {slot.name for slot in SLOTS}
+    missing, unknown = names - arrays.keys(), arrays.keys() - names
+    if missing or unknown:
+        raise EngineBuildError(f'packed arrays: missing {sorted(missing)}, unknown '
+                               f'{sorted(unknown)}; the checker and the engine disagree on the '
+                               'layout')
+    F, F_layout, float_views = _pack_one(np.dtype(np.float64), engine.FLOAT_SLOTS, arrays)
+    I, I_layout, int_views = _pack_one(np.dtype(np.int64), engine.INT_SLOTS, arrays)
+    return Packed(F, F_layout, I, I_layout, {**float_views, **int_views})

@@ -19,12 +19,14 @@ is positive.
 
 Degenerate input is handled on purpose: one point gives a point box (half = 0, axes = the
 identity), two points or collinear points a segment box, coplanar points a flat box; repeated
-points are harmless; NaN, infinity or no points raise ValueError.
+points are harmless; NaN, infinity or no points raise
+:class:`~collision_sensor.errors.EngineInputError` (a ValueError).
 """
 import numpy as np
 
 from collision_sensor.engine.compiled import engine
 from collision_sensor.engine.tolerances import RANK_EPS_REL
+from collision_sensor.errors import EngineInputError
 
 OBB_PCA, OBB_HULL_PCA, OBB_MIN_VOLUME = 0, 1, 2
 
@@ -44,7 +46,7 @@ def sphere_volume(r: float) -> float:
 
 
 def _check_points(points):
-    """Raise ValueError if ``points`` (n, 3) is empty or holds NaN or infinity."""
+    """Raise EngineInputError if ``points`` (n, 3) is empty or holds NaN or infinity."""
     engine.check_points(points)
 
 
@@ -100,7 +102,7 @@ def fit_obb_pca(points):
 
     :param points: (n, 3) float64, n >= 1, finite.
     :return: (center (3,), axes (3, 3), half (3,)) in the module's convention.
-    :raises ValueError: no points, NaN / infinity in them, or not of shape (n, 3).
+    :raises EngineInputError: no points, NaN / infinity in them, or not of shape (n, 3).
     """
     return engine.fit_obb_pca(points)
 
@@ -108,12 +110,12 @@ def fit_obb_pca(points):
 def _as_points(points, faces=None):
     pts = np.ascontiguousarray(np.asarray(points, dtype=np.float64))
     if pts.ndim != 2 or pts.shape[1] != 3:
-        raise ValueError(f'bounding volume: points must have shape (n, 3), got {pts.shape}')
+        raise EngineInputError(f'bounding volume: points must have shape (n, 3), got {pts.shape}')
     if faces is not None:
         faces = np.asarray(faces)
         if faces.size:
             if faces.min() < 0 or faces.max() >= len(pts):
-                raise ValueError(
+                raise EngineInputError(
                     f'bounding volume: faces index vertices outside 0..{len(pts) - 1}')
             pts = np.ascontiguousarray(pts[np.unique(faces)])
     _check_points(pts)
@@ -163,7 +165,7 @@ def fit_obb_hull_pca(vertices, faces=None):
     :param vertices: (n, 3) float points.
     :param faces: optional (m, 3) int; if given, only the vertices the faces use are fitted.
     :return: (center (3,), axes (3, 3), half (3,)) in the module's convention.
-    :raises ValueError: no points, NaN / infinity, or faces out of range.
+    :raises EngineInputError: no points, NaN / infinity, or faces out of range.
     """
     from scipy.spatial import ConvexHull
 
@@ -206,7 +208,7 @@ def fit_obb_min_volume(points):
 
     :param points: (n, 3) float points.
     :return: (center (3,), axes (3, 3), half (3,)) in the module's convention.
-    :raises ValueError: no points, or NaN / infinity in them.
+    :raises EngineInputError: no points, or NaN / infinity in them.
     """
     from trimesh import bounds
 
@@ -238,7 +240,7 @@ def fit_obb(points, method=OBB_PCA, faces=None):
     :param faces: optional (m, 3) int triangles over ``points``; only OBB_HULL_PCA uses them
         (to drop unreferenced vertices).
     :return: (center (3,), axes (3, 3), half (3,)) in the module's convention.
-    :raises ValueError: unknown method, no points, or NaN / infinity in them.
+    :raises EngineInputError: unknown method, no points, or NaN / infinity in them.
     """
     if method == OBB_PCA:
         return fit_obb_pca(_as_points(points))
@@ -246,8 +248,8 @@ def fit_obb(points, method=OBB_PCA, faces=None):
         return fit_obb_hull_pca(points, faces)
     if method == OBB_MIN_VOLUME:
         return fit_obb_min_volume(points)
-    raise ValueError(f'fit_obb: unknown method {method!r}; use OBB_PCA (0), OBB_HULL_PCA (1) '
-                     'or OBB_MIN_VOLUME (2)')
+    raise EngineInputError(f'fit_obb: unknown method {method!r}; use OBB_PCA (0), OBB_HULL_PCA '
+                           '(1) or OBB_MIN_VOLUME (2)')
 
 
 def ritter_sphere(points):
@@ -262,6 +264,6 @@ def ritter_sphere(points):
 
     :param points: (n, 3) float64, n >= 1, finite.
     :return: (center (3,), radius float).
-    :raises ValueError: no points, or NaN / infinity in them.
+    :raises EngineInputError: no points, or NaN / infinity in them.
     """
     return engine.ritter_sphere(points)

@@ -7,8 +7,6 @@ Arguments shared by every test here (coal's convention: ``[R, T] = [R1'R2, R1'(T
     R       : (3, 3) float64   proper rotation (det = +1) from F_B to F_A: column j is B's
                                j-th axis in F_A, so R = R_A^T R_B with R_A, R_B box-to-world.
     t       : (3,) float64     B's centre in F_A: t = R_A^T (c_B - c_A).
-    scratch : (64,) float64    the caller's work buffer (the paper's test keeps the 8 + 8
-                               vertices in it; the SAT does not use it).
 
 Box A is centred at the origin of F_A and axis-aligned there. Each test returns True iff a
 separating plane exists with a clear gap, False when the closed boxes meet (touching counts as
@@ -39,30 +37,20 @@ import numpy as np
 from collision_sensor.engine.compiled import engine
 from collision_sensor.engine.tolerances import BOX_EPS_REL
 
-BOX_TEST_PAPER, BOX_TEST_SAT = 0, 1
+BOX_TEST_PAPER, BOX_TEST_SAT = engine.BOX_TEST_PAPER, engine.BOX_TEST_SAT
 
-# Paper Table 1 (sec. 5.1.3), restated in NOTES.md: row i is the silhouette hexagon of a box
-# seen along a direction in which vertex i has the smallest coordinate; vertices i and 7 - i
-# are hidden. Vertex numbering: bit k of the index selects min (0) or max (1) along box axis k,
-# so i and 7 - i are opposite. Consecutive entries differ in exactly one bit (they are box
-# edges), and every row runs counter-clockwise seen from the tip of the view direction when A's
-# frame is right-handed (test_box_test.py checks both on random rotations). Hence, in the view
-# plane coordinates (u, v) with u x v = view axis, the inside of the hexagon is on the left of
-# each edge, and the division-free edge function f = alpha * u + beta * v + gamma, with
-# alpha = v1 - v0, beta = u0 - u1, gamma = -(alpha * u0 + beta * v0), is > 0 exactly outside.
-# The sign is known in advance, so no orientation is computed and a degenerate (zero-area)
-# hexagon cannot flip it.
-HEXAGON = np.array([
-    [1, 3, 2, 6, 4, 5],
-    [0, 4, 5, 7, 3, 2],
-    [3, 7, 6, 4, 0, 1],
-    [2, 0, 1, 5, 7, 6],
-    [5, 1, 0, 2, 6, 7],
-    [4, 6, 7, 3, 1, 0],
-    [7, 5, 4, 0, 2, 3],
-    [6, 2, 3, 1, 5, 4],
-], dtype=np.int64)
-
+# Paper Table 1 (sec. 5.1.3), restated in NOTES.md, as the engine holds it (cpp/box_test.hpp): row
+# i is the silhouette hexagon of a box seen along a direction in which vertex i has the smallest
+# coordinate; vertices i and 7 - i are hidden. Vertex numbering: bit k of the index selects min (0)
+# or max (1) along box axis k, so i and 7 - i are opposite. Consecutive entries differ in exactly
+# one bit (they are box edges), and every row runs counter-clockwise seen from the tip of the view
+# direction when A's frame is right-handed (test_box_test.py checks both on random rotations).
+# Hence, in the view plane coordinates (u, v) with u x v = view axis, the inside of the hexagon is
+# on the left of each edge, and the division-free edge function f = alpha * u + beta * v + gamma,
+# with alpha = v1 - v0, beta = u0 - u1, gamma = -(alpha * u0 + beta * v0), is > 0 exactly outside.
+# The sign is known in advance, so no orientation is computed and a degenerate (zero-area) hexagon
+# cannot flip it.
+HEXAGON = np.array(engine.HEXAGON, dtype=np.int64)
 
 
 def box_tolerance(ha, hb) -> float:
@@ -81,13 +69,12 @@ def _pairs(ha, hb, R, t):
                     np.ascontiguousarray(t, dtype=np.float64).reshape(shape + (3,)))
 
 
-def boxes_disjoint(method: int, ha, hb, R, t, scratch=None):
+def boxes_disjoint(method: int, ha, hb, R, t):
     """Return True iff boxes A and B are separated, by ``method`` (BOX_TEST_PAPER or _SAT).
 
     :param ha, hb: (3,) half extents, or (n, 3) for n pairs at once.
     :param R: (3, 3) rotation, column j = B's axis j in F_A (or (n, 3, 3)).
     :param t: (3,) B's centre in F_A (or (n, 3)).
-    :param scratch: unused (the C++ tests keep their work on the stack).
     :return: a bool, or (n,) bool for n pairs.
     """
     single, pairs = _pairs(ha, hb, R, t)
@@ -96,7 +83,7 @@ def boxes_disjoint(method: int, ha, hb, R, t, scratch=None):
     return bool(answers[0]) if single else answers
 
 
-def boxes_disjoint_paper(ha, hb, R, t, scratch=None):
+def boxes_disjoint_paper(ha, hb, R, t):
     """Return True iff boxes A and B are separated: the paper's sec. 5 test.
 
     Type 1: B's 8 vertices in F_A all beyond one of A's six face planes. Type 2: the same with
@@ -107,7 +94,7 @@ def boxes_disjoint_paper(ha, hb, R, t, scratch=None):
     return boxes_disjoint(BOX_TEST_PAPER, ha, hb, R, t)
 
 
-def boxes_disjoint_sat(ha, hb, R, t, scratch=None):
+def boxes_disjoint_sat(ha, hb, R, t):
     """Return True iff boxes A and B are separated: the classical 15-axis separating-axis
     test (axes as the module docstring says). Arguments as :func:`boxes_disjoint`."""
     return boxes_disjoint(BOX_TEST_SAT, ha, hb, R, t)
@@ -120,9 +107,7 @@ def separating_axes(ha, hb, R, t) -> np.ndarray:
     return engine.separating_axis(*_pairs(ha, hb, R, t)[1])
 
 
-def separating_axis(a0, a1, a2, b0, b1, b2, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                    t0, t1, t2) -> int:
-    """Return the first separating axis of one box pair given as its 18 numbers, or -1 (see
-    :func:`separating_axes`)."""
-    return int(separating_axes((a0, a1, a2), (b0, b1, b2),
-                               (r00, r01, r02, r10, r11, r12, r20, r21, r22), (t0, t1, t2))[0])
+def separating_axis(ha, hb, R, t) -> int:
+    """Return the first axis of the 15-axis test that separates one box pair (ha, hb (3,), R
+    (3, 3), t (3,)), or -1 (see :func:`separating_axes`)."""
+    return int(separating_axes(ha, hb, R, t)[0])

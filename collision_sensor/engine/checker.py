@@ -9,33 +9,28 @@ This is the API the node, the command-line tools and the benchmarks build on::
     result.in_collision, result.colliding_pairs
 
 Everything between ``positions`` and the pair statuses runs in one call into the compiled
-engine (``cpp/query.hpp``: ``Engine::query``, C++17); this module turns files into flat arrays
+engine (``cpp/engine.hpp``: ``Engine::query``, C++17); this module turns files into flat arrays
 once, and names back into answers.
 """
 import dataclasses
 import math
-from difflib import SequenceMatcher
 from typing import Dict, Iterable, List, Mapping, NamedTuple, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from collision_sensor.engine.array_pack import ArrayPack
-from collision_sensor.engine.bounding_volumes import fit_obb
+from collision_sensor.engine import array_pack
 from collision_sensor.engine.checker_config import CheckerConfig
 from collision_sensor.engine.compiled import engine
 from collision_sensor.engine.dynamic_scene import (
-    MAX_COORDINATE, ROTATION_TOLERANCE, AddObject, MoveObject, PlacedObject, PreparedSceneChanges,
-    RemoveObject, SceneChange, SceneChangeError, build_object_block, check_geometry, checked_pose,
-    same_geometry, solid_row)
-from collision_sensor.engine.kinematics import (JOINT_FIXED, JOINT_FLOATING, JOINT_PLANAR,
-                                                JOINT_PRISMATIC, KinematicTree,
-                                                build_kinematic_tree)
-from collision_sensor.engine.obb_tree import (
-    BOX_WIDTH, NODE_LEFT, NODE_RIGHT, box_table, build_forest, forest_view, node_table)
-from collision_sensor.errors import (
-    ConfigError, JointStateError, SceneError, SrdfError, warn_load)
-from collision_sensor.model.exception_list import adjacent_pairs, parse_pair_strings, sorted_pair
-from collision_sensor.model.robot_model import Joint, RobotModel, load_urdf
+    AddObject, PlacedObject, PreparedSceneChanges, RemoveObject, SceneChange, SceneChangeError,
+    checked_pose, prepare_changes)
+from collision_sensor.engine.kinematics import KinematicTree, build_kinematic_tree
+from collision_sensor.engine.obb_tree import forest_view
+from collision_sensor.engine.robot_block import (
+    allowed_names_to_come, build_robot_block, joint_tables, with_virtual_joint, world_frames)
+from collision_sensor.engine.scene_layout import SceneLayout, changed_objects
+from collision_sensor.errors import JointStateError, SceneError, warn_load
+from collision_sensor.model.robot_model import RobotModel, load_urdf
 from collision_sensor.model.scene import SceneObject, load_scene
 from collision_sensor.model.srdf import Srdf, load_srdf_for_model
 
@@ -45,13 +40,6 @@ _NOT_AN_ARRAY = engine.NOT_AN_ARRAY
 #: few of them; the bound keeps a random stream from growing the cache without end).
 RESULT_CACHE_SIZE = 4096
 Positions = Union[Mapping[str, float], Sequence[float], np.ndarray]
-#: How far a point can move per unit of a floating joint's quaternion component, for the
-#: incremental bounds (_pair_reaches): huge, so that any move beyond motion_tolerance forces
-#: a re-check (the true bound grows as 1 / |quaternion|; the engine refuses quaternions with a
-#: norm below QUATERNION_NORM_MIN = 1e-100, which keeps it below this, see cpp/kinematics.hpp).
-#: Finite on purpose: inf * 0 would be NaN.
-QUATERNION_REACH = 1e300
-_VARIABLE_COUNT = {JOINT_PLANAR: 3, JOINT_FLOATING: 7}
 
 
 class CheckResult(NamedTuple):
@@ -93,47 +81,6 @@ class ProximityRecord(NamedTuple):
     point_b: np.ndarray
 
 
-class _RobotBlock(NamedTuple):
-    """What the engine reads of the robot that no scene change alters (built once).
-
-    Trees (``boxes (N, BOX_WIDTH)``, ``nodes (N, NODE_WIDTH)``, ``volume, gain (N,)``,
-    ``tris (T, 3, 3)``, ``roots (E,)``, ``depth``, ``elem_solid (E, SOLID_WIDTH)``), each
-    link's element range ``elem_start, elem_end (L,)``, box ``body_boxes (L, BOX_WIDTH)``,
-    vertex radius ``radius (L,)`` and padding ``padding (L,)`` (metres; its boxes are grown by
-    it, see :func:`_grow_boxes`), and the self-collision pairs checked.
-    """
-
-    boxes: np.ndarray
-    nodes: np.ndarray
-    volume: np.ndarray
-    gain: np.ndarray
-    tris: np.ndarray
-    roots: np.ndarray
-    depth: int
-    elem_solid: np.ndarray
-    elem_start: np.ndarray
-    elem_end: np.ndarray
-    body_boxes: np.ndarray
-    radius: np.ndarray
-    padding: np.ndarray
-    pairs: Tuple[Pair, ...]
-
-
-class _EngineTree(NamedTuple):
-    """The engine's kinematic arrays: the robot's links, then each attached object as a link
-    on a fixed joint below its own (``T_parent_joint`` its pose in that link's frame)."""
-
-    parent: np.ndarray
-    joint_type: np.ndarray
-    q_index: np.ndarray
-    multiplier: np.ndarray
-    T_parent_joint: np.ndarray
-
-
-def _transformed(T: np.ndarray, vertices: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(vertices @ T[:3, :3].T + T[:3, 3])
-
-
 class CollisionChecker:
     """Self-collision and robot-versus-scene checking for one robot.
 
@@ -147,6 +94,12 @@ class CollisionChecker:
     without touching its surface is not reported (see README, "Contact rule"). With padding
     (``padding``, ``link_padding`` in the config), each link's geometry is grown by its padding
     (a sphere swept over it): contact means the surfaces come within the two paddings' sum.
+
+    The checker answers; what it answers from lives in rooms of their own: the robot block
+    (:mod:`~collision_sensor.engine.robot_block`, built once), the scene laid out for the
+    engine (:mod:`~collision_sensor.engine.scene_layout`, by every structural scene change),
+    the scene changes (:mod:`~collision_sensor.engine.dynamic_scene`) and the engine itself
+    (``cpp/engine.hpp``).
     """
 
     def __init__(self, model: RobotModel, srdf: Optional[Srdf] = None,
@@ -157,28 +110,28 @@ class CollisionChecker:
         :raises CollisionSensorError: on a bad scene, configuration or exception list.
         """
         self.config = CheckerConfig.from_mapping(config)
-        model = self.model = _with_virtual_joint(model, srdf)
+        model = self.model = with_virtual_joint(model, srdf)
         self.kinematics: KinematicTree = build_kinematic_tree(model)
         scene = tuple(scene)
-        self._link_index = {name: i for i, name in enumerate(self.kinematics.link_names)}
         #: Frames a world object's pose may be given in: the root link, and the parent frame of
         #: an SRDF fixed virtual joint (MoveIt's "world" above the robot).
-        self.world_frames = frozenset([model.root_link] + [
-            joint.parent_frame for joint in (srdf.virtual_joints if srdf is not None else ())
-            if joint.type == 'fixed' and joint.child_link == model.root_link])
-
-        # The stages: the robot's trees, link boxes and pairs (built once, never again), the
-        # joints' tables, then the scene's objects and the engine's buffers (rebuilt by every
-        # scene change, see _install).
-        self._robot = self._build_robot_block(srdf, [obj.name for obj in scene])
-        self._build_joint_tables()
-        self._objects: Dict[str, PlacedObject] = {}
+        self.world_frames = world_frames(model, srdf)
+        # The robot's trees, link boxes and pairs, and the joints' tables: built once, never
+        # again. The scene is laid out by every structural scene change (_install).
+        self._robot = build_robot_block(model, self.kinematics, self.config, srdf,
+                                        [obj.name for obj in scene])
+        self.link_names: Tuple[str, ...] = self._robot.link_names
+        self._allowed_to_come, self.config_warnings = allowed_names_to_come(
+            self.config, model, self._robot.link_names, [obj.name for obj in scene])
+        for line in self.config_warnings:
+            warn_load(line)
+        self._joints = joint_tables(model, self.kinematics)
+        self.joint_names: Tuple[str, ...] = self._joints.names
+        self.joint_limits: Dict[str, Tuple[float, float]] = self._joints.limits
+        self._scene: Optional[SceneLayout] = None
         # Counts committed scene changes and moves: prepared changes must be prepared again
         # once it has changed.
         self._scene_version = 0
-        # Each pair's (path, reach, reach_ext) rows (see _pair_rows), kept across scene changes.
-        self._rows: Dict[Pair, Tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
-        self._views: Optional[Dict[str, np.ndarray]] = None
         self._result = CheckResult(False, (), 0)
         self._results: Dict[bytes, CheckResult] = {}
         try:
@@ -186,91 +139,6 @@ class CollisionChecker:
         except SceneChangeError as error:
             raise SceneError(f'scene: {error.reason}') from None
         self._install(prepared)
-
-    def _build_robot_block(self, srdf: Optional[Srdf], object_names: List[str]
-                           ) -> '_RobotBlock':
-        """Build one OBB tree per collision element (the paper's per-link sub-groups, in link
-        frames, grown by the link's padding), each link's box over its elements (sec. 2.1:
-        computed once) and the self-collision pairs; set :attr:`link_names` and the exception
-        list. Everything here is what the engine reads that no scene change alters."""
-        model, kin = self.model, self.kinematics
-        link_names = list(kin.link_names)
-        n_links = len(link_names)
-        meshes, owners, solids = [], [], []
-        for element in model.elements:
-            meshes.append((_transformed(element.T_link_element, element.vertices),
-                           element.faces))
-            owners.append(self._link_index[element.link])
-            solids.append(self._solid_row(element.solid, element.faces,
-                                          element.T_link_element))
-        order = np.argsort(np.asarray(owners, dtype=np.int64), kind='stable')
-        meshes = [meshes[i] for i in order]
-        elem_solid = (np.array([solids[i] for i in order]) if solids
-                      else np.zeros((0, engine.SOLID_WIDTH)))
-        owners = np.asarray(owners, dtype=np.int64)[order]
-        forest = build_forest(meshes, leaf_size=self.config.leaf_size,
-                              fit=self.config.obb_fit_code)
-        counts = np.bincount(owners, minlength=n_links) if len(owners) else np.zeros(
-            n_links, dtype=np.int64)
-        elem_end = np.cumsum(counts).astype(np.int64)
-        elem_start = (elem_end - counts).astype(np.int64)
-        padding = self._link_padding(link_names, object_names)
-        _grow_boxes(forest.half, forest.roots, padding[owners])
-
-        center, axes, half = np.zeros((n_links, 3)), np.tile(np.eye(3), (n_links, 1, 1)), \
-            np.zeros((n_links, 3))
-        vertex_radius = np.zeros(n_links)
-        for b in range(n_links):
-            chunk = [meshes[e][0] for e in range(elem_start[b], elem_end[b])]
-            if chunk:
-                points = np.concatenate(chunk)
-                faces = np.concatenate([meshes[e][1] + sum(len(c) for c in chunk[:k])
-                                        for k, e in enumerate(range(elem_start[b],
-                                                                    elem_end[b]))])
-                center[b], axes[b], half[b] = fit_obb(points, self.config.obb_fit_code,
-                                                      faces=faces)
-                half[b] += padding[b]   # the padded link (see _grow_boxes)
-                vertex_radius[b] = float(np.sqrt((points ** 2).sum(axis=1).max()))
-
-        self.link_names: Tuple[str, ...] = tuple(
-            name for b, name in enumerate(link_names) if counts[b] > 0)
-        self._base_exclusions: Dict[Pair, str] = self._exception_list(
-            srdf, link_names, object_names)
-        robot = list(self.link_names)
-        robot_pairs = [sorted_pair(a, b) for i, a in enumerate(robot) for b in robot[i + 1:]]
-        return _RobotBlock(
-            boxes=box_table(forest.center, forest.axes, forest.half),
-            nodes=node_table(forest), volume=forest.volume, gain=forest.gain,
-            tris=forest.tris, roots=forest.roots, depth=int(forest.depth.max(initial=1)),
-            elem_solid=elem_solid, elem_start=elem_start, elem_end=elem_end,
-            body_boxes=box_table(center, axes, half), radius=vertex_radius, padding=padding,
-            pairs=tuple(sorted(pair for pair in robot_pairs
-                               if pair not in self._base_exclusions)))
-
-    def _build_joint_tables(self) -> None:
-        """Set the joints' names, limits and mimic set, and for each variable the links whose
-        pose depends on it and whether it drives a slider (the incremental rule's inputs)."""
-        kin = self.kinematics
-        n_links = len(kin.link_names)
-        self.joint_names: Tuple[str, ...] = tuple(kin.joint_names)
-        self._joint_index = {name: j for j, name in enumerate(self.joint_names)}
-        self._derived_joints = frozenset(
-            joint.name for joint in self.model.joints
-            if joint.mimic is not None and joint.type != 'fixed')
-        self.joint_limits: Dict[str, Tuple[float, float]] = {
-            name: (float(kin.lower[j]), float(kin.upper[j]))
-            for j, name in enumerate(self.joint_names)}
-        n_joints = len(self.joint_names)
-        depends = np.zeros((n_joints, n_links), dtype=bool)
-        joint_prismatic = np.zeros(n_joints, dtype=np.int64)
-        for i in range(n_links):  # parents come first
-            if kin.parent[i] >= 0:
-                depends[:, i] = depends[:, kin.parent[i]]
-            if kin.q_index[i] >= 0:
-                depends[_variables(kin, i), i] = True
-                joint_prismatic[kin.q_index[i]] += kin.joint_type[i] == JOINT_PRISMATIC
-        self._link_depends = depends
-        self._joint_prismatic = joint_prismatic
 
     @classmethod
     def from_urdf(cls, urdf, srdf=None, package_paths: Optional[Mapping[str, str]] = None,
@@ -304,160 +172,19 @@ class CollisionChecker:
             checker.config_warnings
         return checker
 
-    # ------------------------------------------------------------------ set-up helpers
-    @staticmethod
-    def _pack(dtype, slots, arrays):
-        pack = ArrayPack(dtype)
-        for name in slots:  # the order of the engine's slots (cpp/query.hpp)
-            pack.add(name, arrays[name])
-        return pack.pack()
-
-    def packed_array(self, name: str) -> np.ndarray:
-        """Return the engine's array ``name`` (``cpp/query.hpp``: CS_FLOAT_SLOTS, CS_INT_SLOTS)
-        as a view of the buffer the engine reads and writes in place: for tests, benchmarks and
-        inspection (writing to it changes what the engine sees)."""
-        return self._views[name]
-
-    def _solid_row(self, solid, faces, T_body_element) -> np.ndarray:
-        """The engine's row for one element (see :func:`dynamic_scene.solid_row`)."""
-        return solid_row(solid, faces, T_body_element, self.config.mesh_containment,
-                         engine.SOLID_WIDTH)
-
-    def _write_header(self, I: np.ndarray, F_layout: np.ndarray, I_layout: np.ndarray,
-                      n_links: int) -> None:
-        """Fill the int buffer's header (cpp/query.hpp: H_*), after packing."""
-        e = engine
-        I[e.H_N_LINKS], I[e.H_BOX_METHOD], I[e.H_EXPANSION] = (
-            n_links, self.config.box_test_code, self.config.expansion_code)
-        I[e.H_CHECKED_ONCE], I[e.H_RESYNC_COUNTDOWN] = 0, e.TRAVEL_RESYNC_CALLS
-        I[e.H_LAYOUTS:e.H_I_LAYOUT] = F_layout.ravel()
-        I[e.H_I_LAYOUT:e.HEADER_SIZE] = I_layout.ravel()
-
-    def _link_padding(self, link_names: List[str], object_names: List[str]) -> np.ndarray:
-        """(L,) float64: each robot link's padding (m), from ``padding`` and
-        ``link_padding``; scene objects are never padded.
-
-        :raises ConfigError: ``link_padding`` names something that is not a link of the robot.
-        """
-        padding = np.full(len(link_names), float(self.config.padding))
-        index = {name: i for i, name in enumerate(link_names)}
-        for name, metres in self.config.link_padding:
-            if name not in index:
-                what = ('is a scene object; only robot links are padded'
-                        if name in object_names else
-                        f'is not a link of robot "{self.model.name}"; links: '
-                        + ', '.join(link_names))
-                raise ConfigError(f'setting link_padding: "{name}" {what}')
-            padding[index[name]] = metres
-        return padding
-
-    def _exception_list(self, srdf: Optional[Srdf], link_names: List[str],
-                        object_names: List[str]) -> Dict[Pair, str]:
-        excluded: Dict[Pair, str] = {}
-        if self.config.ignore_adjacent:
-            parents = {link: None for link in link_names}
-            for joint in self.model.joints:
-                parents[joint.child] = joint.parent
-            for pair in adjacent_pairs(parents, self.link_names):
-                excluded[pair] = 'adjacent'
-        if srdf is not None:
-            for entry in srdf.disabled_pairs:
-                pair = sorted_pair(entry.link1, entry.link2)
-                excluded.setdefault(pair, f'srdf: {entry.reason}' if entry.reason else 'srdf')
-        known = set(link_names) | set(object_names)
-        # A name that is no link or object yet is kept: a scene object may come by that name.
-        pending = set()
-        for pair in parse_pair_strings(self.config.allowed_collisions, known, pending=pending):
-            excluded.setdefault(pair, 'allowed_collisions')
-        self._allowed_unknown = frozenset(pending)
-        self.config_warnings = tuple(
-            f'allowed_collisions: "{name}" is neither a link of robot "{self.model.name}" nor '
-            'a scene object: kept for an object of that name added later; if you meant the link '
-            f'"{max(link_names, key=lambda link: SequenceMatcher(None, name, link).ratio())}", '
-            'fix the name' for name in sorted(pending))
-        for line in self.config_warnings:
-            warn_load(line)
-        return excluded
-
     @property
     def pending_allowed_names(self) -> Tuple[str, ...]:
         """Names ``allowed_collisions`` gives that are no link and no scene object (yet): their
         pairs apply once an object of that name is added; sorted."""
-        return tuple(sorted(name for name in self._allowed_unknown if name not in self._objects))
+        return tuple(sorted(name for name in self._allowed_to_come
+                            if name not in self._scene.objects))
 
-    def _pair_rows(self, tree: '_EngineTree', vertex_radius: np.ndarray, pair_a: np.ndarray,
-                   pair_b: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Return ``path, reach, reach_ext``, each (n, J), for the pairs of bodies
-        ``(pair_a[i], pair_b[i])`` (engine body indices; a world object second).
-
-        ``path[i, j]`` is 1 iff variable j drives a joint on the tree path between the two
-        bodies (int64). ``reach, reach_ext`` (float64): how far a point of either body can
-        move, relative to the other, per unit of variable j: ``reach + reach_ext * E``, where
-        E is the sum of |value| of every prismatic joint at the current state (0 off the path).
-
-        A joint k on the path moves the body on its side (relative to the pair's common
-        ancestor). Revolute: every point of body x below k stays within the distance from
-        k's origin (on its axis) to x's origin, at most the sum of the joint offsets
-        ``|t_parent_joint|`` from k down to x plus the extensions of the prismatic joints
-        between them (at most E), plus x's vertex radius around its origin. Prismatic: 1.
-        Both times |multiplier|, summed over the joints variable j drives. E is taken at the
-        new state: moving the prismatic variables first, then the others, is a path from the
-        old state along which every bound holds. An attached object is a link on a fixed
-        joint whose offset is its pose in its link's frame: it enters the lever arms so.
-
-        Planar and floating joints translate, then rotate about the translated origin (their
-        child frame's). Translation variables: 1, as a prismatic joint. Planar theta: as a
-        revolute joint about the child frame's origin, so the joint's own translation is not
-        in its lever arm, and translation variables do not count in E. Quaternion components:
-        QUATERNION_REACH (any move re-checks). A rotating joint k with a planar or floating
-        joint between it and x would have that joint's translation in its lever arm; such a
-        k gets QUATERNION_REACH too (rare: multi-DOF joints are mostly the root's), so E stays
-        the prismatic joints' sum. Below both bodies' common ancestor (a floating base under
-        self-collision pairs) a joint moves nothing relative, and is skipped.
-
-        Padding does not enter: a padded pair's clearance is a bound of its surfaces' distance
-        minus a constant (the paddings), which moves exactly as much as that distance does.
-        """
-        n_links, n_joints = len(tree.parent), len(self.joint_names)
-        offset_norm = np.linalg.norm(tree.T_parent_joint[:, :3, 3], axis=1)
-        path = np.zeros((len(pair_a), n_joints), dtype=np.int64)
-        reach = np.zeros((len(pair_a), n_joints))
-        reach_ext = np.zeros((len(pair_a), n_joints))
-        for p, (a, b) in enumerate(zip(pair_a, pair_b)):
-            chains = {}
-            for x in (a, b) if b < n_links else (a,):
-                chain, k = [], int(x)
-                while k > 0:
-                    chain.append(k)  # x and its ancestors, up to (excluding) the root
-                    k = int(tree.parent[k])
-                chains[int(x)] = chain
-            for x, chain in chains.items():
-                other = chains.get(int(b) if x == a else int(a), [])
-                for depth, k in enumerate(chain):
-                    if k in other or tree.q_index[k] < 0:
-                        continue  # above the common ancestor, or not driven
-                    path[p, _variables(tree, k)] = 1
-                    below = chain[:depth]  # from x up to, excluding, k
-                    m = abs(tree.multiplier[k]) * (1.0 + 1e-9)
-                    j = tree.q_index[k]
-                    kind = tree.joint_type[k]
-                    if kind == JOINT_PRISMATIC:
-                        reach[p, j] += m
-                        continue
-                    lever = float(offset_norm[below].sum()) + vertex_radius[x]
-                    if any(tree.joint_type[c] in _VARIABLE_COUNT for c in below):
-                        lever = QUATERNION_REACH   # a multi-DOF translation in the lever arm
-                    if kind == JOINT_PLANAR:
-                        reach[p, j:j + 2] += m   # x, y
-                        j += 2                   # theta: below, as a revolute joint
-                    elif kind == JOINT_FLOATING:
-                        reach[p, j:j + 3] += m   # trans_x, trans_y, trans_z
-                        reach[p, j + 3:j + 7] = QUATERNION_REACH
-                        continue
-                    reach[p, j] = min(reach[p, j] + m * lever, QUATERNION_REACH)
-                    if any(tree.joint_type[c] == JOINT_PRISMATIC for c in below):
-                        reach_ext[p, j] += m
-        return path, reach, reach_ext
+    # ------------------------------------------------------------------ the engine's arrays
+    def packed_array(self, name: str) -> np.ndarray:
+        """Return the engine's array ``name`` (``cpp/layout.hpp``: CS_FLOAT_SLOTS,
+        CS_INT_SLOTS) as a view of the buffer the engine reads and writes in place: for tests,
+        benchmarks and inspection (writing to it changes what the engine sees)."""
+        return self._views[name]
 
     @property
     def paddings(self) -> Dict[str, float]:
@@ -479,11 +206,11 @@ class CollisionChecker:
         pose (an attached object's at the last checked state)."""
         poses = None
         objects = []
-        for placed in self._objects.values():
+        for placed in self._scene.objects.values():
             T = placed.pose
             if placed.attach_to is not None:
                 poses = self._poses() if poses is None else poses
-                T = poses[self._body_index[placed.name]].copy()
+                T = poses[self._scene.body_index[placed.name]].copy()
             objects.append(placed.obj if placed.obj.T_world_object is T
                            else dataclasses.replace(placed.obj, T_world_object=T))
         return tuple(objects)
@@ -492,7 +219,7 @@ class CollisionChecker:
     def attachments(self) -> Dict[str, Tuple[str, Tuple[str, ...]]]:
         """``{object: (link, touch links)}`` for every attached object."""
         return {name: (placed.attach_to, placed.touch_links)
-                for name, placed in self._objects.items() if placed.attach_to is not None}
+                for name, placed in self._scene.objects.items() if placed.attach_to is not None}
 
     def object_pose(self, name: str) -> np.ndarray:
         """Return object ``name``'s pose as last set: (4, 4), in the world frame, or in its
@@ -500,9 +227,9 @@ class CollisionChecker:
 
         :raises SceneError: no such object.
         """
-        placed = self._objects.get(name)
+        placed = self._scene.objects.get(name)
         if placed is None:
-            raise SceneError(f'no object "{name}"; objects are {", ".join(self._objects)}')
+            raise SceneError(f'no object "{name}"; objects are {", ".join(self._scene.objects)}')
         return placed.pose.copy()
 
     def object_triangles(self, name: str) -> int:
@@ -510,9 +237,9 @@ class CollisionChecker:
 
         :raises SceneError: no such object.
         """
-        placed = self._objects.get(name)
+        placed = self._scene.objects.get(name)
         if placed is None:
-            raise SceneError(f'no object "{name}"; objects are {", ".join(self._objects)}')
+            raise SceneError(f'no object "{name}"; objects are {", ".join(self._scene.objects)}')
         return placed.block.triangles
 
     def add_object(self, obj: SceneObject, attach_to: Optional[str] = None,
@@ -533,7 +260,6 @@ class CollisionChecker:
             pose that is not a rigid transform, no triangles ...); nothing changes then.
         """
         self.apply_scene_changes([AddObject(obj, attach_to, tuple(touch_links), pose)])
-
     def move_object(self, name: str, pose) -> None:
         """Give object ``name`` a new pose, (4, 4), in the world or, when attached, in its
         link's frame. The next :meth:`update` re-checks its pairs only (and what the joints
@@ -545,10 +271,10 @@ class CollisionChecker:
         # call a moving object makes at every step. An object fixed in the world moves in one
         # engine call (the pose checked there as checked_pose checks it); anything the engine
         # refuses takes the long way, which names the fault.
-        old = self._objects.get(name)
+        old = self._scene.objects.get(name)
         if old is None:
             raise SceneError(f'no object "{name}" to move; add it first (objects: '
-                             f'{", ".join(self._objects) or "none"})')
+                             f'{", ".join(self._scene.objects) or "none"})')
         T = None
         if old.attach_to is None:
             try:
@@ -556,7 +282,7 @@ class CollisionChecker:
             except (TypeError, ValueError):
                 pass
             if T is None or T.shape != (4, 4) or self._engine.move_world_body(
-                    self._body_index[name], T, MAX_COORDINATE, ROTATION_TOLERANCE):
+                    self._scene.body_index[name], T):
                 T = None
             else:
                 T.setflags(write=False)
@@ -566,7 +292,7 @@ class CollisionChecker:
             self._move_in_place(placed)
         else:
             placed = PlacedObject(old.obj, old.block, None, old.touch_links, T)
-        self._objects[name] = placed
+        self._scene.objects[name] = placed
         self._scene_version += 1
 
     def remove_object(self, name: str) -> None:
@@ -584,7 +310,6 @@ class CollisionChecker:
         :raises SceneError: naming the change at fault; the checker is then unchanged.
         """
         self.commit_scene_changes(self.prepare_scene_changes(changes))
-
     def prepare_scene_changes(self, changes: Iterable[SceneChange]) -> PreparedSceneChanges:
         """Validate ``changes`` against the current scene and build the new objects' trees,
         without changing the checker.
@@ -598,71 +323,12 @@ class CollisionChecker:
         :raises SceneChangeError: the first change that cannot apply (``index``), naming the
             object and the fix.
         """
-        version, base = self._scene_version, self._objects
-        objects = dict(base)
-        moved, rebuilt = set(), set()
-        structural = False
-        for k, change in enumerate(changes):
-            try:
-                if isinstance(change, AddObject):
-                    placed, same = self._placed(change, objects)
-                    objects[placed.name] = placed
-                    (moved if same else rebuilt).add(placed.name)
-                    structural |= not same
-                elif isinstance(change, (MoveObject, RemoveObject)):
-                    name = change.name
-                    old = objects.get(name)
-                    if old is None:
-                        verb = 'move' if isinstance(change, MoveObject) else 'remove'
-                        raise SceneError(f'no object "{name}" to {verb}; add it first '
-                                         f'(objects: {", ".join(objects) or "none"})')
-                    if isinstance(change, MoveObject):
-                        pose = checked_pose(change.pose, f'object "{name}"')
-                        objects[name] = PlacedObject(old.obj, old.block, old.attach_to,
-                                                     old.touch_links, pose)
-                        moved.add(name)
-                    else:
-                        del objects[name]
-                        moved.discard(name)
-                        rebuilt.discard(name)
-                        structural = True
-                else:
-                    raise SceneError(f'{type(change).__name__} is not a scene change; give '
-                                     'AddObject, MoveObject or RemoveObject')
-            except SceneError as error:
-                raise SceneChangeError(k, str(error)) from None
-        return PreparedSceneChanges(self, base, objects, structural,
-                                    frozenset(moved - rebuilt), frozenset(rebuilt), version)
-
-    def _placed(self, change: AddObject,
-                objects: Mapping[str, PlacedObject]) -> Tuple[PlacedObject, bool]:
-        """The object ``change`` adds, and whether it only moves the one of its name."""
-        obj = change.obj
-        name = getattr(obj, 'name', None)
-        if not isinstance(name, str) or not name:
-            raise SceneError('the object has no name; give it a unique name')
-        owner = f'object "{name}"'
-        if name in self._link_index or name in self.world_frames:
-            raise SceneError(f'{owner} has the name of a link or frame of robot '
-                             f'"{self.model.name}"; rename the object')
-        check_geometry(obj, owner)
-        attach_to = None if change.attach_to in self.world_frames else change.attach_to
-        touch_links = tuple(dict.fromkeys(change.touch_links))
-        if attach_to is not None and attach_to not in self._link_index:
-            raise SceneError(f'{owner}: "{attach_to}" is not a link of robot '
-                             f'"{self.model.name}"; attach it to one of its links, or to '
-                             f'{" or ".join(sorted(self.world_frames))} (the world)')
-        unknown = [link for link in touch_links if link not in self._link_index]
-        if unknown:
-            raise SceneError(f'{owner}: touch link "{unknown[0]}" is not a link of robot '
-                             f'"{self.model.name}"; give touch links of the robot')
-        pose = checked_pose(obj.T_world_object if change.pose is None else change.pose, owner)
-        old = objects.get(name)
-        if (old is not None and old.attach_to == attach_to and old.touch_links == touch_links
-                and same_geometry(old.obj, obj)):
-            return PlacedObject(obj, old.block, attach_to, touch_links, pose), True
-        block = build_object_block(obj, self.config, engine.SOLID_WIDTH)
-        return PlacedObject(obj, block, attach_to, touch_links, pose), False
+        version = self._scene_version
+        base = self._scene.objects if self._scene is not None else {}
+        done = prepare_changes(changes, base, self.kinematics.link_names, self.world_frames,
+                               self.model.name, self.config)
+        return PreparedSceneChanges(self, base, done.objects, done.structural, done.moved,
+                                    done.rebuilt, version)
 
     def commit_scene_changes(self, prepared: PreparedSceneChanges) -> None:
         """Make the scene ``prepared`` describes this checker's: moves write poses (cheap);
@@ -681,309 +347,57 @@ class CollisionChecker:
             return
         for name in prepared.moved:
             self._move_in_place(prepared.objects[name])
-        self._objects = prepared.objects
+        self._scene.objects = prepared.objects
 
     def _move_in_place(self, placed: PlacedObject) -> None:
-        """Write an object's new pose into the engine's tables and force its pairs."""
-        views, pairs = self._views, self._object_pairs[placed.name]
-        b = self._body_index[placed.name]
+        """Give an object its new pose in the engine, which forces its pairs."""
+        b = self._scene.body_index[placed.name]
         if placed.attach_to is None:
-            views['T_world_body'][b] = placed.pose
+            code = self._engine.move_world_body(b, np.ascontiguousarray(placed.pose))
         else:
             # The fixed joint's origin, and the reach bounds whose lever arms run through it.
-            views['T_parent_joint'][b] = placed.pose
-            views['stale'][b] = 1
-            _, reach, reach_ext = self._pair_rows(self._engine_tree(), self._radius,
-                                                  self._pair_a[pairs], self._pair_b[pairs])
-            views['reach'][pairs] = reach
-            views['reach_ext'][pairs] = reach_ext
-            for row, p in enumerate(pairs):
-                path = self._rows[self.checked_pairs[p]][0]
-                self._rows[self.checked_pairs[p]] = (path, reach[row], reach_ext[row])
-        views['forced'][pairs] = 1
-        self._I[engine.H_FORCED] = 1
-
-    def _engine_tree(self) -> '_EngineTree':
-        """The engine's kinematic arrays (robot links, then attached objects)."""
-        v = self._views
-        return _EngineTree(v['parent'], v['joint_type'], v['q_index'], v['multiplier'],
-                           v['T_parent_joint'])
+            pairs, reach, reach_ext = self._scene.attached_reach(placed.name, placed.pose,
+                                                                 len(self.joint_names))
+            code = self._engine.place_attached_body(b, placed.pose, pairs, reach, reach_ext)
+        if code:   # checked_pose and the engine check a pose with the same arithmetic
+            raise SceneError(f'object "{placed.name}": the engine refused its pose; '
+                             'report this as a bug')
 
     def _install(self, prepared: PreparedSceneChanges) -> None:
-        """Put the engine's buffers together for the scene ``prepared`` describes, carrying
-        over the state of every pair that survives, and swap them in.
-
-        Bodies: the robot's links, the attached objects (links on fixed joints below theirs),
-        the world objects. Trees: the robot's block, then each object's, indices shifted.
-        Every new pair, and every pair of an object added or moved, is forced; a pair that
-        survives keeps its status, clearance, travel and witness (its triangles moved by
-        its object's shift), not its front (the front rows are sized anew).
-        """
-        kin, robot, objects = self.kinematics, self._robot, prepared.objects
-        n_robot = len(kin.link_names)
-        attached = [p for p in objects.values() if p.attach_to is not None]
-        world = [p for p in objects.values() if p.attach_to is None]
-        placed = attached + world
-        body_names = list(kin.link_names) + [p.name for p in placed]
-        n_links, n_bodies, n_attached = n_robot + len(attached), len(body_names), len(attached)
-        body_index = {name: b for b, name in enumerate(body_names)}
-        attach_links = np.array([self._link_index[p.attach_to] for p in attached],
-                                dtype=np.int64)
-        tree = _EngineTree(
-            parent=np.concatenate([kin.parent, attach_links]),
-            joint_type=np.concatenate([kin.joint_type, np.full(n_attached, JOINT_FIXED)]),
-            q_index=np.concatenate([kin.q_index, np.full(n_attached, -1)]),
-            multiplier=np.concatenate([kin.multiplier, np.ones(n_attached)]),
-            T_parent_joint=np.concatenate(
-                [kin.T_parent_joint, np.reshape([p.pose for p in attached], (-1, 4, 4))]))
-
-        # The forest: the robot's trees, then one per object (node and triangle indices
-        # shifted by what comes before it).
-        node_start = len(robot.boxes) + np.cumsum(
-            [0] + [len(p.block.boxes) for p in placed], dtype=np.int64)
-        tri_start = len(robot.tris) + np.cumsum([0] + [p.block.triangles for p in placed],
-                                                dtype=np.int64)
-        nodes = [robot.nodes]
-        for p, n0, t0 in zip(placed, node_start, tri_start):
-            shifted = p.block.nodes + np.array([n0, n0, t0, 0], dtype=np.int64)
-            leaf = p.block.nodes[:, NODE_LEFT] < 0
-            shifted[leaf, NODE_LEFT:NODE_RIGHT + 1] = -1
-            nodes.append(shifted)
-        n_elements = len(robot.roots) + len(placed)
-        elem_solid = np.concatenate([robot.elem_solid] + [p.block.solid_row[None] for p in placed]
-                                    + [np.zeros((0 if n_elements else 1, engine.SOLID_WIDTH))])
-        first_object_element = len(robot.roots) + np.arange(len(placed), dtype=np.int64)
-        body_elem_start = np.concatenate([robot.elem_start, first_object_element])
-        body_elem_end = np.concatenate([robot.elem_end, first_object_element + 1])
-        radius = np.concatenate([robot.radius, [p.block.radius for p in placed]])
-
-        checked, excluded, object_pairs = self._scene_pairs(attached, world)
-        n_pairs, n_joints = len(checked), len(self.joint_names)
-        pair_a = np.empty(n_pairs, dtype=np.int64)
-        pair_b = np.empty(n_pairs, dtype=np.int64)
-        for p, (a, b) in enumerate(checked):
-            ia, ib = body_index[a], body_index[b]
-            pair_a[p], pair_b[p] = (ib, ia) if ia >= n_links else (ia, ib)  # world object second
-        # Each pair's rows, computed once and kept while its bodies keep their place.
-        changed = prepared.rebuilt | (prepared.base.keys() - objects.keys()) | {
-            name for name in prepared.moved if objects[name].attach_to is not None}
-        rows = {pair: row for pair, row in self._rows.items()
-                if pair[0] not in changed and pair[1] not in changed}
-        missing = [p for p, pair in enumerate(checked) if pair not in rows]
-        for p, path, reach, reach_ext in zip(missing, *self._pair_rows(
-                tree, radius, pair_a[missing], pair_b[missing])):
-            rows[checked[p]] = (path, reach, reach_ext)
-        rows = {pair: rows[pair] for pair in checked}
-        path = np.reshape([rows[pair][0] for pair in checked], (n_pairs, n_joints))
-        reach = np.reshape([rows[pair][1] for pair in checked], (n_pairs, n_joints))
-        reach_ext = np.reshape([rows[pair][2] for pair in checked], (n_pairs, n_joints))
-        # Each variable's pairs (those with it on their path), as one list cut per variable;
-        # each variable's links (whose pose depends on it), attached objects with their link.
-        on_path = path.T.nonzero()
-        joint_pairs_start = np.searchsorted(on_path[0], np.arange(n_joints + 1))
-        depends = np.concatenate([self._link_depends, self._link_depends[:, attach_links]],
-                                 axis=1)
-        joint_links = depends.nonzero()
-        joint_links_start = np.searchsorted(joint_links[0], np.arange(n_joints + 1))
-        depth = max([robot.depth] + [p.block.depth for p in placed])
-        # Each pair's front (cpp/query.cpp: trees_of_pair) gets the same number of rows; the
-        # traversal's stack takes a front's node pairs, or a pair's root pairs, as seeds.
-        front_rows = int(np.clip(engine.FRONT_POOL_ROWS // max(n_pairs, 1),
-                                 engine.FRONT_ROWS_MIN, engine.FRONT_ROWS_MAX))
-        elements = body_elem_end - body_elem_start
-        seeds = max([front_rows] + list(elements[pair_a] * elements[pair_b]))
-
-        is_scene = np.zeros(n_bodies, dtype=np.int64)
-        is_scene[n_links:] = 1
-        T_world_body = np.tile(np.eye(4), (n_bodies, 1, 1))
-        stale = np.zeros(n_bodies, dtype=np.int64)
-        stale[:n_links] = 1
-        for b, p in enumerate(world, start=n_links):
-            T_world_body[b] = p.pose
-        scalars = np.zeros(engine.N_SCALARS)
-        scalars[engine.S_TOLERANCE] = self.config.motion_tolerance
-        floats = dict(
-            scalars=scalars, q_last=kin.neutral(), q_ref=kin.neutral(),
-            T_parent_joint=tree.T_parent_joint, axis=np.concatenate(
-                [kin.axis, np.tile([0.0, 0.0, 1.0], (n_attached, 1))]),
-            multiplier=tree.multiplier,
-            offset=np.concatenate([kin.offset, np.zeros(n_attached)]),
-            T_world_body=T_world_body,
-            body_boxes=np.concatenate([robot.body_boxes] + [p.block.boxes[:1] for p in placed]),
-            boxes=np.concatenate([robot.boxes] + [p.block.boxes for p in placed]),
-            volume=np.concatenate([robot.volume] + [p.block.volume for p in placed]),
-            gain=np.concatenate([robot.gain] + [p.block.gain for p in placed]),
-            tris=np.concatenate([robot.tris] + [p.block.tris for p in placed]),
-            elem_solid=elem_solid,
-            subtree_boxes=np.zeros((max(n_links, 1), BOX_WIDTH)),
-            padding=np.concatenate([robot.padding, np.zeros(len(placed))]),
-            clearance=np.zeros(n_pairs), q_eval=np.zeros((n_pairs, n_joints)),
-            reach=reach, reach_ext=reach_ext, travel=np.zeros((n_pairs, 2)),
-            front_until=np.zeros((n_pairs + 1) * front_rows), front_travel=np.zeros(n_pairs))
-        ints = dict(
-            header=np.zeros(engine.HEADER_SIZE), parent=tree.parent,
-            joint_type=tree.joint_type, q_index=tree.q_index,
-            is_scene=is_scene, body_elem_start=body_elem_start,
-            body_elem_end=body_elem_end,
-            roots=np.concatenate([robot.roots, node_start[:-1]]),
-            nodes=np.concatenate(nodes), pair_a=pair_a, pair_b=pair_b,
-            joint_pairs_start=joint_pairs_start, joint_pairs=on_path[1],
-            joint_links_start=joint_links_start, joint_links=joint_links[1],
-            joint_prismatic=self._joint_prismatic,
-            status=np.zeros(n_pairs), witness=np.full((n_pairs, 2), -1),
-            moved=np.zeros(n_joints), stale=stale, chain=np.zeros(max(n_links, 1)),
-            pending=np.zeros(n_pairs), todo=np.zeros(n_pairs),
-            scene_culled=np.zeros((len(world), max(n_links, 1))),
-            stack=np.zeros((seeds + 2 * depth + 8, 3)),
-            counters=np.zeros(engine.N_COUNTERS), front=np.zeros(((n_pairs + 1) * front_rows, 3)),
-            front_state=np.zeros((n_pairs, 2)), nearest=np.full((n_pairs, 2), -1),
-            forced=np.ones(n_pairs))
-        tri_starts = {p.name: int(t0) for p, t0 in zip(placed, tri_start)}
-        forced_names = prepared.rebuilt | prepared.moved
-        if self._views is not None:
-            self._carry_state(floats, ints, checked, body_index, tri_starts, forced_names)
-        F, F_layout, float_views = self._pack(np.float64, engine.FLOAT_SLOTS, floats)
-        I, I_layout, int_views = self._pack(np.int64, engine.INT_SLOTS, ints)
-        self._write_header(I, F_layout, I_layout, n_links)
-        if self._views is not None:
-            I[engine.H_CHECKED_ONCE] = self._I[engine.H_CHECKED_ONCE]
-            I[engine.H_RESYNC_COUNTDOWN] = self._I[engine.H_RESYNC_COUNTDOWN]
-        I[engine.H_FORCED] = int(int_views['forced'].any())
-        new_engine = engine.Engine(F, I)
+        """Lay the scene ``prepared`` describes out for a new engine, carrying over the state
+        of every pair that survives (scene_layout.SceneLayout.carry), and swap it in."""
+        old = self._scene
+        layout = SceneLayout(
+            self._robot, self.kinematics, self._joints, prepared.objects,
+            old.rows if old is not None else {},
+            changed_objects(prepared.base, prepared.objects, prepared.moved, prepared.rebuilt))
+        if old is not None:
+            layout.carry(old, prepared.rebuilt | prepared.moved)
+        packed = array_pack.pack(layout.arrays)
+        config = self.config
+        new_engine = engine.Engine(packed.F, packed.F_layout, packed.I, packed.I_layout,
+                                   box_test=config.box_test_code,
+                                   expansion=config.expansion_code,
+                                   motion_tolerance=config.motion_tolerance)
 
         # Nothing above changed the checker; from here on, nothing can fail.
-        self._F, self._I, self._views = F, I, {**float_views, **int_views}
+        views = self._views = packed.views
+        self._robot = layout.take_views(self._robot, views)
+        self._scene = layout
         self._engine, self._query = new_engine, new_engine.query
         # The forest is only a view of the engine's tables: nothing is held twice (scenario 4).
-        self.forest = forest_view(float_views['boxes'], int_views['nodes'],
-                                  float_views['volume'], float_views['gain'],
-                                  float_views['tris'], int_views['roots'],
-                                  np.array([robot.depth] + [p.block.depth for p in placed]))
-        self._q_ref = float_views['q_ref']
-        self._T_world_body = float_views['T_world_body']
-        self._status = int_views['status']
-        self.counters = int_views['counters']  # work done, see traversal.COUNT_* (benchmarks)
+        self.forest = forest_view(views['boxes'], views['nodes'], views['volume'],
+                                  views['gain'], views['tris'], views['roots'], layout.depths)
+        self._T_world_body = views['T_world_body']
+        self._status = views['status']
+        self.counters = views['counters']  # work done, see traversal.COUNT_* (benchmarks)
         # The joint vector of the last call; the engine writes it (read-only for Python).
-        self._q = float_views['q_last']
-        self._pair_reach, self._pair_reach_ext = float_views['reach'], float_views['reach_ext']
-        self._body_names, self._body_index, self._radius = tuple(body_names), body_index, radius
-        self._body_elem_start, self._body_elem_end = body_elem_start, body_elem_end
-        self._pair_a, self._pair_b = int_views['pair_a'], int_views['pair_b']
-        self._n_links = n_links
-        self.checked_pairs: Tuple[Pair, ...] = checked
-        self.excluded_pairs: Dict[Pair, str] = excluded
-        self.scene_object_names: Tuple[str, ...] = tuple(objects)
-        self._objects, self._rows, self._object_pairs = objects, rows, object_pairs
-        self._keep_views_of_trees(float_views, int_views, placed, node_start, tri_start)
-        self._tri_starts = tri_starts
+        self._q = views['q_last']
+        self.checked_pairs: Tuple[Pair, ...] = layout.checked_pairs
+        self.excluded_pairs: Dict[Pair, str] = layout.excluded_pairs
+        self.scene_object_names: Tuple[str, ...] = tuple(layout.objects)
         self._results = {}
         self._result = self._result_from_status(0)
-
-    def _keep_views_of_trees(self, float_views, int_views, placed, node_start, tri_start):
-        """Point the robot's block and every object's block at their rows of the engine's
-        buffers, in place of their own arrays: nothing is held twice (scenario 4). Node tables
-        of objects stay their own (the buffer holds them shifted); the next scene change
-        reads the trees from these views, which keep the previous buffers alive until then."""
-        robot = self._robot
-        n_nodes, n_tris = len(robot.boxes), len(robot.tris)
-        self._robot = robot._replace(
-            boxes=float_views['boxes'][:n_nodes], nodes=int_views['nodes'][:n_nodes],
-            volume=float_views['volume'][:n_nodes], gain=float_views['gain'][:n_nodes],
-            tris=float_views['tris'][:n_tris])
-        objects = dict(self._objects)
-        for p, n0, n1, t0, t1 in zip(placed, node_start[:-1], node_start[1:], tri_start[:-1],
-                                     tri_start[1:]):
-            block = dataclasses.replace(
-                p.block, boxes=float_views['boxes'][n0:n1],
-                volume=float_views['volume'][n0:n1], gain=float_views['gain'][n0:n1],
-                tris=float_views['tris'][t0:t1])
-            objects[p.name] = p._replace(block=block)
-        self._objects = objects
-
-    def _scene_pairs(self, attached: Sequence[PlacedObject], world: Sequence[PlacedObject]):
-        """Return the checked pairs (sorted), the exception list and ``{object: its pairs'
-        indices}`` for a scene of these objects (see
-        :mod:`collision_sensor.engine.dynamic_scene`)."""
-        excluded = dict(self._base_exclusions)
-        pairs = list(self._robot.pairs)
-        for i, placed in enumerate(attached):
-            name, link = placed.name, placed.attach_to
-            for other in self.link_names:
-                pair = sorted_pair(name, other)
-                if other == link:
-                    excluded.setdefault(pair, f'attached to {link}')
-                elif other in placed.touch_links:
-                    excluded.setdefault(pair, 'touch link')
-                elif pair not in excluded:
-                    pairs.append(pair)
-            for other in attached[i + 1:]:
-                pair = sorted_pair(name, other.name)
-                if other.attach_to in (link,) + placed.touch_links or (
-                        link in other.touch_links):
-                    excluded.setdefault(pair, 'attached to the same or touching links')
-                elif pair not in excluded:
-                    pairs.append(pair)
-        movers = list(self.link_names) + [placed.name for placed in attached]
-        for placed in world:
-            for other in movers:
-                pair = sorted_pair(placed.name, other)
-                if other in placed.touch_links:     # a table under the base
-                    excluded.setdefault(pair, 'touch link')
-                elif pair not in excluded:
-                    pairs.append(pair)
-        checked = tuple(sorted(pairs))
-        object_pairs = {name: [] for name in [p.name for p in attached] + [p.name for p in world]}
-        for p, (a, b) in enumerate(checked):
-            for name in (a, b):
-                if name in object_pairs:
-                    object_pairs[name].append(p)
-        return checked, excluded, {name: np.asarray(indices, dtype=np.int64)
-                                   for name, indices in object_pairs.items()}
-
-    def _carry_state(self, floats, ints, checked, body_index, tri_starts, forced_names) -> None:
-        """Copy the current state into the arrays of a new layout (see :meth:`_install`)."""
-        old = self._views
-        old_index = {pair: p for p, pair in enumerate(self.checked_pairs)}
-        for name in ('scalars', 'q_last', 'q_ref'):
-            floats[name] = old[name].copy()
-        ints['counters'] = old['counters'].copy()
-        n_robot = len(self.kinematics.link_names)
-        floats['T_world_body'][:n_robot] = old['T_world_body'][:n_robot]
-        ints['stale'][:n_robot] = old['stale'][:n_robot]
-        for name, b in body_index.items():
-            old_b = self._body_index.get(name)
-            if n_robot <= b < self._n_links and old_b is not None and (
-                    old_b < self._n_links and name not in forced_names):
-                floats['T_world_body'][b] = old['T_world_body'][old_b]
-                ints['stale'][b] = old['stale'][old_b]
-        new, kept = [], []
-        for p, pair in enumerate(checked):
-            o = old_index.get(pair)
-            if o is not None:
-                new.append(p)
-                kept.append(o)
-        new, kept = np.asarray(new, dtype=np.int64), np.asarray(kept, dtype=np.int64)
-        for name in ('clearance', 'q_eval', 'travel'):
-            floats[name][new] = old[name][kept]
-        ints['status'][new] = old['status'][kept]
-        # A witness names a triangle of each body: shifted with its object's triangles.
-        shift = {name: start - self._tri_starts[name] for name, start in tri_starts.items()
-                 if name in self._tri_starts and name not in forced_names}
-        witness = ints['witness']
-        for p, o in zip(new, kept):
-            a, b = checked[p]
-            w = old['witness'][o]
-            names = (a, b) if body_index[a] == ints['pair_a'][p] else (b, a)
-            if w[0] >= 0 and all(n in shift or n not in tri_starts for n in names):
-                witness[p] = (w[0] + shift.get(names[0], 0), w[1] + shift.get(names[1], 0))
-        # Forced: new pairs, pairs of objects added or moved, and those still forced.
-        forced = ints['forced']
-        forced[:] = 0
-        forced[new] = old['forced'][kept]
-        forced[[p for p, pair in enumerate(checked)
-                if pair not in old_index or pair[0] in forced_names
-                or pair[1] in forced_names]] = 1
-
 
     # ------------------------------------------------------------------ queries
     def _merged(self, positions: Positions) -> np.ndarray:
@@ -998,7 +412,7 @@ class CollisionChecker:
         q = self._q.copy()
         if isinstance(positions, Mapping):
             unknown = [name for name in positions
-                       if name not in self._joint_index and name not in self._derived_joints]
+                       if name not in self._joints.index and name not in self._joints.derived]
             if unknown:
                 raise JointStateError(
                     f'unknown joint name(s) {", ".join(map(str, unknown))} for robot '
@@ -1012,7 +426,7 @@ class CollisionChecker:
                 if not math.isfinite(number):
                     raise JointStateError(f'joint "{name}": position {number} is not finite; '
                                           'send a finite value (nothing was changed)')
-                j = self._joint_index.get(name)
+                j = self._joints.index.get(name)
                 if j is not None:  # a mimic joint follows its source; its own value is unused
                     q[j] = number
             return q
@@ -1036,7 +450,7 @@ class CollisionChecker:
         return self._settle(self._query(positions, full), positions, full)
 
     def _settle(self, code: int, positions: Positions, full: bool) -> CheckResult:
-        """Return the answer for the engine's ``code`` (``cpp/query.hpp``: Engine::query)."""
+        """Return the answer for the engine's ``code`` (``cpp/engine.hpp``: Engine::query)."""
         if code > 0:
             if code & 1:
                 # The engine reports whether any status changed, so the answer is looked up
@@ -1103,7 +517,7 @@ class CollisionChecker:
         status, and every pose not below a moved joint, carries over (paper sec. 4.2). A pair
         last found apart by ``update`` with a known clearance is not re-checked either while
         the joints on its path have not moved far enough, summed, to close that gap (see
-        ``plan_update`` in ``cpp/query.cpp``).
+        ``cpp/planning.hpp``).
         Same arguments and errors as :meth:`check`.
         """
         code = self._query(positions, False)
@@ -1193,11 +607,11 @@ class CollisionChecker:
                            points: np.ndarray) -> List[ProximityRecord]:
         """Records for the pairs with a finite distance, sorted; points as named."""
         records = []
-        body_a = self._pair_a
+        body_a, body_index = self._scene.pair_a, self._scene.body_index
         for p in np.flatnonzero(np.isfinite(distance)):
             a, b = self.checked_pairs[p]
             row = points[p]
-            if self._body_index[a] == body_a[p]:
+            if body_index[a] == body_a[p]:
                 point_a, point_b = row[:3].copy(), row[3:].copy()
             else:  # the engine keeps a scene object second
                 point_a, point_b = row[3:].copy(), row[:3].copy()
@@ -1229,7 +643,7 @@ class CollisionChecker:
     def link_poses(self) -> Dict[str, np.ndarray]:
         """World poses (4, 4) of every link and scene object at the last checked state."""
         T_world_body = self._poses()
-        return {name: T_world_body[b].copy() for b, name in enumerate(self._body_names)}
+        return {name: T_world_body[b].copy() for b, name in enumerate(self._scene.body_names)}
 
     def _poses(self) -> np.ndarray:
         """(B, 4, 4) world poses of all bodies, brought up to date (``update`` computes a
@@ -1247,72 +661,13 @@ class CollisionChecker:
         f = self.forest
         T_world_body = self._poses()
         for name in names:
-            b = self._body_index.get(name)
+            b = self._scene.body_index.get(name)
             if b is None:
                 continue
-            for e in range(self._body_elem_start[b], self._body_elem_end[b]):
+            for e in range(self._scene.elem_start[b], self._scene.elem_end[b]):
                 node = f.roots[e]
                 T_body_box = np.eye(4)
                 T_body_box[:3, :3] = f.axes[node]
                 T_body_box[:3, 3] = f.center[node]
                 boxes.append((name, T_world_body[b] @ T_body_box, f.half[node].copy()))
         return boxes
-
-
-def _grow_boxes(half: np.ndarray, roots: np.ndarray, padding: np.ndarray) -> None:
-    """Grow every box of tree e by ``padding[e]`` in each half extent, in place.
-
-    A padded element is its geometry swept by a sphere of radius ``padding`` (the Minkowski
-    sum); its box grown by the padding along each axis holds that, so every box test and box
-    gap of the engine is one of the padded geometry, and only the triangle tests at the leaves
-    need the padding itself (``cpp/traversal.hpp``: triangles_within). Trees are contiguous
-    node ranges starting at their roots.
-
-    :param half: (N, 3) float64 half extents of the forest's boxes.
-    :param roots: (E,) int64 root node of each tree; ``padding``: (E,) float64 metres.
-    """
-    ends = list(roots[1:]) + [len(half)]
-    for start, end, pad in zip(roots, ends, padding):
-        if pad > 0.0:
-            half[start:end] += pad
-
-
-def _variables(kin: KinematicTree, k: int) -> slice:
-    """The variables of q that the joint above link k reads (consecutive)."""
-    j = int(kin.q_index[k])
-    return slice(j, j + _VARIABLE_COUNT.get(int(kin.joint_type[k]), 1))
-
-
-def _with_virtual_joint(model: RobotModel, srdf: Optional[Srdf]) -> RobotModel:
-    """Return ``model`` with the SRDF's planar or floating virtual joint above its root link.
-
-    The virtual joint's ``parent_frame`` becomes the root (a link without geometry) and the
-    world frame; its variables come first in ``q``, as in MoveIt's variable order. A fixed
-    virtual joint changes nothing (the root link already is the world frame). Only the first
-    virtual joint is used (the SRDF loader keeps only those that reach the root link).
-
-    :raises SrdfError: the parent frame is already a link of the robot.
-    """
-    moving = [joint for joint in (srdf.virtual_joints if srdf is not None else ())
-              if joint.type != 'fixed']
-    if not moving:
-        return model
-    virtual = moving[0]
-    if model.root_link == virtual.parent_frame and any(
-            joint.name == virtual.name for joint in model.joints):
-        return model   # already added (a checker built on another checker's model)
-    if virtual.parent_frame in model.links:
-        raise SrdfError(f'SRDF "{srdf.source}": virtual joint "{virtual.name}" has parent_frame '
-                        f'"{virtual.parent_frame}", which is a link of the robot; name the '
-                        'world frame differently')
-    if any(joint.name == virtual.name for joint in model.joints):
-        raise SrdfError(f'SRDF "{srdf.source}": virtual joint "{virtual.name}" has the name of '
-                        'a URDF joint; rename it')
-    joint = Joint(name=virtual.name, type=virtual.type, parent=virtual.parent_frame,
-                  child=virtual.child_link, T_parent_joint=np.eye(4),
-                  axis=np.array([0.0, 0.0, 1.0]), lower=-math.inf, upper=math.inf,
-                  velocity=0.0, effort=0.0, mimic=None)
-    order = model.joint_document_order or tuple(j.name for j in model.joints)
-    return dataclasses.replace(
-        model, root_link=virtual.parent_frame, links=(virtual.parent_frame,) + model.links,
-        joints=(joint,) + model.joints, joint_document_order=(virtual.name,) + order)

@@ -5,20 +5,24 @@ The extension is built when the package is installed (``make``, ``pip install``,
 build``). Importing it here, rather than from each module, gives one clear message when it is
 missing or was built from other sources than the ones beside it (an editable install whose
 ``cpp/`` changed since the last build), instead of a confusing error deep in a query.
+
+The extension is the one source of the engine's constants and of the layout of its packed
+arrays (``cpp/layout.hpp``): the modules of this package read them from ``engine`` (e.g.
+``obb_tree.BOX_WIDTH = engine.BOX_WIDTH``) and write none of them again. It raises the
+package's own errors (:mod:`collision_sensor.errors`): ``EngineInputError`` for an argument it
+cannot take, ``EngineBuildError`` for packed arrays whose layout is not its own.
 """
 import hashlib
 import os
 
-from collision_sensor.errors import CollisionSensorError
+from collision_sensor.errors import EngineBuildError
+
+__all__ = ['ENGINE_API', 'EngineBuildError', 'engine', 'load_engine', 'source_digest']
 
 #: The binding's interface version this Python code expects (cpp/bindings.cpp: ENGINE_API).
-ENGINE_API = 2
+ENGINE_API = 3
 _REBUILD = ('rebuild it: "make" (or "pip install -e ." in the source tree, '
             '"colcon build --packages-select collision_sensor" in a workspace)')
-
-
-class EngineBuildError(CollisionSensorError):
-    """The compiled engine is missing, stale or does not match this Python code."""
 
 
 def _sources_beside_package():

@@ -36,21 +36,29 @@ checker's exception list (``allowed_collisions``) applies to objects by name.
 """
 import math
 from dataclasses import dataclass
-from typing import Dict, FrozenSet, Mapping, NamedTuple, Optional, Tuple, Union
+from typing import (Collection, Dict, FrozenSet, Iterable, Mapping, NamedTuple, Optional, Tuple,
+                    Union)
 
 import numpy as np
 
+from collision_sensor.engine.compiled import engine
 from collision_sensor.engine.obb_tree import box_table, build_forest, node_table
 from collision_sensor.errors import SceneError
-from collision_sensor.model.mesh_loading import SOLID_CLOSED_MESH, Solid, is_closed_surface
+from collision_sensor.model import mesh_loading
+from collision_sensor.model.mesh_loading import Solid, is_closed_surface
 from collision_sensor.model.scene import SceneObject
 
 #: Largest |coordinate| (m) of an object's vertices and of its position: as the engine's bound
 #: on joint translations (cpp/kinematics.hpp: PRISMATIC_VALUE_MAX), every coordinate, box and
-#: gap computed from them then stays far from overflow.
-MAX_COORDINATE = 1e6
+#: gap computed from them then stays far from overflow (the engine's, cpp/engine.hpp).
+MAX_COORDINATE = engine.MAX_COORDINATE
 #: A pose's rotation must be orthonormal to within this (max |R^T R - I|), with det +1.
-ROTATION_TOLERANCE = 1e-6
+ROTATION_TOLERANCE = engine.ROTATION_TOLERANCE
+#: The engine's code of each solid kind of the model (cpp/layout.hpp: elem_solid).
+SOLID_CODES = {mesh_loading.SOLID_BOX: engine.SOLID_BOX,
+               mesh_loading.SOLID_SPHERE: engine.SOLID_SPHERE,
+               mesh_loading.SOLID_CYLINDER: engine.SOLID_CYLINDER,
+               mesh_loading.SOLID_CLOSED_MESH: engine.SOLID_CLOSED_MESH}
 
 
 class SceneChangeError(SceneError):
@@ -103,14 +111,14 @@ SceneChange = Union[AddObject, MoveObject, RemoveObject]
 @dataclass(frozen=True, eq=False)
 class ObjectBlock:
     """One object's tree and engine rows, built once per shape (the engine's table formats,
-    ``cpp/query.hpp``, ``cpp/traversal.hpp``), with node and triangle indices local to it.
+    ``cpp/layout.hpp``, ``cpp/obb_tree.hpp``), with node and triangle indices local to it.
 
     :ivar boxes: (N, BOX_WIDTH) float64 node boxes in the object frame; node 0 is the root.
     :ivar nodes: (N, NODE_WIDTH) int64 left, right (-1 for a leaf), first triangle, count.
     :ivar volume: (N,) float64; ``gain``: (N,) float64 (see ``obb_tree.build_forest``).
     :ivar tris: (T, 3, 3) float64 triangles in leaf order.
     :ivar depth: the tree's depth.
-    :ivar solid_row: (SOLID_WIDTH,) float64 what the object fills (``cpp/query.hpp``).
+    :ivar solid_row: (SOLID_WIDTH,) float64 what the object fills (``cpp/layout.hpp``).
     :ivar radius: the largest distance of a vertex from the object's origin.
     """
 
@@ -148,30 +156,30 @@ class PlacedObject(NamedTuple):
 
 
 def solid_row(solid: Optional[Solid], faces: np.ndarray, T_body_element: np.ndarray,
-              mesh_containment: bool, width: int) -> np.ndarray:
-    """The engine's row for one element (``cpp/query.hpp``: SOLID_*): what it fills, in its
-    body's frame. Primitives are solid; a closed mesh is with ``mesh_containment``.
+              mesh_containment: bool) -> np.ndarray:
+    """The engine's row for one element (``cpp/layout.hpp``: elem_solid, SOLID_*): what it
+    fills, in its body's frame: kind, size (3), R (3, 3), t (3). Primitives are solid; a
+    closed mesh is with ``mesh_containment``.
 
-    :param width: the row's length (the engine's SOLID_WIDTH).
+    :return: (SOLID_WIDTH,) float64.
     """
-    row = np.zeros(width)
+    row = np.zeros(engine.SOLID_WIDTH)
     if solid is None and mesh_containment and is_closed_surface(faces):
-        solid = Solid(SOLID_CLOSED_MESH)
+        solid = Solid(mesh_loading.SOLID_CLOSED_MESH)
     if solid is not None:
-        row[0] = solid.kind
+        row[0] = SOLID_CODES[solid.kind]
         row[1:4] = solid.size
         row[4:13] = T_body_element[:3, :3].ravel()
         row[13:16] = T_body_element[:3, 3]
     return row
 
 
-def build_object_block(obj: SceneObject, config, solid_width: int) -> ObjectBlock:
+def build_object_block(obj: SceneObject, config) -> ObjectBlock:
     """Build the tree of one object and its engine rows (runs without the interpreter lock
     for most of its time: the tree is built in C++).
 
     :param obj: the object, already checked by :func:`check_geometry`.
     :param config: the checker's :class:`~collision_sensor.engine.checker_config.CheckerConfig`.
-    :param solid_width: the engine's SOLID_WIDTH.
     """
     vertices = np.ascontiguousarray(obj.vertices, dtype=np.float64)
     forest = build_forest([(vertices, obj.faces)], leaf_size=config.leaf_size,
@@ -180,8 +188,7 @@ def build_object_block(obj: SceneObject, config, solid_width: int) -> ObjectBloc
         boxes=box_table(forest.center, forest.axes, forest.half), nodes=node_table(forest),
         volume=forest.volume, gain=forest.gain, tris=forest.tris,
         depth=int(forest.depth.max()),
-        solid_row=solid_row(obj.solid, obj.faces, np.eye(4), config.mesh_containment,
-                            solid_width),
+        solid_row=solid_row(obj.solid, obj.faces, np.eye(4), config.mesh_containment),
         radius=float(np.sqrt((vertices ** 2).sum(axis=1).max())))
 
 
@@ -298,3 +305,90 @@ class PreparedSceneChanges:
     moved: FrozenSet[str]
     rebuilt: FrozenSet[str]
     version: int
+
+
+class PreparedObjects(NamedTuple):
+    """What a batch of changes makes of a scene (:func:`prepare_changes`)."""
+
+    objects: Dict[str, PlacedObject]
+    structural: bool
+    moved: FrozenSet[str]
+    rebuilt: FrozenSet[str]
+
+
+def prepare_changes(changes: Iterable[SceneChange], base: Mapping[str, PlacedObject],
+                    links: Collection[str], world_frames: Collection[str], robot: str,
+                    config) -> PreparedObjects:
+    """Apply ``changes`` in order to a copy of the objects ``base``, validating each and building
+    the trees of the objects added or replaced; nothing else changes.
+
+    :param links: the robot's links (an object may hang on one, and touch others).
+    :param world_frames: the frames an object fixed in the world may name as its link.
+    :param robot: the robot's name, for messages.
+    :param config: the checker's :class:`~collision_sensor.engine.checker_config.CheckerConfig`.
+    :raises SceneChangeError: the first change that cannot apply (``index``), naming the
+        object and the fix.
+    """
+    objects = dict(base)
+    moved, rebuilt = set(), set()
+    structural = False
+    for k, change in enumerate(changes):
+        try:
+            if isinstance(change, AddObject):
+                placed, same = _placed(change, objects, links, world_frames, robot, config)
+                objects[placed.name] = placed
+                (moved if same else rebuilt).add(placed.name)
+                structural |= not same
+            elif isinstance(change, (MoveObject, RemoveObject)):
+                name = change.name
+                old = objects.get(name)
+                if old is None:
+                    verb = 'move' if isinstance(change, MoveObject) else 'remove'
+                    raise SceneError(f'no object "{name}" to {verb}; add it first '
+                                     f'(objects: {", ".join(objects) or "none"})')
+                if isinstance(change, MoveObject):
+                    pose = checked_pose(change.pose, f'object "{name}"')
+                    objects[name] = PlacedObject(old.obj, old.block, old.attach_to,
+                                                 old.touch_links, pose)
+                    moved.add(name)
+                else:
+                    del objects[name]
+                    moved.discard(name)
+                    rebuilt.discard(name)
+                    structural = True
+            else:
+                raise SceneError(f'{type(change).__name__} is not a scene change; give '
+                                 'AddObject, MoveObject or RemoveObject')
+        except SceneError as error:
+            raise SceneChangeError(k, str(error)) from None
+    return PreparedObjects(objects, structural, frozenset(moved - rebuilt), frozenset(rebuilt))
+
+
+def _placed(change: AddObject, objects: Mapping[str, PlacedObject], links: Collection[str],
+            world_frames: Collection[str], robot: str, config) -> Tuple[PlacedObject, bool]:
+    """The object ``change`` adds, and whether it only moves the one of its name."""
+    obj = change.obj
+    name = getattr(obj, 'name', None)
+    if not isinstance(name, str) or not name:
+        raise SceneError('the object has no name; give it a unique name')
+    owner = f'object "{name}"'
+    if name in links or name in world_frames:
+        raise SceneError(f'{owner} has the name of a link or frame of robot "{robot}"; rename '
+                         'the object')
+    check_geometry(obj, owner)
+    attach_to = None if change.attach_to in world_frames else change.attach_to
+    touch_links = tuple(dict.fromkeys(change.touch_links))
+    if attach_to is not None and attach_to not in links:
+        raise SceneError(f'{owner}: "{attach_to}" is not a link of robot "{robot}"; attach it '
+                         f'to one of its links, or to {" or ".join(sorted(world_frames))} (the '
+                         'world)')
+    unknown = [link for link in touch_links if link not in links]
+    if unknown:
+        raise SceneError(f'{owner}: touch link "{unknown[0]}" is not a link of robot '
+                         f'"{robot}"; give touch links of the robot')
+    pose = checked_pose(obj.T_world_object if change.pose is None else change.pose, owner)
+    old = objects.get(name)
+    if (old is not None and old.attach_to == attach_to and old.touch_links == touch_links
+            and same_geometry(old.obj, obj)):
+        return PlacedObject(obj, old.block, attach_to, touch_links, pose), True
+    return PlacedObject(obj, build_object_block(obj, config), attach_to, touch_links, pose), False

@@ -26,8 +26,8 @@ zero configuration with every quaternion the identity (rot_w = 1).
 
 "world" is the root link's frame: ``T_world_link[0]`` is the identity.
 
-:func:`forward_kinematics_kernel` runs ``cpp/kinematics.hpp``, the code the query engine
-itself runs for each link it needs (lazily, inside a query).
+:meth:`KinematicTree.forward_kinematics` runs ``cpp/kinematics.hpp``, the code the query
+engine itself runs for each link it needs (lazily, inside a query).
 """
 from dataclasses import dataclass
 
@@ -36,7 +36,11 @@ from collision_sensor.engine.compiled import engine
 from collision_sensor.errors import JointStateError, RobotDescriptionError
 from collision_sensor.model.robot_model import RobotModel, resolve_mimics
 
-JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC, JOINT_PLANAR, JOINT_FLOATING = 0, 1, 2, 3, 4
+JOINT_FIXED, JOINT_REVOLUTE, JOINT_PRISMATIC, JOINT_PLANAR, JOINT_FLOATING = (
+    engine.JOINT_FIXED, engine.JOINT_REVOLUTE, engine.JOINT_PRISMATIC, engine.JOINT_PLANAR,
+    engine.JOINT_FLOATING)
+#: How many consecutive variables of q a joint of each type reads (the engine's).
+VARIABLE_COUNT = dict(enumerate(engine.JOINT_VARIABLES))
 _JOINT_CODES = {'fixed': JOINT_FIXED, 'revolute': JOINT_REVOLUTE,
                 'continuous': JOINT_REVOLUTE, 'prismatic': JOINT_PRISMATIC,
                 'planar': JOINT_PLANAR, 'floating': JOINT_FLOATING}
@@ -45,38 +49,6 @@ _VARIABLE_BOUNDS = {'x': (-np.inf, np.inf), 'y': (-np.inf, np.inf), 'theta': (-n
                     'trans_x': (-np.inf, np.inf), 'trans_y': (-np.inf, np.inf),
                     'trans_z': (-np.inf, np.inf), 'rot_x': (-1.0, 1.0), 'rot_y': (-1.0, 1.0),
                     'rot_z': (-1.0, 1.0), 'rot_w': (-1.0, 1.0)}
-
-
-def forward_kinematics_kernel(q, parent, joint_type, T_parent_joint, axis, q_index, multiplier,
-                              offset, T_world_link):
-    """Fill ``T_world_link`` with the pose of every link for configuration ``q`` (C++:
-    ``cpp/kinematics.hpp``, the same code the query engine runs).
-
-    :param q: ``(J,) float64`` joint values.
-    :param parent: ``(L,) int64`` parent link index, -1 for the root (index 0).
-    :param joint_type: ``(L,) int64`` JOINT_FIXED / _REVOLUTE / _PRISMATIC / _PLANAR /
-        _FLOATING.
-    :param T_parent_joint: ``(L, 4, 4) float64`` joint origins.
-    :param axis: ``(L, 3) float64`` unit joint axes, in the joint frame.
-    :param q_index: ``(L,) int64`` index into ``q`` of the driving value (a multi-DOF joint's
-        first variable), -1 if fixed.
-    :param multiplier: ``(L,) float64`` joint value = multiplier * q[q_index] + offset.
-    :param offset: ``(L,) float64``.
-    :param T_world_link: ``(L, 4, 4) float64`` output, written in place (rows 3 included).
-    """
-    engine.forward_kinematics(q, parent, joint_type, T_parent_joint, axis, q_index, multiplier,
-                              offset, T_world_link)
-
-
-def forward_kinematics_batch_kernel(Q, parent, joint_type, T_parent_joint, axis, q_index,
-                                    multiplier, offset, T_out):
-    """Fill ``T_out[k]`` with :func:`forward_kinematics_kernel` of ``Q[k]`` for every k.
-
-    :param Q: ``(n, J) float64`` configurations.
-    :param T_out: ``(n, L, 4, 4) float64`` output, written in place.
-    """
-    engine.forward_kinematics(Q, parent, joint_type, T_parent_joint, axis, q_index, multiplier,
-                              offset, T_out)
 
 
 @dataclass(frozen=True, eq=False)
@@ -153,16 +125,26 @@ class KinematicTree:
             object.__setattr__(self, '_compiled', compiled)
         try:
             return compiled.forward(np.ascontiguousarray(q))
-        except ValueError as error:
-            variable = int(str(error).split()[1])
+        except JointStateError as error:  # the engine's, naming the row and the variable
             raise JointStateError(
-                f'joint variable "{self.joint_names[variable]}": a value the kinematics cannot '
-                f'honour ({error}: not finite, a translation beyond 1e6 m or a zero '
-                'quaternion); send a usable value') from None
+                f'joint variable "{self.joint_names[error.variable]}": a value the kinematics '
+                f'cannot honour ({error}: not finite, a translation beyond '
+                f'{engine.PRISMATIC_VALUE_MAX:g} m or a zero quaternion); send a usable '
+                'value') from None
 
     def _shape_message(self, shape, expected):
         return (f'joint values of shape {shape}, expected {expected} with J = '
                 f'{len(self.joint_names)} values in the order {", ".join(self.joint_names)}')
+
+
+def variables(tree, k: int) -> slice:
+    """Return the variables of q that the joint above link k reads (consecutive).
+
+    :param tree: a :class:`KinematicTree`, or any tree with its ``q_index`` and
+        ``joint_type`` arrays; link k's joint must be movable.
+    """
+    j = int(tree.q_index[k])
+    return slice(j, j + VARIABLE_COUNT[int(tree.joint_type[k])])
 
 
 def build_kinematic_tree(model: RobotModel) -> KinematicTree:

@@ -24,19 +24,21 @@ import numpy as np
 
 from collision_sensor.engine.bounding_volumes import OBB_HULL_PCA, OBB_MIN_VOLUME, OBB_PCA, fit_obb
 from collision_sensor.engine.compiled import engine
+from collision_sensor.errors import EngineInputError
 
 
 # Columns of a box table (:func:`box_table`), one row per box, what the compiled traversal
-# reads: a box's numbers side by side in memory (128 bytes), rather than spread over four
-# arrays, and indexable without making array views.
-BOX_CENTER = 0          # 3: centre in the body frame
-BOX_AXES = 3            # 9: axes row-major; element 3 * i + k is row i of axis (column) k
-BOX_HALF = 12           # 3: half extents
-BOX_RADIUS = 15         # 1: radius of the sphere around the box, |half|
-BOX_WIDTH = 16
+# reads (``cpp/obb_tree.hpp``): a box's numbers side by side in memory (128 bytes), rather than
+# spread over four arrays, and indexable without making array views. BOX_CENTER: 3, centre in
+# the body frame; BOX_AXES: 9, axes row-major (element 3 * i + k is row i of axis k); BOX_HALF:
+# 3, half extents; BOX_RADIUS: 1, radius of the sphere around the box, |half|.
+BOX_CENTER, BOX_AXES, BOX_HALF, BOX_RADIUS = (engine.BOX_CENTER, engine.BOX_AXES,
+                                              engine.BOX_HALF, engine.BOX_RADIUS)
+BOX_WIDTH = engine.BOX_WIDTH
 # Columns of a node table (:func:`node_table`).
-NODE_LEFT, NODE_RIGHT, NODE_FIRST, NODE_COUNT = 0, 1, 2, 3
-NODE_WIDTH = 4
+NODE_LEFT, NODE_RIGHT, NODE_FIRST, NODE_COUNT = (engine.NODE_LEFT, engine.NODE_RIGHT,
+                                                 engine.NODE_FIRST, engine.NODE_COUNT)
+NODE_WIDTH = engine.NODE_WIDTH
 
 
 @dataclass(frozen=True)
@@ -139,7 +141,7 @@ def build_forest(meshes, leaf_size: int = 2, fit: int = OBB_PCA) -> ObbForest:
     :return: the forest; ``roots[i]`` is mesh ``i``'s root node.
     """
     if leaf_size < 1:
-        raise ValueError(f'leaf_size must be at least 1, got {leaf_size}')
+        raise EngineInputError(f'leaf_size must be at least 1, got {leaf_size}')
     parts = []
     node_offset = 0
     tri_offset = 0

@@ -1,9 +1,10 @@
-"""Every numerical tolerance of the geometric kernels, in one place.
+"""Every numerical tolerance of the geometric kernels, explained in one place.
 
-Each constant is dimensionless and multiplies a length scale named next to it, so every test
-reads the same whether a robot is measured in metres or millimetres. All of them make the
-sensor err toward "contact": a tolerance only ever turns a near miss into a reported contact,
-never a contact into a miss.
+The engine's tolerances are its own (``cpp/tolerances.hpp``): their values are read from the
+extension here, and stated and explained below. Each constant is dimensionless and multiplies a
+length scale named next to it, so every test reads the same whether a robot is measured in metres
+or millimetres. All of them make the sensor err toward "contact": a tolerance only ever turns a
+near miss into a reported contact, never a contact into a miss.
 
 Relations to keep when changing a value
 ---------------------------------------
@@ -16,34 +17,34 @@ Relations to keep when changing a value
 - Bounding-volume fits are not padded: the boxes contain their points up to rounding (about
   1e-16 of the coordinates), which ``BOX_EPS_REL`` covers many times over.
 """
+from collision_sensor.engine.compiled import engine
 
-#: Box tests (``box_test.py``): boxes A and B are separated only if, along one candidate
-#: axis L, the gap between their projections exceeds
-#: ``BOX_EPS_REL * s * (1 + BOX_EPS_PARALLEL / |L|)``, where ``s`` is the sum of the six
-#: half extents and ``|L|`` the length of the unnormalised axis (1 for a face normal,
-#: ``sin`` of the angle between the two edges for an edge-edge axis ``a_i x b_j``).
-#: Touching (gap 0) therefore always counts as overlapping.
-BOX_EPS_REL = 1e-9
+#: Box tests (``box_test.py``, ``cpp/box_test.hpp``): boxes A and B are separated only if, along
+#: one candidate axis L, the gap between their projections exceeds ``BOX_EPS_REL * s * (1 +
+#: BOX_EPS_PARALLEL / |L|)``, where ``s`` is the sum of the six half extents and ``|L|`` the length
+#: of the unnormalised axis (1 for a face normal, ``sin`` of the angle between the two edges for an
+#: edge-edge axis ``a_i x b_j``). Touching (gap 0) therefore always counts as overlapping.
+BOX_EPS_REL = engine.BOX_EPS_REL
 
 #: Box tests: floor for nearly parallel edge pairs (see ``BOX_EPS_REL``). It plays the part
 #: of the epsilon coal adds to ``|R|``: the closer the two edges are to parallel, the larger
 #: the gap an edge-edge axis needs to count, so rounding noise in a near-zero cross product
 #: can never separate. Near-parallel configurations are still decided by the face axes.
-BOX_EPS_PARALLEL = 1e-3
+BOX_EPS_PARALLEL = engine.BOX_EPS_PARALLEL
 
-#: Triangle test (``triangle_test.py``): two triangles are in contact iff the float64
-#: Euclidean distance between them is at most ``TRIANGLE_EPS_REL * m``, where ``m`` is the
-#: largest absolute coordinate of the six vertices (the scale of the rounding error of every
-#: coordinate difference the test forms). Touching (distance 0) is contact.
-TRIANGLE_EPS_REL = 1e-12
+#: Triangle test (``cpp/triangle_test.hpp``): two triangles are in contact iff the float64
+#: Euclidean distance between them is at most ``TRIANGLE_EPS_REL * m``, where ``m`` is the largest
+#: absolute coordinate of the six vertices (the scale of the rounding error of every coordinate
+#: difference the test forms). Touching (distance 0) is contact.
+TRIANGLE_EPS_REL = engine.TRIANGLE_EPS_REL
 
-#: Bounding volumes (``bounding_volumes.py``): a point set whose spread across its
-#: ``k``-th principal direction is at most ``RANK_EPS_REL`` times its largest spread is treated
+#: Bounding volumes (``bounding_volumes.py``, this package's own): a point set whose spread across
+#: its ``k``-th principal direction is at most ``RANK_EPS_REL`` times its largest spread is treated
 #: as flat in that direction (decides coplanar / collinear input for the convex-hull fits).
 RANK_EPS_REL = 1e-12
 
-#: Sphere pre-test of the traversal (``traversal.py``): two boxes are skipped without the box
-#: test only if the spheres around them (centre = box centre, radius = |half extents|) are
-#: apart by more than ``SPHERE_EPS_REL`` of the sum of their radii. The spheres contain the
-#: boxes, so this only ever skips pairs the box test would also separate.
-SPHERE_EPS_REL = 1e-9
+#: Sphere pre-test of the traversal (``cpp/traversal.hpp``): two boxes are skipped without the box
+#: test only if the spheres around them (centre = box centre, radius = |half extents|) are apart by
+#: more than ``SPHERE_EPS_REL`` of the sum of their radii. The spheres contain the boxes, so this
+#: only ever skips pairs the box test would also separate.
+SPHERE_EPS_REL = engine.SPHERE_EPS_REL

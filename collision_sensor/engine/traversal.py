@@ -17,7 +17,8 @@ The answer never depends on the rule, only the work done; ``collision_sensor.too
 which rule is fastest on real robots and the checker's default follows that measurement.
 
 Data, as the kernels take it (built by :func:`collision_sensor.engine.obb_tree.box_table` and
-:func:`~collision_sensor.engine.obb_tree.node_table` from an :class:`ObbForest`)::
+:func:`~collision_sensor.engine.obb_tree.node_table` from an
+:class:`~collision_sensor.engine.obb_tree.ObbForest`)::
 
     boxes : (N, BOX_WIDTH) float64   one row per box: centre, axes (row-major, column k is
                                      axis k), half extents, sphere radius (obb_tree.BOX_*)
@@ -25,14 +26,17 @@ Data, as the kernels take it (built by :func:`collision_sensor.engine.obb_tree.b
                                      triangle count
     pose  : (POSE_WIDTH,) float64    body b in body a's frame: R_ab row-major, then t_ab
 
-The traversal is C++ (``cpp/traversal.hpp``: ``trees_collide``, ``front_scan``), run inside
-each query; this module names its settings and counters for the Python side.
+The traversal is C++ (``cpp/traversal.hpp``: ``collide_trees``, ``front_scan``), run inside
+each query; this module names its settings and counters for the Python side (the numbers are
+the extension's).
 """
 import numpy as np
 
 from collision_sensor.engine.compiled import engine
 
-EXPAND_SAME, EXPAND_ALTERNATE, EXPAND_LARGER, EXPAND_PROMISING, EXPAND_WIDER = 0, 1, 2, 3, 4
+EXPAND_SAME, EXPAND_ALTERNATE, EXPAND_LARGER, EXPAND_PROMISING, EXPAND_WIDER = (
+    engine.EXPAND_SAME, engine.EXPAND_ALTERNATE, engine.EXPAND_LARGER, engine.EXPAND_PROMISING,
+    engine.EXPAND_WIDER)
 EXPANSION_RULES = {
     'same': EXPAND_SAME, 'alternate': EXPAND_ALTERNATE, 'larger': EXPAND_LARGER,
     'promising': EXPAND_PROMISING, 'wider': EXPAND_WIDER,
@@ -42,7 +46,9 @@ EXPANSION_RULES = {
 # tests, triangle tests, box pairs skipped by the sphere pre-test, pair re-checks that started
 # from a front, and front node pairs kept untested.
 (COUNT_BOX_TESTS, COUNT_TRIANGLE_TESTS, COUNT_SPHERE_SKIPS, COUNT_FRONT_STARTS,
- COUNT_FRONT_UNTESTED) = range(5)
+ COUNT_FRONT_UNTESTED) = (engine.COUNT_BOX_TESTS, engine.COUNT_TRIANGLE_TESTS,
+                          engine.COUNT_SPHERE_SKIPS, engine.COUNT_FRONT_STARTS,
+                          engine.COUNT_FRONT_UNTESTED)
 N_COUNTERS = engine.N_COUNTERS
 
 #: Length of a pose vector: R_ab (row-major), then t_ab.

@@ -287,8 +287,10 @@ def _collada_meters_per_unit(mesh, path) -> float:
 #: The largest mesh file read (a collision mesh this size holds millions of triangles).
 MAX_MESH_BYTES = 256 * 1024 * 1024
 
-#: Solid kinds (``Solid.kind``; the engine's ``cpp/query.hpp``: SOLID_*).
-SOLID_BOX, SOLID_SPHERE, SOLID_CYLINDER, SOLID_CLOSED_MESH = 1, 2, 3, 4
+#: Solid kinds (``Solid.kind``), by name: the engine's numbers for them are its own
+#: (``collision_sensor.engine.dynamic_scene.solid_row`` translates).
+SOLID_BOX, SOLID_SPHERE, SOLID_CYLINDER, SOLID_CLOSED_MESH = (
+    'box', 'sphere', 'cylinder', 'closed_mesh')
 
 
 @dataclass(frozen=True)
@@ -301,7 +303,7 @@ class Solid:
     solid collides with it (as FCL reports for primitives), although no triangles meet.
     """
 
-    kind: int
+    kind: str
     size: tuple = (0.0, 0.0, 0.0)
 
 

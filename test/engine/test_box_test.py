@@ -14,8 +14,6 @@ from collision_sensor.engine.traversal import axis_gap
 from collision_sensor.tools.bench.box_tests import (
     CAT_NEAR, CAT_RANDOM, CAT_TOUCHING, contact_distance, mixed_pairs)
 
-SCRATCH = np.zeros(64)
-
 
 def box_vertices(h):
     """Return (8, 3) vertices of a box centred at 0; bit k of the index selects +h_k."""
@@ -24,8 +22,8 @@ def box_vertices(h):
 
 def both(ha, hb, R, t):
     ha, hb, R, t = (np.asarray(x, dtype=np.float64) for x in (ha, hb, R, t))
-    return (boxes_disjoint_paper(ha, hb, R, t, SCRATCH),
-            boxes_disjoint_sat(ha, hb, R, t, SCRATCH))
+    return (boxes_disjoint_paper(ha, hb, R, t),
+            boxes_disjoint_sat(ha, hb, R, t))
 
 
 def literal(ha, hb, R, t):
@@ -276,9 +274,9 @@ def test_nan_input_counts_as_overlap():
 
 
 def test_dispatcher_selects_the_method():
-    args = (np.array(ONE), np.array(ONE), I3, np.array([3.0, 0, 0]), SCRATCH)
+    args = (np.array(ONE), np.array(ONE), I3, np.array([3.0, 0, 0]))
     assert boxes_disjoint(BOX_TEST_PAPER, *args) and boxes_disjoint(BOX_TEST_SAT, *args)
-    args = (np.array(ONE), np.array(ONE), I3, np.array([1.0, 0, 0]), SCRATCH)
+    args = (np.array(ONE), np.array(ONE), I3, np.array([1.0, 0, 0]))
     assert not boxes_disjoint(BOX_TEST_PAPER, *args)
     assert not boxes_disjoint(BOX_TEST_SAT, *args)
 
@@ -326,7 +324,7 @@ def test_one_axis_alone_agrees_with_the_whole_test_and_its_gap_is_a_lower_bound(
         A, B = _box_row(ca, Ea, ha), _box_row(cb, Eb, hb)
         P = tuple(R_ab.ravel()) + tuple(t_ab)
         k = int(first_axis[p])
-        assert separating_axis(*ha, *hb, *R.ravel(), *t) == k      # one pair == the batch
+        assert separating_axis(ha, hb, R, t) == k      # one pair == the batch
         if k >= 0:
             named += 1
             assert axis_gap(k, A, B, P)[0], (k, literal(ha, hb, R, t))

@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 
 from collision_sensor import CollisionChecker, ConfigError, JointStateError
+from collision_sensor.engine.pair_reach import pair_rows
 from collision_sensor.engine.sampling import random_configurations, sampling_bounds
-from collision_sensor.engine.triangle_test import triangles_intersect
 from collision_sensor.model.mesh_loading import SOLID_BOX, SOLID_SPHERE, box_mesh
 from collision_sensor.model.scene import SceneObject
+from engine_kernels import triangles_intersect
 from engine_oracles import FclOracle
 from small_robot import SMALL_ROBOT, SMALL_SCENE
 
@@ -98,9 +99,9 @@ def _world_triangles(checker):
         out.setdefault(element.link, []).append(tris)
     f = checker.forest
     for name in checker.scene_object_names:
-        b = checker._body_index[name]
+        b = checker._scene.body_index[name]
         T = poses[name]
-        for e in range(checker._body_elem_start[b], checker._body_elem_end[b]):
+        for e in range(checker._scene.elem_start[b], checker._scene.elem_end[b]):
             tris = FclOracle._tris_of_tree(f, f.roots[e])
             out.setdefault(name, []).append(tris @ T[:3, :3].T + T[:3, 3])
     return {name: np.ascontiguousarray(np.concatenate(parts)) for name, parts in out.items()}
@@ -324,7 +325,7 @@ def test_running_travel_sums_equal_the_sums_recomputed_from_scratch(panda):
             extension = np.abs(kin.multiplier[sliders] * q_ref[kin.q_index[sliders]]
                                + kin.offset[sliders]).sum()
             assert len(sliders) == 2
-            assert panda.packed_array('scalars')[1] == pytest.approx(extension, abs=1e-12)
+            assert panda.packed_array('extension')[0] == pytest.approx(extension, abs=1e-12)
             exact = fixed + extension * ext
             assert np.all(exact[on] < clearance[on])  # skipped pairs are still apart
             tracked += int(on.sum())
@@ -672,8 +673,9 @@ def test_a_virtual_joint_places_the_robot_in_the_world(kind, variables):
     assert checker.kinematics.link_names[:2] == ('odom', 'base')
     assert checker.model.root_link == 'odom' and 'odom' not in checker.link_names
     # Self-collision pairs do not depend on the base, robot-vs-scene pairs do.
-    path = checker._pair_rows(checker._engine_tree(), checker._radius, checker._pair_a,
-                              checker._pair_b)[0]
+    scene = checker._scene
+    path = pair_rows(scene.tree(), scene.radius, scene.pair_a, scene.pair_b,
+                     len(checker.joint_names))[0]
     for p, pair in enumerate(checker.checked_pairs):
         on_scene = bool(set(pair) & set(checker.scene_object_names))
         assert path[p, :len(variables)].all() == on_scene, pair
@@ -798,12 +800,12 @@ MID_TREE_MULTI_DOF = SMALL_ROBOT.replace(
     (SMALL_ROBOT, _virtual_srdf('floating')), (SMALL_ROBOT, _virtual_srdf('planar')),
     (MID_TREE_MULTI_DOF, None), (MID_TREE_MULTI_DOF, _virtual_srdf('planar'))])
 def test_reach_bounds_how_far_each_variable_moves_a_pair(urdf, srdf):
-    """_pair_reaches: moving variable j by d moves no vertex of either body by more than
+    """pair_reach.pair_rows: moving variable j by d moves no vertex of either body by more than
     |d| (reach + reach_ext E) relative to the other, measured on the triangles."""
     checker = CollisionChecker.from_urdf(urdf, srdf=srdf, scene=SMALL_SCENE,
                                          config={'primitive_sections': 8,
                                                  'ignore_adjacent': False})
-    reach, reach_ext = checker._pair_reach, checker._pair_reach_ext
+    reach, reach_ext = checker.packed_array('reach'), checker.packed_array('reach_ext')
     kin = checker.kinematics
     vertices = {}
     for element in checker.model.elements:

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from collision_sensor.engine.checker import CollisionChecker, ProximityRecord
-from collision_sensor.engine.distance import triangle_distance
 from collision_sensor.engine.sampling import random_configurations
+from engine_kernels import triangle_distance
 from engine_oracles import FclOracle, distance_to_body
 
 N_CONFIGURATIONS = 150

@@ -406,7 +406,7 @@ def _ancestors(checker, link):
 def test_reach_bounds_hold_for_attached_objects():
     """Moving variable j by d moves the vertices of a pair with an attached object, both
     bodies summed, by no more than |d| (reach + reach_ext E) relative to each other: in
-    their common ancestor's frame (the world for a world object; see _pair_rows)."""
+    their common ancestor's frame (the world for a world object; see pair_reach.pair_rows)."""
     checker, _ = _small_cell()
     rng = np.random.default_rng(8)
     held = _random_object(rng, 'held')
@@ -422,6 +422,7 @@ def test_reach_bounds_hold_for_attached_objects():
             [vertices[element.link], element.vertices @ T[:3, :3].T + T[:3, 3]])
     hosts = {'held': 'tool', 'other': 'upper'}
     extend = checker.joint_names.index('extend')
+    reach, reach_ext = checker.packed_array('reach'), checker.packed_array('reach_ext')
     seen = 0
     for q in random_configurations(checker, 20, 8):
         checker.check(q)
@@ -449,8 +450,7 @@ def test_reach_bounds_hold_for_attached_objects():
                     delta = rel[1] - rel[0]
                     shift += np.linalg.norm(vertices[x] @ delta[:3, :3].T + delta[:3, 3],
                                             axis=1).max()
-                bound = abs(moved[j] - q[j]) * (checker._pair_reach[p, j]
-                                                + checker._pair_reach_ext[p, j] * extension)
+                bound = abs(moved[j] - q[j]) * (reach[p, j] + reach_ext[p, j] * extension)
                 assert shift <= bound + 1e-9, (a, b, checker.joint_names[j], shift, bound)
                 seen += shift > 0
     assert seen > 100

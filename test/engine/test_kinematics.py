@@ -4,7 +4,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from collision_sensor.engine.kinematics import (
-    JOINT_FIXED, JOINT_PRISMATIC, JOINT_REVOLUTE, build_kinematic_tree, forward_kinematics_kernel)
+    JOINT_FIXED, JOINT_PRISMATIC, JOINT_REVOLUTE, build_kinematic_tree)
 from collision_sensor.errors import JointStateError, LoadWarning, RobotDescriptionError
 from collision_sensor.model.robot_model import load_urdf, resolve_mimics, transform_from_xyz_rpy
 
@@ -228,17 +228,6 @@ def test_single_level_mimic_matches_yourdfpy(tmp_path):
     for q in random_configurations(tree, 200, seed=5):
         np.testing.assert_allclose(tree.forward_kinematics(q), yourdfpy_poses(robot, tree, q),
                                    rtol=0, atol=TOLERANCE)
-
-
-def test_kernel_fills_the_callers_buffer(tmp_path):
-    # The kernel writes into a buffer the caller owns (the query engine's way of calling it).
-    tree = build_kinematic_tree(load_urdf(write(tmp_path, CHAIN_URDF)))
-    q = np.array([0.3, -0.7, 0.1])
-    scratch = np.empty((len(tree.link_names), 4, 4))
-    forward_kinematics_kernel(q, tree.parent, tree.joint_type, tree.T_parent_joint, tree.axis,
-                              tree.q_index, tree.multiplier, tree.offset, scratch)
-    position = scratch[-1, :3, 3].copy()
-    np.testing.assert_allclose(position, tree.forward_kinematics(q)[-1, :3, 3])
 
 
 def test_single_link_robot(tmp_path):

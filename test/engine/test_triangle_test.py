@@ -6,7 +6,7 @@ import pytest
 from scipy.optimize import linprog
 
 from collision_sensor.engine.tolerances import TRIANGLE_EPS_REL
-from collision_sensor.engine.triangle_test import triangles_intersect
+from engine_kernels import triangles_intersect
 
 
 def tri(*rows):

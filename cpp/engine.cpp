@@ -1,0 +1,170 @@
+// The query engine's entry points (engine.hpp).
+#include "engine.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+
+#include "planning.hpp"
+#include "poses.hpp"
+#include "recheck.hpp"
+
+namespace collision_sensor {
+
+namespace {
+
+const Options& checked(const Options& o) {
+    if (o.box_test != BOX_TEST_PAPER && o.box_test != BOX_TEST_SAT)
+        throw std::invalid_argument("box_test: " + std::to_string(o.box_test) +
+                                    " is not BOX_TEST_PAPER or BOX_TEST_SAT");
+    if (o.expansion < EXPAND_SAME || o.expansion > EXPAND_WIDER)
+        throw std::invalid_argument("expansion: " + std::to_string(o.expansion) +
+                                    " is not one of EXPAND_*");
+    if (!(o.motion_tolerance >= 0.0 && std::isfinite(o.motion_tolerance)))
+        throw std::invalid_argument("motion_tolerance: not a finite number >= 0");
+    return o;
+}
+
+}  // namespace
+
+bool is_rigid_transform(const double* T) {
+    for (int k = 0; k < 12; ++k)
+        if (!std::isfinite(T[k])) return false;
+    const double x = T[3], y = T[7], z = T[11];
+    if (std::max({std::fabs(x), std::fabs(y), std::fabs(z)}) > MAX_COORDINATE ||
+        T[12] != 0.0 || T[13] != 0.0 || T[14] != 0.0 || T[15] != 1.0)
+        return false;
+    const double r00 = T[0], r01 = T[1], r02 = T[2], r10 = T[4], r11 = T[5], r12 = T[6],
+                 r20 = T[8], r21 = T[9], r22 = T[10];
+    const double error = std::max({std::fabs(r00 * r00 + r10 * r10 + r20 * r20 - 1.0),
+                                   std::fabs(r01 * r01 + r11 * r11 + r21 * r21 - 1.0),
+                                   std::fabs(r02 * r02 + r12 * r12 + r22 * r22 - 1.0),
+                                   std::fabs(r00 * r01 + r10 * r11 + r20 * r21),
+                                   std::fabs(r00 * r02 + r10 * r12 + r20 * r22),
+                                   std::fabs(r01 * r02 + r11 * r12 + r21 * r22)});
+    const double det = r00 * (r11 * r22 - r12 * r21) - r01 * (r10 * r22 - r12 * r20) +
+                       r02 * (r10 * r21 - r11 * r20);
+    return error <= ROTATION_TOLERANCE && det >= 0.0;
+}
+
+Engine::Engine(double* F, int64_t f_size, const int64_t* f_layout, int64_t* I, int64_t i_size,
+               const int64_t* i_layout, const Options& options)
+    : layout_(resolve_layout(F, f_size, f_layout, I, i_size, i_layout)),
+      options_(checked(options)),
+      model_(make_model(layout_)),
+      state_(make_state(layout_, model_)),
+      scratch_(model_, state_.fronts.capacity, layout_.i[slot::counters],
+               layout_.i[slot::scene_culled], layout_.i[slot::nearest]) {}
+
+// Force pair p: the next query re-checks it whatever the joints did (listed, when every
+// forced pair so far is).
+void Engine::force(int64_t p) {
+    if (state_.forced_mode != FORCED_SCAN && !state_.forced[p]) state_.forced_list.push_back(p);
+    state_.forced[p] = 1;
+    if (state_.forced_mode == FORCED_NONE) state_.forced_mode = FORCED_LISTED;
+}
+
+int64_t Engine::move_world_body(int64_t b, const double* T) {
+    if (!model_.is_world_object(b) || b >= model_.n_bodies || !is_rigid_transform(T))
+        return MOVE_REFUSED;
+    std::memcpy(state_.poses.T_world_body + 16 * b, T, 16 * sizeof(double));
+    for (int64_t k = model_.body_pairs_start[b]; k < model_.body_pairs_start[b + 1]; ++k)
+        force(model_.body_pairs[k]);
+    return 0;
+}
+
+int64_t Engine::place_attached_body(int64_t b, const double* T, const int64_t* pairs,
+                                    int64_t n, const double* reach_rows,
+                                    const double* reach_ext_rows) {
+    const Model& m = model_;
+    if (b < 1 || b >= m.n_links || m.kin.joint_type[b] != JOINT_FIXED || !is_rigid_transform(T))
+        return MOVE_REFUSED;
+    for (int64_t i = b + 1; i < m.n_links; ++i)   // a leaf: no pose below it to refresh
+        if (m.kin.parent[i] == b) return MOVE_REFUSED;
+    const int64_t J = m.n_joints;
+    for (int64_t k = 0; k < n; ++k) {
+        const int64_t p = pairs[k];
+        if (p < 0 || p >= m.n_pairs || (m.pair_a[p] != b && m.pair_b[p] != b))
+            return MOVE_REFUSED;
+        for (int64_t j = 0; j < J; ++j)
+            if (!(reach_rows[J * k + j] >= 0.0 && std::isfinite(reach_rows[J * k + j]) &&
+                  reach_ext_rows[J * k + j] >= 0.0 && std::isfinite(reach_ext_rows[J * k + j])))
+                return MOVE_REFUSED;
+    }
+    std::memcpy(layout_.f[slot::T_parent_joint] + 16 * b, T, 16 * sizeof(double));
+    state_.poses.stale[b] = 1;
+    for (int64_t k = 0; k < n; ++k) {
+        const int64_t p = pairs[k];
+        std::copy(reach_rows + J * k, reach_rows + J * (k + 1), layout_.f[slot::reach] + J * p);
+        std::copy(reach_ext_rows + J * k, reach_ext_rows + J * (k + 1),
+                  layout_.f[slot::reach_ext] + J * p);
+        force(p);
+    }
+    return 0;
+}
+
+int64_t Engine::query(const double* q, bool full) {
+    const int64_t bad = unusable_variable(model_.kin, q, model_.n_joints);
+    if (bad >= 0) return -1 - bad;
+    return run(q, full);
+}
+
+int64_t Engine::run(const double* q, bool full) {
+    const Model& m = model_;
+    State& s = state_;
+    CheckContext c = {m, s, scratch_, options_};
+    full = full || s.flags[QUERY_CHECKED_ONCE] == 0;
+    bool any_moved = full;
+    const double tolerance = options_.motion_tolerance;
+    for (int64_t j = 0; j < m.n_joints; ++j) {
+        s.q_last[j] = q[j];
+        if (std::fabs(q[j] - s.q_ref[j]) > tolerance) any_moved = true;
+    }
+    const bool forced = s.forced_mode != FORCED_NONE;
+    if (!any_moved && !forced) return 0;
+    s.flags[QUERY_CHECKED_ONCE] = 1;
+    int64_t n;
+    if (full) {
+        plan_full(c, s.q_last);
+        n = m.n_pairs;
+        if (forced) clear_forced(s, m.n_pairs);  // every pair is re-checked from scratch
+    } else {
+        n = any_moved ? plan_update(c, s.q_last) : 0;
+        if (forced) n = add_forced(c, n);
+        if (n == 0) return 0;
+    }
+    bool changed = false;
+    const int64_t rechecked = recheck_pairs(c, n, full, &changed);
+    return 2 * rechecked + (changed ? 1 : 0);
+}
+
+int64_t Engine::batch(const double* Q, int64_t n, bool full, uint8_t* statuses,
+                      int64_t* codes) {
+    const int64_t J = model_.n_joints, P = model_.n_pairs;
+    for (int64_t i = 0; i < n; ++i) {  // all rows first: a bad row changes nothing at all
+        const int64_t bad = unusable_variable(model_.kin, Q + J * i, J);
+        if (bad >= 0) return -1 - (J * i + bad);
+    }
+    for (int64_t i = 0; i < n; ++i) {
+        codes[i] = run(Q + J * i, full);
+        for (int64_t p = 0; p < P; ++p) statuses[P * i + p] = uint8_t(state_.status[p]);
+    }
+    return n;
+}
+
+void Engine::refresh_all_poses() {
+    collision_sensor::refresh_all_poses(model_, state_.q_ref, state_.poses);
+}
+
+int64_t Engine::proximity(const double* q, const ProximityRequest& request,
+                          const ProximityResult& result) {
+    const int64_t code = query(q, false);
+    if (code < 0) return code;
+    refresh_all_poses();
+    measure_proximity(view(), request, scratch_, result);
+    return code;
+}
+
+}  // namespace collision_sensor

@@ -1,0 +1,101 @@
+// The query engine over the checker's packed buffers (paper sec. 2, 4.1, 4.2): its entry
+// points.
+//
+// A query takes joint positions and
+// 1. decides which joint variables moved and lists only the pairs whose relative pose can
+//    have changed, minus those whose clearance the motion cannot have closed
+//    (planning.hpp; a full check takes every pair);
+// 2. re-checks the listed pairs (recheck.hpp): (full checks) culling by the volumes spanning
+//    several links (culling.hpp), (incremental calls) the pair's last meeting triangle pair,
+//    then the two bodies' boxes, then each sub-group tree against each (traversal.hpp),
+//    an incremental call from the pair's front when it is in near contact; a body inside a
+//    solid of the other collides too (containment.hpp).
+// Poses follow the joints lazily (poses.hpp).
+//
+// The engine reads the checker's arrays in place (layout.hpp: the packed buffers; model.hpp,
+// context.hpp: what it cuts them into), so the checker can inspect any of them as a numpy
+// view, and a query allocates nothing. A query never moves a world object: the engine's scene
+// methods do, between queries, and force the pairs that must be re-checked whatever the joints
+// do (collision_sensor/engine/dynamic_scene.py).
+//
+// Adding a query: a function of its own file over an EngineView and a Scratch (as
+// proximity.hpp), an entry point here that brings the state up to date and calls it, its
+// binding (bindings.cpp), and the checker's method (collision_sensor/engine/checker.py).
+#pragma once
+
+#include <cstdint>
+#include <mutex>
+
+#include "context.hpp"
+#include "layout.hpp"
+#include "model.hpp"
+#include "proximity.hpp"
+
+namespace collision_sensor {
+
+// move_world_body's and place_attached_body's answer when they changed nothing.
+constexpr int64_t MOVE_REFUSED = -1;
+
+// The rigid transforms the scene methods take (dynamic_scene.py: checked_pose, the same
+// arithmetic): finite, the position within MAX_COORDINATE (m) of the origin on each axis
+// (as PRISMATIC_VALUE_MAX bounds the joints: every coordinate then stays far from overflow),
+// last row (0, 0, 0, 1), |R^T R - I| <= ROTATION_TOLERANCE entrywise, det R >= 0.
+constexpr double MAX_COORDINATE = 1e6;
+constexpr double ROTATION_TOLERANCE = 1e-6;
+bool is_rigid_transform(const double* T);
+
+class Engine {
+   public:
+    // Cut the buffers F and I (layout.hpp; their layout rows f_layout (N_FLOAT_SLOTS,
+    // LAYOUT_WIDTH), i_layout likewise) into the model and the state and check them: throws
+    // LayoutError for a layout that is not the tables', std::invalid_argument for a model
+    // with an index out of range or options out of range, each naming the culprit.
+    Engine(double* F, int64_t f_size, const int64_t* f_layout, int64_t* I, int64_t i_size,
+           const int64_t* i_layout, const Options& options);
+
+    // Validate q (J values), copy it to q_last, bring the statuses up to date with it: a full
+    // check re-checks every pair, an incremental one only what the motion can have changed.
+    // The first call always checks in full. Returns 2 * rechecked + changed, or -1 - j when
+    // q[j] is not usable (kinematics.hpp: unusable_variable; nothing changed then).
+    int64_t query(const double* q, bool full);
+    // query() on each row of Q (n, J) in turn; statuses (n, P) uint8 and codes (n,) out.
+    // Returns n, or -1 - (J i + j) when row i's value j is not usable: every row is validated
+    // before any is run, so nothing changed then.
+    int64_t batch(const double* Q, int64_t n, bool full, uint8_t* statuses, int64_t* codes);
+    // query(q, false), then measure_proximity (proximity.hpp) into result. Returns query()'s
+    // code (nothing measured when it is negative).
+    int64_t proximity(const double* q, const ProximityRequest& request,
+                      const ProximityResult& result);
+    // Bring every link pose up to date (incremental calls compute them only on demand).
+    void refresh_all_poses();
+
+    // Give world object b the pose T (4, 4, row-major) and force its pairs, if T is a rigid
+    // transform (is_rigid_transform). Returns 0, or MOVE_REFUSED when b is no world object or
+    // T no such transform (nothing changed then).
+    int64_t move_world_body(int64_t b, const double* T);
+    // Give attached object b (a link on a fixed joint, without links below it) the pose T in
+    // its link's frame, its pairs pairs[:n] the reach rows reach, reach_ext (n, J) (the
+    // checker's lever arms run through the object's origin:
+    // collision_sensor/engine/pair_reach.py), and force those pairs. Returns 0, or
+    // MOVE_REFUSED when b is no such link, T no rigid transform, a pair not one of b's or a
+    // reach not finite and >= 0 (nothing changed then).
+    int64_t place_attached_body(int64_t b, const double* T, const int64_t* pairs, int64_t n,
+                                const double* reach, const double* reach_ext);
+
+    const Model& model() const { return model_; }
+    EngineView view() const { return {model_, state_, options_}; }
+    std::mutex& lock() { return lock_; }
+
+   private:
+    int64_t run(const double* q, bool full);
+    void force(int64_t p);
+
+    std::mutex lock_;
+    ResolvedLayout layout_;  // the buffers' slots, writable (the scene methods write the model)
+    Options options_;
+    Model model_;
+    State state_;
+    Scratch scratch_;  // the engine's own context (its work group slots packed)
+};
+
+}  // namespace collision_sensor

@@ -1,0 +1,156 @@
+// The model cut from the packed buffers and checked (model.hpp).
+#include "model.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace collision_sensor {
+
+namespace {
+
+void require(bool ok, const char* array, const char* what) {
+    if (!ok) throw std::invalid_argument(std::string("packed array '") + array + "': " + what);
+}
+
+// Check every index of the model that a query follows unchecked.
+void check_indices(const Model& m, int64_t n_joint_pairs, int64_t n_joint_links) {
+    for (int64_t b = 0; b < m.n_bodies; ++b)
+        require(m.padding[b] >= 0.0 && std::isfinite(m.padding[b]), "padding",
+                "not a finite value >= 0");
+    const KinematicTree& kin = m.kin;
+    for (int64_t i = 0; i < m.n_links; ++i) {
+        const int64_t parent = kin.parent[i];
+        require(!(parent >= i || (i > 0 && parent < 0) || (i == 0 && parent >= 0)), "parent",
+                "links are not parents first");
+        require(kin.joint_type[i] >= JOINT_FIXED && kin.joint_type[i] <= JOINT_FLOATING,
+                "joint_type", "unknown joint type");
+        require(kin.joint_type[i] == JOINT_FIXED ||   // a multi-DOF joint's variables all in q
+                    (kin.q_index[i] >= 0 && kin.q_index[i] +
+                     joint_variable_count(kin.joint_type[i]) <= m.n_joints),
+                "q_index", "index out of range");
+    }
+    for (int64_t b = 0; b < m.n_bodies; ++b)
+        require(m.elem_start[b] >= 0 && m.elem_end[b] >= m.elem_start[b] &&
+                    m.elem_end[b] <= m.n_elements,
+                "body_elem_*", "out of range");
+    for (int64_t p = 0; p < m.n_pairs; ++p)
+        require(m.pair_a[p] >= 0 && m.pair_a[p] < m.n_links && m.pair_b[p] >= 0 &&
+                    m.pair_b[p] < m.n_bodies,
+                "pair_*", "body out of range");
+    for (int64_t e = 0; e < m.n_elements; ++e)
+        require(m.roots[e] >= 0 && m.roots[e] < m.n_nodes, "roots", "node out of range");
+    for (int64_t n = 0; n < m.n_nodes; ++n) {
+        const int64_t* node = m.forest.node(n);
+        require(!(node[NODE_LEFT] >= m.n_nodes || node[NODE_RIGHT] >= m.n_nodes ||
+                  (node[NODE_LEFT] >= 0 && node[NODE_RIGHT] < 0) || node[NODE_FIRST] < 0 ||
+                  node[NODE_COUNT] < 0 || node[NODE_FIRST] + node[NODE_COUNT] > m.n_triangles),
+                "nodes", "index out of range");
+    }
+    // The variables' lists: cut in order, each entry a pair or a link.
+    const std::pair<const int64_t*, const int64_t*> lists[2] = {
+        {m.joint_pairs_start, m.joint_pairs}, {m.joint_links_start, m.joint_links}};
+    const int64_t bounds[2] = {m.n_pairs, m.n_links};
+    const int64_t lengths[2] = {n_joint_pairs, n_joint_links};
+    for (int k = 0; k < 2; ++k) {
+        const int64_t* start = lists[k].first;
+        require(start[0] == 0 && start[m.n_joints] == lengths[k], "joint_*_start",
+                "does not cut its list from start to end");
+        for (int64_t j = 0; j < m.n_joints; ++j)
+            require(start[j + 1] >= start[j], "joint_*_start", "not increasing");
+        for (int64_t t = 0; t < start[m.n_joints]; ++t)
+            require(lists[k].second[t] >= 0 && lists[k].second[t] < bounds[k], "joint_*",
+                    "entry out of range");
+    }
+}
+
+// Each tree's triangle range and depth, walking it from its root (a node reached twice is
+// a cycle, not a tree).
+void derive_trees(Model& m) {
+    m.elem_tris.assign(2 * m.n_elements, 0);
+    m.depth = 1;
+    std::vector<std::pair<int64_t, int64_t>> pending;  // (node, its depth)
+    for (int64_t e = 0; e < m.n_elements; ++e) {
+        int64_t lo = m.n_triangles, hi = 0;
+        pending.assign(1, {m.roots[e], 1});
+        for (int64_t visits = 0; !pending.empty(); ++visits) {
+            require(visits <= m.n_nodes, "nodes", "not a tree");
+            const auto [n, level] = pending.back();
+            pending.pop_back();
+            m.depth = std::max(m.depth, level);
+            const int64_t* node = m.forest.node(n);
+            if (node[NODE_LEFT] >= 0) {
+                pending.push_back({node[NODE_LEFT], level + 1});
+                pending.push_back({node[NODE_RIGHT], level + 1});
+            } else if (node[NODE_COUNT] > 0) {
+                lo = std::min(lo, node[NODE_FIRST]);
+                hi = std::max(hi, node[NODE_FIRST] + node[NODE_COUNT]);
+            }
+        }
+        m.elem_tris[2 * e] = lo < hi ? lo : 0;
+        m.elem_tris[2 * e + 1] = lo < hi ? hi : 0;
+    }
+}
+
+void derive_bodies(Model& m) {
+    m.body_solid.assign(m.n_bodies, 0);
+    m.body_reach.assign(m.n_bodies, 0.0);
+    for (int64_t b = 0; b < m.n_bodies; ++b) {
+        for (int64_t e = m.elem_start[b]; e < m.elem_end[b]; ++e)
+            if (m.elem_solid[SOLID_WIDTH * e] != SOLID_NONE) m.body_solid[b] = 1;
+        const double* B = m.body_box(b);
+        const double* c = B + BOX_CENTER;
+        m.body_reach[b] = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) + B[BOX_RADIUS];
+    }
+    m.body_pairs_start.assign(m.n_bodies + 1, 0);
+    for (int64_t p = 0; p < m.n_pairs; ++p) ++m.body_pairs_start[m.pair_b[p] + 1];
+    for (int64_t b = 0; b < m.n_bodies; ++b) m.body_pairs_start[b + 1] += m.body_pairs_start[b];
+    m.body_pairs.assign(m.n_pairs, 0);
+    std::vector<int64_t> next(m.body_pairs_start.begin(), m.body_pairs_start.end() - 1);
+    for (int64_t p = 0; p < m.n_pairs; ++p) m.body_pairs[next[m.pair_b[p]]++] = p;
+    m.most_seeds = 1;
+    for (int64_t p = 0; p < m.n_pairs; ++p)
+        m.most_seeds = std::max(m.most_seeds, m.elements(m.pair_a[p]) * m.elements(m.pair_b[p]));
+}
+
+}  // namespace
+
+Model make_model(const ResolvedLayout& r) {
+    Model m;
+    m.n_links = r.dims[DIM_LINKS];
+    m.n_bodies = r.dims[DIM_BODIES];
+    m.n_joints = r.dims[DIM_JOINTS];
+    m.n_pairs = r.dims[DIM_PAIRS];
+    m.n_elements = r.dims[DIM_ELEMENTS];
+    m.n_nodes = r.dims[DIM_NODES];
+    m.n_triangles = r.dims[DIM_TRIANGLES];
+    m.kin = {m.n_links,         r.i[slot::parent],     r.i[slot::joint_type],
+             r.f[slot::T_parent_joint], r.f[slot::axis], r.i[slot::q_index],
+             r.f[slot::multiplier],     r.f[slot::offset]};
+    m.forest = {r.f[slot::boxes], r.i[slot::nodes], r.f[slot::volume], r.f[slot::gain],
+                r.f[slot::tris]};
+    m.body_boxes = r.f[slot::body_boxes];
+    m.padding = r.f[slot::padding];
+    m.elem_start = r.i[slot::body_elem_start];
+    m.elem_end = r.i[slot::body_elem_end];
+    m.roots = r.i[slot::roots];
+    m.elem_solid = r.f[slot::elem_solid];
+    m.pair_a = r.i[slot::pair_a];
+    m.pair_b = r.i[slot::pair_b];
+    m.reach = r.f[slot::reach];
+    m.reach_ext = r.f[slot::reach_ext];
+    m.joint_pairs_start = r.i[slot::joint_pairs_start];
+    m.joint_pairs = r.i[slot::joint_pairs];
+    m.joint_links_start = r.i[slot::joint_links_start];
+    m.joint_links = r.i[slot::joint_links];
+    m.joint_prismatic = r.i[slot::joint_prismatic];
+    require(m.n_links >= 1, "parent", "the robot has no links");
+    check_indices(m, r.dims[DIM_JOINT_PAIRS], r.dims[DIM_JOINT_LINKS]);
+    derive_trees(m);
+    derive_bodies(m);
+    return m;
+}
+
+}  // namespace collision_sensor

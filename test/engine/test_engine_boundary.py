@@ -1,0 +1,250 @@
+"""The Python/C++ boundary: one source of truth, the extension's.
+
+* every packed array of a real robot (the Panda, with attached and world objects) has the
+  dtype, group and shape the engine's layout tables give, for dimensions counted here from the
+  checker's own description (links, bodies, pairs, trees ...), not from the layout;
+* every constant a Python module names that the extension exports is the extension's, and no
+  module assigns such a name a number of its own (a hand copy);
+* the engine checks the layout it is given, and its errors are the package's own.
+"""
+import ast
+import importlib
+import pathlib
+
+import numpy as np
+import pytest
+
+import collision_sensor
+from collision_sensor import CollisionChecker
+from collision_sensor.engine import array_pack
+from collision_sensor.engine.compiled import engine
+from collision_sensor.engine.dynamic_scene import AddObject
+from collision_sensor.errors import EngineBuildError, EngineInputError, JointStateError
+from collision_sensor.model.mesh_loading import box_mesh, box_solid
+from collision_sensor.model.scene import SceneObject
+
+PACKAGE_DIR = pathlib.Path(collision_sensor.__file__).parent
+
+
+def _box(name, size, xyz):
+    vertices, faces = box_mesh(size)
+    T = np.eye(4)
+    T[:3, 3] = xyz
+    return SceneObject(name=name, source='test', T_world_object=T, vertices=vertices,
+                       faces=faces, solid=box_solid(size))
+
+
+@pytest.fixture(scope='module')
+def panda_cell(panda_urdf, panda_srdf, erd_package_paths):
+    checker = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                         package_paths=erd_package_paths)
+    checker.apply_scene_changes([
+        AddObject(_box('table', (0.8, 0.8, 0.05), (0.5, 0.0, -0.1))),
+        AddObject(_box('shelf', (0.3, 0.6, 0.02), (0.6, 0.2, 0.6))),
+        AddObject(_box('part', (0.04, 0.04, 0.08), (0.0, 0.0, 0.1)), attach_to='panda_hand',
+                  touch_links=('panda_leftfinger', 'panda_rightfinger'))])
+    checker.check(np.zeros(len(checker.joint_names)))
+    return checker
+
+
+def _dims(checker):
+    """The model's dimensions, counted from the checker's own description: its kinematic tree,
+    attachments, pairs and forest (and, for the variables' lists, the tree paths)."""
+    kin = checker.kinematics
+    attachments = checker.attachments
+    attached = [name for name in checker.scene_object_names if name in attachments]
+    world = [name for name in checker.scene_object_names if name not in attachments]
+    links = list(kin.link_names) + attached
+    parent = list(kin.parent) + [kin.link_names.index(attachments[n][0]) for n in attached]
+    count = {engine.JOINT_FIXED: 0, engine.JOINT_PLANAR: 3, engine.JOINT_FLOATING: 7}
+    drives = [set(range(kin.q_index[k], kin.q_index[k] + count.get(kin.joint_type[k], 1)))
+              if kin.q_index[k] >= 0 else set() for k in range(len(kin.link_names))]
+    drives += [set() for _ in attached]
+
+    def chain(name):   # the body and its ancestors; a world object has none (the world's)
+        if name in world:
+            return []
+        k, out = links.index(name), []
+        while k >= 0:
+            out.append(k)
+            k = parent[k]
+        return out
+
+    def variables(ks):
+        return set().union(*[drives[k] for k in ks])
+
+    joint_links = sum(len(variables(chain(name))) for name in links)
+    joint_pairs = sum(len(variables(set(chain(a)) ^ set(chain(b))))
+                      for a, b in checker.checked_pairs)
+    forest = checker.forest
+    return {'links': len(links), 'bodies': len(links) + len(world),
+            'world_objects': len(world), 'joints': len(checker.joint_names),
+            'pairs': len(checker.checked_pairs), 'nodes': len(forest.left),
+            'triangles': len(forest.tris), 'elements': len(forest.roots),
+            'joint_pairs': joint_pairs, 'joint_links': joint_links}
+
+
+def test_every_packed_array_has_the_engines_dtype_and_shape(panda_cell):
+    dims = _dims(panda_cell)
+    assert set(dims) == set(array_pack.DIMS)
+    assert dims['world_objects'] == 2
+    assert dims['links'] == len(panda_cell.kinematics.link_names) + 1
+    assert dims['joint_pairs'] > dims['pairs'] > 0 and dims['joint_links'] > dims['links']
+    names = [slot.name for slot in array_pack.SLOTS]
+    assert len(names) == len(set(names)) == len(engine.FLOAT_SLOTS) + len(engine.INT_SLOTS)
+    for slot in array_pack.SLOTS:
+        view = panda_cell.packed_array(slot.name)
+        assert view.dtype == slot.dtype, slot
+        assert view.shape == array_pack.shape_of(slot, dims), slot
+        assert slot.group in ('model', 'state', 'work'), slot
+    # The shapes the engine names are the checker's, too.
+    assert panda_cell.packed_array('T_world_body').shape == (dims['bodies'], 4, 4)
+    assert panda_cell.packed_array('boxes').shape == (dims['nodes'], engine.BOX_WIDTH)
+
+
+def _engine_names():
+    return {name for name in dir(engine) if name.isupper()}
+
+
+def _engine_modules():
+    return sorted(path for path in (PACKAGE_DIR / 'engine').glob('*.py'))
+
+
+def test_every_python_constant_is_the_extensions():
+    shared = 0
+    for path in _engine_modules():
+        module = importlib.import_module(f'collision_sensor.engine.{path.stem}')
+        for name in _engine_names() & set(vars(module)):
+            value = getattr(module, name)
+            if isinstance(value, np.ndarray):
+                assert np.array_equal(value, getattr(engine, name)), (path.name, name)
+            else:
+                assert value == getattr(engine, name), (path.name, name)
+            shared += 1
+    assert shared >= 30
+    from collision_sensor.engine import dynamic_scene
+    from collision_sensor.model import mesh_loading
+    kinds = {mesh_loading.SOLID_BOX, mesh_loading.SOLID_SPHERE, mesh_loading.SOLID_CYLINDER,
+             mesh_loading.SOLID_CLOSED_MESH}
+    assert set(dynamic_scene.SOLID_CODES) == kinds
+    assert sorted(dynamic_scene.SOLID_CODES.values()) == [
+        engine.SOLID_BOX, engine.SOLID_SPHERE, engine.SOLID_CYLINDER, engine.SOLID_CLOSED_MESH]
+
+
+def _literal(node):
+    """True iff node is a number, or a tuple / list of them (a hand-written constant)."""
+    if isinstance(node, (ast.Tuple, ast.List)):
+        return all(_literal(item) for item in node.elts)
+    if isinstance(node, ast.UnaryOp):
+        return _literal(node.operand)
+    return isinstance(node, ast.Constant) and isinstance(node.value, (int, float))
+
+
+def test_no_module_writes_an_engine_constant_by_hand():
+    """A name the extension exports is never given a number of the package's own (but
+    ENGINE_API: the version the Python side expects, compared with the extension's)."""
+    exported = _engine_names() - {'ENGINE_API'}
+    copies = []
+    for path in sorted(PACKAGE_DIR.rglob('*.py')):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if not isinstance(node, ast.Assign) or not _literal(node.value):
+                continue
+            for target in node.targets:
+                names = target.elts if isinstance(target, ast.Tuple) else [target]
+                copies += [f'{path.relative_to(PACKAGE_DIR)}:{node.lineno} {n.id}'
+                           for n in names if isinstance(n, ast.Name) and n.id in exported]
+    assert copies == []
+
+
+def _arrays(checker):
+    return {slot.name: checker.packed_array(slot.name).copy() for slot in array_pack.SLOTS}
+
+
+def _engine_of(arrays, **options):
+    """An engine over a packing of ``arrays``, and the views of its buffers."""
+    packed = array_pack.pack(arrays)
+    settings = dict(box_test=engine.BOX_TEST_SAT, expansion=engine.EXPAND_WIDER,
+                    motion_tolerance=0.0)
+    settings.update(options)
+    return engine.Engine(packed.F, packed.F_layout, packed.I, packed.I_layout,
+                         **settings), packed.views
+
+
+def test_the_engine_refuses_a_layout_that_is_not_its_own(panda_cell):
+    arrays = _arrays(panda_cell)
+    _engine_of(arrays)   # the checker's own arrays make an engine
+    for name, bad, expected in [
+            ('reach_ext', arrays['reach_ext'][:, :-1], r"\(pairs, joints\) = \(\d+, 8\)"),
+            ('nodes', arrays['nodes'][:-1], "nodes from 'boxes'"),
+            ('joint_pairs_start', arrays['joint_pairs_start'][:-1], r"\(joints\+1,\) = \(9,\)"),
+            ('query_flags', np.zeros(5), r'\(2,\)')]:
+        with pytest.raises(EngineBuildError, match=f"'{name}' has shape .*{expected}"):
+            _engine_of({**arrays, name: bad})
+    packed = array_pack.pack(arrays)
+    packed.F_layout[3, 0] = len(packed.F)   # a slot past the end of its buffer
+    with pytest.raises(EngineBuildError, match='outside its buffer'):
+        engine.Engine(packed.F, packed.F_layout, packed.I, packed.I_layout, box_test=0,
+                      expansion=0, motion_tolerance=0.0)
+
+
+def test_the_engine_refuses_bad_content_and_options_with_the_packages_errors(panda_cell):
+    arrays = _arrays(panda_cell)
+    for name, change, message in [
+            ('pair_b', lambda a: a.__setitem__(0, 10_000), 'pair_'),
+            ('parent', lambda a: a.__setitem__(1, 5), 'parent'),
+            ('padding', lambda a: a.__setitem__(0, np.nan), 'padding'),
+            ('joint_pairs', lambda a: a.__setitem__(0, -1), 'joint_')]:
+        bad = arrays[name].copy()
+        change(bad)
+        with pytest.raises(EngineInputError, match=message):
+            _engine_of({**arrays, name: bad})
+    with pytest.raises(EngineInputError, match='box_test'):
+        _engine_of(arrays, box_test=7)
+    with pytest.raises(EngineInputError, match='motion_tolerance'):
+        _engine_of(arrays, motion_tolerance=-1.0)
+    with pytest.raises(EngineInputError, match='statuses'):
+        _engine_of(arrays)[0].batch(np.zeros((2, len(panda_cell.joint_names))), True,
+                                 np.zeros((2, 1), dtype=np.uint8), np.zeros(2, dtype=np.int64))
+    with pytest.raises(EngineInputError, match='points'):
+        engine.fit_obb_pca(np.zeros((4, 2)))
+    with pytest.raises(JointStateError) as error:
+        panda_cell.kinematics._forward(np.full(len(panda_cell.joint_names), np.inf))
+    assert 'panda_joint1' in str(error.value)
+
+
+def test_scene_methods_change_nothing_they_refuse(panda_cell):
+    """move_world_body and place_attached_body validate before they write: a refused call
+    leaves every packed array as it was."""
+    eng, views = _engine_of(_arrays(panda_cell))
+    before = {name: view.copy() for name, view in views.items()}
+    part = len(panda_cell.kinematics.link_names)   # the attached part: the last link
+    world = part + 1                               # the first world object
+    bad_pose = np.eye(4)
+    bad_pose[0, 0] = 2.0
+    far = np.eye(4)
+    far[0, 3] = 2 * engine.MAX_COORDINATE
+    refused = engine.MOVE_REFUSED
+    assert eng.move_world_body(world, bad_pose) == refused
+    assert eng.move_world_body(world, far) == refused
+    assert eng.move_world_body(part, np.eye(4)) == refused        # not a world object
+    assert eng.move_world_body(world, [[1.0]]) == refused         # not a (4, 4) float64 array
+    J = len(panda_cell.joint_names)
+    pairs = np.flatnonzero([part in (a, b) for a, b in zip(views['pair_a'], views['pair_b'])])
+    assert len(pairs) > 5
+    reach = np.ones((len(pairs), J))
+    assert eng.place_attached_body(part, bad_pose, pairs, reach, reach) == refused
+    assert eng.place_attached_body(world, np.eye(4), pairs, reach, reach) == refused
+    assert eng.place_attached_body(part, np.eye(4), pairs, -reach, reach) == refused
+    assert eng.place_attached_body(part, np.eye(4), pairs[:1] * 0 + 10_000,
+                                   reach[:1], reach[:1]) == refused
+    for name, view in views.items():
+        np.testing.assert_array_equal(view, before[name], err_msg=name)
+    # Accepted, they write: the pose, and the attached part's joint origin and reach rows.
+    moved = np.eye(4)
+    moved[:3, 3] = (0.1, 0.2, 0.3)
+    assert eng.move_world_body(world, moved) == 0
+    np.testing.assert_array_equal(views['T_world_body'][world], moved)
+    assert eng.place_attached_body(part, moved, pairs, reach, 2 * reach) == 0
+    np.testing.assert_array_equal(views['T_parent_joint'][part], moved)
+    np.testing.assert_array_equal(views['reach_ext'][pairs], 2 * reach)
+    assert views['stale'][part] == 1 and views['forced'][pairs].all()
