@@ -1,0 +1,213 @@
+"""``--ray ADDRESS``: units checked by Ray actors, on this machine or a cluster.
+
+``ADDRESS`` is ``auto`` (join the cluster running here, as ``ray start --head`` leaves it),
+``local`` (start a cluster in this process with ``--jobs`` CPUs, stopped at the end), or any
+address ``ray.init`` takes (``ray://head:10001``, ``head:6379``). Ray is an optional extra:
+``pip install 'collision_sensor[cluster]'``; every node needs collision_sensor installed.
+
+One actor per CPU of the cluster (or ``--jobs``), each building its checker once from the
+:class:`~collision_sensor.tools.audit.unit_check.RobotSpec` put in the object store once. The
+cluster's nodes need not share a file system with the driver: the robot travels as that spec
+(the loaded model, no path), and each recording as its bytes, read by the driver when its task
+is sent (:mod:`~collision_sensor.tools.audit.shipping`; at most :data:`DEPTH` per actor in
+flight, so the driver holds a bounded number of files). An episode's parquet file is put in
+the object store once while its episodes are being sent.
+
+Faults as with local workers (:mod:`~collision_sensor.tools.audit.local_pool`): an actor runs
+its tasks in order, so when it dies the first unit it held is the one charged; it is tried once
+more alone on a new actor, the others are sent again uncharged.
+"""
+import collections
+import os
+from dataclasses import dataclass, field
+from typing import Callable, Deque, Dict, List, Optional
+
+from collision_sensor.errors import CollisionSensorError, ConfigError
+from collision_sensor.tools.audit import shipping
+from collision_sensor.tools.audit.local_pool import DEPTH, RETRIES, PoolStats, died_error
+from collision_sensor.tools.audit.unit_check import CheckOptions, RobotSpec, UnitChecker, \
+    rss_bytes
+from collision_sensor.tools.audit.units import Unit
+
+INSTALL_HINT = ('--ray needs Ray, an optional extra: pip install "collision_sensor[cluster]" '
+                '(or pip install "ray>=2.9")')
+#: Parquet files kept in the object store while their episodes are sent.
+SHARED_FILES = 4
+
+
+def require_ray():
+    """Return the ``ray`` module, or raise ConfigError saying how to install it."""
+    try:
+        import ray
+    except ImportError:
+        raise ConfigError(INSTALL_HINT) from None
+    return ray
+
+
+class RayWorker:
+    """The actor: a :class:`UnitChecker` built once (wrapped by ``ray.remote`` in
+    :meth:`RayPool.run`, so importing this module needs no Ray)."""
+
+    def __init__(self, spec: RobotSpec, options: CheckOptions):
+        self.checker = UnitChecker(spec, options)
+        self.checker.checker   # build the trees now
+
+    def hello(self):
+        """Return (pid, RSS in bytes) once ready."""
+        return os.getpid(), rss_bytes()
+
+    def check(self, unit: Unit, payload):
+        """Return (the unit's report line, RSS in bytes after it)."""
+        return self.checker.check(unit, payload), rss_bytes()
+
+
+@dataclass
+class _Actor:
+    handle: object
+    pid: int = 0
+    queue: Deque = field(default_factory=collections.deque)   # (index, ref)
+    alone: bool = False
+
+
+class RayPool:
+    """Ray actors checking units (see the module docstring).
+
+    :param address: ``auto``, ``local`` or a cluster address.
+    :param jobs: actors (None: one per CPU of the cluster); with ``local``, the CPUs of the
+        cluster started.
+    """
+
+    def __init__(self, spec: RobotSpec, options: CheckOptions, address: str,
+                 jobs: Optional[int] = None):
+        self.ray = require_ray()
+        self.spec, self.options, self.address, self.jobs = spec, options, address, jobs
+
+    def _connect(self) -> bool:
+        """Join or start the cluster; return whether this call started Ray here."""
+        ray = self.ray
+        if ray.is_initialized():
+            return False
+        kwargs = dict(include_dashboard=False, log_to_driver=False,
+                      configure_logging=False)
+        if self.address == 'local':
+            kwargs['num_cpus'] = self.jobs or len(os.sched_getaffinity(0))
+        try:
+            ray.init(address=self.address, **kwargs)
+        except (ConnectionError, RuntimeError, ValueError) as err:
+            fix = ('start one with "ray start --head", or use --ray local'
+                   if self.address == 'auto' else 'check the address')
+            raise ConfigError(f'--ray {self.address}: cannot join the cluster: {err}; {fix}') \
+                from None
+        return True
+
+    def run(self, units: List[Unit], on_record: Callable[[int, dict], None],
+            on_start: Optional[Callable[[int, int, int], None]] = None) -> PoolStats:
+        """Check ``units`` as :meth:`LocalPool.run` does."""
+        ray = self.ray
+        started_here = self._connect()
+        remote = ray.remote(num_cpus=1, max_restarts=0, max_task_retries=0)(RayWorker)
+        cpus = int(ray.cluster_resources().get('CPU', 1))
+        stats = PoolStats(workers=max(1, min(self.jobs or cpus, cpus, len(units))))
+        spec_ref = ray.put(self.spec)
+        shared: Dict[str, object] = collections.OrderedDict()
+        pending: Deque[int] = collections.deque(range(len(units)))
+        deaths: Dict[int, int] = collections.Counter()
+        alone, remaining = set(), len(units)
+        actors: List[_Actor] = []
+
+        def new_actor() -> _Actor:
+            actor = _Actor(remote.remote(spec_ref, self.options))
+            actor.pid, rss = ray.get(actor.handle.hello.remote())
+            stats.note_rss(f'pid {actor.pid}', rss)
+            return actor
+
+        def payload(unit: Unit):
+            if unit.kind != 'lerobot':
+                return shipping.pack(unit)
+            key = os.path.join(unit.episode.root, unit.episode.data_file)
+            if key not in shared:
+                shared[key] = ray.put(shipping.pack(unit))
+                while len(shared) > SHARED_FILES:
+                    shared.popitem(last=False)
+            return shared[key]
+
+        def announce(actor: _Actor) -> None:
+            if on_start is not None and actor.queue:
+                index = actor.queue[0][0]
+                on_start(index, deaths[index] + 1, actor.pid)
+
+        try:
+            actors = [new_actor() for _ in range(stats.workers)]
+            while remaining:
+                for actor in actors:
+                    while pending and len(actor.queue) < DEPTH and not actor.alone:
+                        index = pending[0]
+                        if index in alone and actor.queue:
+                            break
+                        pending.popleft()
+                        unit = units[index]
+                        try:
+                            data = payload(unit)
+                        except OSError as err:
+                            on_record(index, UnitChecker.failed_record(
+                                unit, self.options, f'{err.filename or unit.path}: cannot '
+                                f'read: {err.strerror or err}'))
+                            remaining -= 1
+                            continue
+                        actor.queue.append((index, actor.handle.check.remote(unit, data)))
+                        actor.alone = index in alone
+                        if len(actor.queue) == 1:
+                            announce(actor)
+                heads = {actor.queue[0][1]: actor for actor in actors if actor.queue}
+                if not heads:
+                    continue
+                ready, _ = ray.wait(list(heads), num_returns=1)
+                actor = heads[ready[0]]
+                index, ref = actor.queue[0]
+                try:
+                    record, rss = ray.get(ref)
+                except ray.exceptions.RayError as err:
+                    remaining -= self._bury(actor, units, pending, deaths, alone, stats,
+                                            on_record, err)
+                    actors[actors.index(actor)] = new_actor()
+                    continue
+                actor.queue.popleft()
+                actor.alone = False
+                stats.note_rss(f'pid {actor.pid}', rss)
+                on_record(index, record)
+                remaining -= 1
+                announce(actor)
+        finally:
+            for actor in actors:
+                ray.kill(actor.handle)
+            if started_here:
+                ray.shutdown()
+        return stats
+
+    def _bury(self, actor: _Actor, units, pending, deaths, alone, stats, on_record,
+              err) -> int:
+        """Handle a dead actor: charge its first unit, requeue the rest; return 1 if that
+        unit is now reported failed."""
+        self.ray.kill(actor.handle)
+        stats.deaths += 1
+        queue = [index for index, _ in actor.queue]
+        index = queue.pop(0)
+        deaths[index] += 1
+        reason = f'the Ray actor died: {type(err).__name__}'
+        reported = 0
+        if deaths[index] > RETRIES:
+            alone.discard(index)
+            on_record(index, UnitChecker.failed_record(units[index], self.options,
+                                                       died_error(deaths[index], reason)))
+            reported = 1
+        else:
+            stats.retried += 1
+            alone.add(index)
+            queue.insert(0, index)
+        pending.extendleft(reversed(queue))
+        return reported
+
+
+def cluster_error(err: Exception) -> CollisionSensorError:
+    """Wrap an error of Ray's own (the cluster went away) as this package's error."""
+    return CollisionSensorError(f'--ray: the cluster failed: {type(err).__name__}: {err}')
