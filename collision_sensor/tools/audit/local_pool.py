@@ -67,10 +67,17 @@ class PoolStats:
     rss: Dict[str, List[int]] = field(default_factory=dict)
     retried: int = 0
     deaths: int = 0
+    #: ``{worker: [RSS after each unit]}``, the first TRACE units of each.
+    trace: Dict[str, List[int]] = field(default_factory=dict)
+
+    TRACE = 10_000
 
     def note_rss(self, worker: str, value: int) -> None:
         entry = self.rss.setdefault(worker, [value, value])
         entry[1] = value
+        trace = self.trace.setdefault(worker, [])
+        if len(trace) < self.TRACE:
+            trace.append(value)
 
 
 def _serve(conn, spec: RobotSpec, options: CheckOptions) -> None:
