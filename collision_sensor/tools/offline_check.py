@@ -48,7 +48,7 @@ from typing import Dict, List, Optional, Sequence, TextIO, Tuple
 import numpy as np
 
 from collision_sensor.errors import ConfigError, SequenceError
-from collision_sensor.engine.scene_markers import MarkerError, SceneTopic, apply_array
+from collision_sensor.engine.scene_markers import SceneTopic
 from collision_sensor.model.joint_map import load_joint_map
 from collision_sensor.model.mesh_loading import parse_package_paths
 from collision_sensor.model.sequences import (
@@ -59,7 +59,7 @@ from collision_sensor.tools.audit.batch import (
 from collision_sensor.tools.audit.ray_pool import require_ray
 from collision_sensor.tools.audit.report import plot_batch
 from collision_sensor.tools.audit.unit_check import (
-    CheckOptions, RobotSpec, frame_durations, with_demo_arm_hint)
+    CheckOptions, RobotSpec, apply_recorded, frame_durations, with_demo_arm_hint)
 from collision_sensor.tools.audit.units import find_units
 from collision_sensor.tools.command_line import run_command
 from collision_sensor.tools.progress import MODES, ProgressBar
@@ -125,12 +125,7 @@ def run_sequence(checker, seq: JointSequence, incremental: bool = True,
     results = []
     for index, (t, q) in enumerate(zip(seq.times.tolist(), seq.positions)):
         for event in events[index]:
-            try:
-                apply_array(scene, checker, event.markers)
-            except MarkerError as error:
-                raise MarkerError(error.index, event.markers[error.index],
-                                  f'{error.reason} (in the scene array recorded at '
-                                  f'{event.time:.3f} s)') from None
+            apply_recorded(scene, checker, event)
         start = time.perf_counter()
         result = check(q)
         elapsed = time.perf_counter() - start

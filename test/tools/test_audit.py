@@ -190,46 +190,50 @@ def test_resume_skips_what_the_report_holds_and_drops_a_torn_line(fleet, serial_
     assert status == 2 and 'written for another robot or other settings' in err
 
 
-def _heavy(tmp_path, frames=150_000):
+def _heavy(tmp_path, name='heavy', frames=150_000):
     """A long clear recording of the demo arm (a few tenths of a second to check)."""
     import numpy as np
     from collision_sensor.model.sequences import JointSequence, write_sequence
     rng = np.random.default_rng(5)
     walk = np.clip(np.cumsum(rng.normal(0, 0.001, (frames, 6)), axis=0), -0.3, 0.3)
-    path = str(tmp_path / 'heavy.csv')
+    path = str(tmp_path / f'{name}.csv')
     write_sequence(JointSequence(audit_fleet.JOINTS, np.arange(frames) * 0.002, walk), path)
     return path
 
 
-@pytest.mark.parametrize('kills', [1, 2])
-def test_a_killed_worker_costs_only_its_unit(fleet, spec, options, serial_records, tmp_path,
-                                            kills):
-    units = find_units([fleet[0], _heavy(tmp_path)])
-    heavy = len(units) - 1
+def check_kills(make_runner, fleet, spec, options, serial_records, tmp_path):
+    """Kill the worker of one long unit once (it is checked on its retry) and of another on
+    both attempts (it is reported); every other line as a serial run gives it."""
+    units = find_units([fleet[0], _heavy(tmp_path, 'once'), _heavy(tmp_path, 'twice')])
+    once, twice = len(units) - 2, len(units) - 1
     killed = []
 
     def kill(index, attempt, pid):
-        if index == heavy and attempt <= kills:
-            killed.append(pid)
+        if index == once and attempt == 1 or index == twice:
+            killed.append((index, attempt))
             os.kill(pid, signal.SIGKILL)
 
     path = tmp_path / 'faults.jsonl'
-    result = batch.run_batch(units, spec, options, LocalPool(spec, options, 2),
-                             report_path=str(path), on_start=kill, progress='never')
-    assert len(killed) == kills and result.stats.deaths == kills
-    lines = [json.loads(line) for line in path.read_text().splitlines()]
-    assert len(lines) == len(units)                     # every line valid JSON
+    result = batch.run_batch(units, spec, options, make_runner(), report_path=str(path),
+                             on_start=kill, progress='never')
+    assert sorted(killed) == [(once, 1), (twice, 1), (twice, 2)]
+    assert result.stats.deaths == 3 and result.stats.retried == 2
+    lines = [json.loads(line) for line in path.read_text().splitlines()]   # valid JSON lines
     by_source = audit_fleet.by_source(lines)
-    assert len(by_source) == len(units)
-    for line in serial_records.records:
+    assert len(lines) == len(by_source) == len(units)
+    for line in serial_records:
         assert by_source[line['source']] == line         # nothing else lost or changed
-    last = by_source[units[heavy].source]
-    if kills == 1:
-        assert last['error'] is None and last['frames'] == 150_000
-        assert result.stats.retried == 1
-    else:
-        assert 'died on each of 2 attempts (last: killed by SIGKILL)' in last['error']
-        assert last['frames'] is None
+    assert by_source[units[once].source]['error'] is None
+    assert by_source[units[once].source]['frames'] == 150_000
+    failed = by_source[units[twice].source]
+    assert failed['frames'] is None and 'died on each of 2 attempts (last: ' in failed['error']
+    return failed['error']
+
+
+def test_a_killed_worker_costs_only_its_unit(fleet, spec, options, serial_records, tmp_path):
+    error = check_kills(lambda: LocalPool(spec, options, 2), fleet, spec, options,
+                        serial_records.records, tmp_path)
+    assert '(last: killed by SIGKILL)' in error
 
 
 def test_worker_memory_does_not_grow_with_units(fleet, spec, options):

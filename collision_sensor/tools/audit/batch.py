@@ -39,6 +39,8 @@ class BatchResult:
     new: List[dict]
     stats: PoolStats
     seconds: float
+    #: seconds from the start to the first new line (the workers' start-up and one unit).
+    first_seconds: float = 0.0
 
     @property
     def status(self) -> int:
@@ -90,11 +92,14 @@ def run_batch(units: List[Unit], spec: RobotSpec, options: CheckOptions, runner,
     writer = report.ReportWriter(report_path, resume)
     new: List[dict] = []
     frames = [0]
+    first = [0.0]
     start = time.perf_counter()
     try:
         with ProgressBar(len(todo), label='units', mode=progress) as bar:
             def on_record(index: int, record: dict) -> None:
                 record['settings'] = digest
+                if not new:
+                    first[0] = time.perf_counter() - start
                 writer.write(record)
                 new.append(record)
                 frames[0] += record['frames'] or 0
@@ -105,7 +110,7 @@ def run_batch(units: List[Unit], spec: RobotSpec, options: CheckOptions, runner,
     seconds = time.perf_counter() - start
     order = {unit.source: k for k, unit in enumerate(units)}
     new.sort(key=lambda record: order.get(record['source'], len(order)))
-    return BatchResult(done + new, new, stats, seconds)
+    return BatchResult(done + new, new, stats, seconds, first[0])
 
 
 def print_summary(result: BatchResult, spec: RobotSpec, checker, options: CheckOptions,

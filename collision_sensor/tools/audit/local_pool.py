@@ -53,6 +53,28 @@ def died_error(attempts: int, reason: str) -> str:
             '(collision_sensor_check FILE) and report it')
 
 
+def charge_death(queue: List[int], charged: bool, deaths, alone: set, pending: Deque[int],
+                 stats: 'PoolStats', report_failed: Callable[[int, str], None],
+                 reason: str) -> int:
+    """Settle the units a dead worker held (``queue``, in order): with ``charged`` the first
+    one was being checked: it is tried again alone, or reported failed after RETRIES; the
+    others go back to the front of ``pending`` uncharged. Return 1 if a unit was reported."""
+    reported = 0
+    if queue and charged:
+        index = queue.pop(0)
+        deaths[index] += 1
+        if deaths[index] > RETRIES:
+            alone.discard(index)
+            report_failed(index, died_error(deaths[index], reason))
+            reported = 1
+        else:
+            stats.retried += 1
+            alone.add(index)
+            queue.insert(0, index)
+    pending.extendleft(reversed(queue))
+    return reported
+
+
 @dataclass
 class PoolStats:
     """What a run of workers did, for the summary.
@@ -214,24 +236,12 @@ class LocalPool:
         worker.process.join(timeout=5)
         worker.conn.close()
         stats.deaths += 1
-        reason = death_reason(worker.process.exitcode)
         queue = list(worker.queue)
-        reported = 0
-        if queue and worker.started == queue[0]:
-            index = queue.pop(0)
-            deaths[index] += 1
-            if deaths[index] > RETRIES:
-                alone.discard(index)
-                record = UnitChecker.failed_record(units[index], self.options,
-                                                   died_error(deaths[index], reason))
-                on_record(index, record)
-                reported = 1
-            else:
-                stats.retried += 1
-                alone.add(index)
-                queue.insert(0, index)
-        pending.extendleft(reversed(queue))
-        return reported
+        return charge_death(
+            queue, bool(queue) and worker.started == queue[0], deaths, alone, pending, stats,
+            lambda index, error: on_record(index, UnitChecker.failed_record(
+                units[index], self.options, error)),
+            death_reason(worker.process.exitcode))
 
     @staticmethod
     def _stop(workers: List[_Worker]) -> None:

@@ -22,9 +22,9 @@ import os
 from dataclasses import dataclass, field
 from typing import Callable, Deque, Dict, List, Optional
 
-from collision_sensor.errors import CollisionSensorError, ConfigError
+from collision_sensor.errors import ConfigError
 from collision_sensor.tools.audit import shipping
-from collision_sensor.tools.audit.local_pool import DEPTH, RETRIES, PoolStats, died_error
+from collision_sensor.tools.audit.local_pool import DEPTH, PoolStats, charge_death
 from collision_sensor.tools.audit.unit_check import CheckOptions, RobotSpec, UnitChecker, \
     rss_bytes
 from collision_sensor.tools.audit.units import Unit
@@ -190,24 +190,8 @@ class RayPool:
         unit is now reported failed."""
         self.ray.kill(actor.handle)
         stats.deaths += 1
-        queue = [index for index, _ in actor.queue]
-        index = queue.pop(0)
-        deaths[index] += 1
-        reason = f'the Ray actor died: {type(err).__name__}'
-        reported = 0
-        if deaths[index] > RETRIES:
-            alone.discard(index)
-            on_record(index, UnitChecker.failed_record(units[index], self.options,
-                                                       died_error(deaths[index], reason)))
-            reported = 1
-        else:
-            stats.retried += 1
-            alone.add(index)
-            queue.insert(0, index)
-        pending.extendleft(reversed(queue))
-        return reported
-
-
-def cluster_error(err: Exception) -> CollisionSensorError:
-    """Wrap an error of Ray's own (the cluster went away) as this package's error."""
-    return CollisionSensorError(f'--ray: the cluster failed: {type(err).__name__}: {err}')
+        return charge_death(
+            [index for index, _ in actor.queue], True, deaths, alone, pending, stats,
+            lambda index, error: on_record(index, UnitChecker.failed_record(
+                units[index], self.options, error)),
+            f'the Ray actor died: {type(err).__name__}')

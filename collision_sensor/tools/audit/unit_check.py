@@ -143,6 +143,19 @@ class UnitCheck:
         raise NotImplementedError
 
 
+def apply_recorded(topic: SceneTopic, checker, event) -> None:
+    """Apply a recorded scene array as the node applies the topic's.
+
+    :raises MarkerError: an array the node would reject, naming the time it was recorded.
+    """
+    try:
+        apply_array(topic, checker, event.markers)
+    except MarkerError as error:
+        raise MarkerError(error.index, event.markers[error.index],
+                          f'{error.reason} (in the scene array recorded at {event.time:.3f} '
+                          's)') from None
+
+
 def frame_durations(times: np.ndarray) -> np.ndarray:
     """How long each frame stands: until the next; the last as long as the one before."""
     if len(times) < 2:
@@ -322,8 +335,9 @@ class UnitChecker:
         stretches (:meth:`JointSequence.scene_before`)."""
         checker = self.checker
         checks = [kind(self.options, seq) for kind in checks_for(self.options)]
-        events = seq.scene_before()
-        starts = [0] + [i for i in range(1, len(seq)) if events[i]] + [len(seq)]
+        events = seq.scene_before() if seq.scene else [()] * len(seq)
+        starts = [0] + [i for i in range(1, len(seq)) if events[i]] + [len(seq)] \
+            if seq.scene else [0, len(seq)]
         topic = SceneTopic(package_paths=dict(self.spec.package_paths) or None)
         if seq.scene:
             self._checker = None   # the next unit gets the scene as loaded
@@ -331,12 +345,7 @@ class UnitChecker:
             checker.check(seq.positions[0])
             for start, stop in zip(starts[:-1], starts[1:]):
                 for event in events[start]:
-                    try:
-                        apply_array(topic, checker, event.markers)
-                    except MarkerError as error:
-                        raise MarkerError(error.index, event.markers[error.index],
-                                          f'{error.reason} (in the scene array recorded at '
-                                          f'{event.time:.3f} s)') from None
+                    apply_recorded(topic, checker, event)
                 for check in checks:
                     check.segment(checker, start, stop)
         except BaseException:
