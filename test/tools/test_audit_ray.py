@@ -35,9 +35,12 @@ def serial(fleet, spec, options):
                            progress='never').records
 
 
-def test_ray_actors_give_the_serial_lines(fleet, spec, options, serial):
+@pytest.mark.parametrize('ship', [None, True])
+def test_ray_actors_give_the_serial_lines(fleet, spec, options, serial, ship):
+    """Actors on this machine read the files; shipped (as to another machine), the bytes
+    travel through the object store and the lines are the same."""
     units = find_units([fleet[0]])
-    result = batch.run_batch(units, spec, options, RayPool(spec, options, 'auto'),
+    result = batch.run_batch(units, spec, options, RayPool(spec, options, 'auto', ship=ship),
                              progress='never')
     assert result.records == serial
     assert result.stats.workers == 2 and result.stats.deaths == 0
@@ -61,6 +64,6 @@ def test_the_command_joins_the_running_cluster(fleet, serial, tmp_path):
 
 
 def test_a_killed_actor_costs_only_its_unit(fleet, spec, options, serial, tmp_path):
-    error = check_kills(lambda: RayPool(spec, options, 'auto'), fleet, spec, options, serial,
-                        tmp_path)
+    error = check_kills(lambda: RayPool(spec, options, 'auto', ship=True), fleet, spec,
+                        options, serial, tmp_path)
     assert '(last: the Ray actor died' in error
