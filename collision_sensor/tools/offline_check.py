@@ -67,6 +67,7 @@ from collision_sensor.tools.progress import MODES, ProgressBar
 PROG = 'collision_sensor_check'
 DEFAULT_MAX_DISTANCE = 0.1
 EXIT_CLEAR, EXIT_COLLISION, EXIT_ERROR = 0, 1, 2
+EXIT_INTERRUPTED = 130   # as a shell reports a process stopped by SIGINT
 BUNDLED_SEQUENCES = ('paper_experiment', 'into_drum_clear', 'random', 'moving_part')
 
 Pair = Tuple[str, str]
@@ -440,8 +441,14 @@ def _run_batch(args, units, spec, checker, joint_map, max_distance) -> int:
     label = (f'Ray ({args.ray})' if args.ray else
              f'{args.jobs or default_jobs()} local worker processes'
              if (args.jobs or default_jobs()) > 1 else 'this process')
-    result = run_batch(units, spec, options, runner, report_path=args.report,
-                       resume=args.resume, progress=args.progress)
+    try:
+        result = run_batch(units, spec, options, runner, report_path=args.report,
+                           resume=args.resume, progress=args.progress)
+    except KeyboardInterrupt:
+        where = (f'; the report {args.report} holds every unit finished, --resume continues '
+                 'it') if args.report else ''
+        print(f'{PROG}: stopped{where}', file=sys.stderr)
+        return EXIT_INTERRUPTED
     if args.plot:
         plot_batch(result.records, args.plot)
     print_summary(result, spec, checker, options, label)

@@ -289,3 +289,34 @@ def test_summary_and_plot_of_hand_made_lines(tmp_path):
     assert 'w: broken: fix it' in text
     report.plot_batch(records, str(tmp_path / 'b.png'))
     assert (tmp_path / 'b.png').read_bytes()[:4] == b'\x89PNG'
+
+
+def test_ctrl_c_keeps_a_valid_report_that_resume_completes(fleet, serial_records, tmp_path):
+    import subprocess
+    import time
+    root = fleet[0]
+    heavy = [_heavy(tmp_path, f'long{k}', frames=60_000) for k in range(3)]
+    path = tmp_path / 'stopped.jsonl'
+    argv = [sys.executable, '-m', 'collision_sensor.tools.offline_check', root, *heavy,
+            '--joint-map', os.path.join(root, 'joint_map.yaml'), '--report', str(path),
+            '--jobs', '2', '--progress', 'never']
+    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and (not path.exists()
+                                           or path.read_text().count('\n') < 3):
+        time.sleep(0.05)
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == 130, err
+    assert 'stopped; the report' in err and '--resume continues it' in err
+    before = [json.loads(line) for line in path.read_text().splitlines()]
+    assert 3 <= len(before) < len(serial_records.records) + 3
+    done = subprocess.run(argv + ['--resume'], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 3, done.stderr
+    after = [json.loads(line) for line in path.read_text().splitlines()]
+    assert after[:len(before)] == before
+    lines = audit_fleet.by_source(after)
+    assert len(lines) == len(after) == len(serial_records.records) + 3
+    for line in serial_records.records:
+        assert lines[line['source']] == line
