@@ -120,3 +120,17 @@ def test_without_pyarrow_the_message_says_how_to_install(monkeypatch):
     monkeypatch.setitem(sys.modules, 'pyarrow.parquet', None)
     with pytest.raises(ConfigError, match=r'pip install "collision_sensor\[parquet\]"'):
         lerobot.require_pyarrow()
+
+
+def test_v20_names_under_motors_read_as_entry_names(tmp_path):
+    """v2.0 datasets ported from older LeRobot name a vector's entries {"motors": [...]}."""
+    root = tmp_path / 'ds'
+    episodes = _episodes(lengths=(12,))
+    write_v21(str(root), NAMES, episodes)
+    info = json.loads((root / 'meta' / 'info.json').read_text())
+    info['features']['observation.state']['names'] = {'motors': list(NAMES)}
+    _rewrite_info(root, codebase_version='v2.0', features=info['features'])
+    (episode,) = lerobot.list_episodes(root)
+    assert episode.version == 'v2.0' and episode.feature_names('observation.state') == NAMES
+    seq = lerobot.read_episode(episode, joint_map_from_mapping(MAP, 'm'), JOINTS)
+    np.testing.assert_array_equal(seq.positions, _expected(episodes[0]))

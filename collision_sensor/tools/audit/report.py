@@ -148,6 +148,7 @@ def plot_batch(records: Sequence[dict], path: str, top: int = 15) -> None:
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     checked = sorted((r for r in records if r['error'] is None),
                      key=lambda r: (-collision_rate(r), r['source']))
@@ -175,6 +176,7 @@ def plot_batch(records: Sequence[dict], path: str, top: int = 15) -> None:
             right.set_yticks(range(len(names)))
             right.set_yticklabels(names, fontsize=7)
             right.set_xlabel('recordings with the pair in contact')
+            right.xaxis.set_major_locator(MaxNLocator(integer=True))
         else:
             right.text(0.5, 0.5, 'no pair in contact', ha='center', va='center')
             right.set_axis_off()

@@ -175,12 +175,13 @@ def run(recordings: int, frames: int, runs: int, seed: int, with_ray: bool, log)
         f'Run {time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}: {recordings} CSV '
         f'recordings of {frames} Panda frames ({total:,} frames; {in_collision} recordings '
         f'touch themselves), {runs} runs, incremental check (the default). Machine: {cores} '
-        f'cores; before the runs {others:.2f} cores were busy with others\' work (3 s sample) '
-        if others is not None else '',
-        f'and the load average was {load_before[0]:.2f}; after, {load_after[0]:.2f}.', '',
+        + (f'cores; before the runs {others:.2f} cores were busy with others\' work (3 s '
+           'sample) and ' if others is not None else 'cores; before the runs ')
+        + f'the load average was {load_before[0]:.2f}; after, {load_after[0]:.2f}.', '',
         '| run | wall s (min / median / max) | frames/s (median) | frames/s per core | '
         'steady frames/s after the first line (median) | cores busy during the run '
-        '(median) | worker RSS growth, MiB (max) |',
+        '(median) | RSS growth of a worker (jobs 1: this process, holding the lines), MiB '
+        '(max) |',
         '|---|---|---|---|---|---|---|']
     for name in names:
         per_core = 1 if name == 'jobs 1' else 2
