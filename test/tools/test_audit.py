@@ -320,3 +320,26 @@ def test_ctrl_c_keeps_a_valid_report_that_resume_completes(fleet, serial_records
     assert len(lines) == len(after) == len(serial_records.records) + 3
     for line in serial_records.records:
         assert lines[line['source']] == line
+
+
+def test_closest_approach_is_the_single_checks(fleet, spec, capsys):
+    """--max-distance in a batch: each unit's closest approach while clear is the one the
+    single-recording check finds frame by frame (checked against fcl.distance there)."""
+    from collision_sensor import CollisionChecker
+    source = os.path.join(fleet[0], 'a', 'paper_experiment.csv')
+    options = CheckOptions(max_distance=0.05)
+    result = batch.run_batch(find_units([source, os.path.join(fleet[0], 'b')]), spec,
+                             options, batch.SerialRunner(spec, options), progress='never')
+    line = audit_fleet.by_source(result.records)[source]
+    checker = CollisionChecker.from_urdf(os.path.join(CONFIG, 'demo_arm.urdf'),
+                                         srdf=os.path.join(CONFIG, 'demo_arm.srdf'),
+                                         scene=os.path.join(CONFIG, 'demo_scene.yaml'))
+    seq = read_sequence(source, joint_names=checker.joint_names)
+    frames = offline_check.run_sequence(checker, seq, max_distance=0.05)
+    clear = [f for f in frames if not f.in_collision and f.min_distance is not None]
+    best = min(clear, key=lambda f: f.min_distance)
+    assert line['closest_approach'] == {'distance': best.min_distance,
+                                        'link_a': best.nearest_pair[0],
+                                        'link_b': best.nearest_pair[1], 'time': best.time}
+    batch.print_summary(result, spec, checker, options, 'this process')
+    assert f'closest approach while clear: {best.min_distance:.6f} m' in capsys.readouterr().out

@@ -15,7 +15,7 @@ from typing import Callable, List, Optional
 from collision_sensor.tools.audit import report
 from collision_sensor.tools.audit.local_pool import LocalPool, PoolStats
 from collision_sensor.tools.audit.unit_check import CheckOptions, RobotSpec, UnitChecker, \
-    rss_bytes
+    checks_for, rss_bytes
 from collision_sensor.tools.audit.units import Unit
 from collision_sensor.tools.progress import ProgressBar
 
@@ -94,19 +94,26 @@ def run_batch(units: List[Unit], spec: RobotSpec, options: CheckOptions, runner,
     frames = [0]
     first = [0.0]
     start = time.perf_counter()
+    # The bar (and tqdm's monitor thread) starts with the first line, after the local pool
+    # has forked its workers: a forked child gets no copy of a thread's locks then.
+    bar: List[ProgressBar] = []
+
+    def on_record(index: int, record: dict) -> None:
+        record['settings'] = digest
+        if not new:
+            first[0] = time.perf_counter() - start
+            bar.append(ProgressBar(len(todo), label='units', mode=progress))
+        writer.write(record)
+        new.append(record)
+        frames[0] += record['frames'] or 0
+        bar[0].update(len(new), note=f'{frames[0]:,} frames')
+
     try:
-        with ProgressBar(len(todo), label='units', mode=progress) as bar:
-            def on_record(index: int, record: dict) -> None:
-                record['settings'] = digest
-                if not new:
-                    first[0] = time.perf_counter() - start
-                writer.write(record)
-                new.append(record)
-                frames[0] += record['frames'] or 0
-                bar.update(len(new), note=f'{frames[0]:,} frames')
-            stats = runner.run(todo, on_record, on_start) if todo else PoolStats()
+        stats = runner.run(todo, on_record, on_start) if todo else PoolStats()
     finally:
         writer.close()
+        if bar:
+            bar[0].close()
     seconds = time.perf_counter() - start
     order = {unit.source: k for k, unit in enumerate(units)}
     new.sort(key=lambda record: order.get(record['source'], len(order)))
@@ -121,6 +128,9 @@ def print_summary(result: BatchResult, spec: RobotSpec, checker, options: CheckO
              f'{len(checker.checked_pairs)} pairs checked; '
              f'{"incremental update" if options.incremental else "full check"})']
     lines += report.summary_lines(result.records)
+    checked = [r for r in result.records if r['error'] is None]
+    for check in checks_for(options)[1:]:       # the contacts are the table above
+        lines += check.summary_lines(checked)
     new_frames = sum(r['frames'] or 0 for r in result.new)
     resumed = len(result.records) - len(result.new)
     run = (f'this run:  {len(result.new)} units, {new_frames:,} frames in '

@@ -11,10 +11,11 @@ What each unit is checked for is a list of :class:`UnitCheck` classes, by name i
 stretches of frames under one scene (a bag's scene arrays are applied between them, by the
 node's rules) and gives the keys it adds to the report line. **The seam for motion checks**
 (``CollisionChecker.check_motion``, issue 25): a ``MotionCheck(UnitCheck)`` whose ``segment``
-calls ``check_motion`` on consecutive frames and whose ``result`` gives ``{"motion": {...}}``,
-registered as ``UNIT_CHECKS['motion']``, chosen in :func:`checks_for` when
-``CheckOptions.motion`` is set (``--motion``), and summed in ``report.summary_lines``; nothing
-else changes.
+calls ``check_motion`` on consecutive frames, whose ``result`` gives ``{"motion": {...}}`` (and
+``EMPTY`` the same key for a failed unit) and whose ``summary_lines`` sums it across the batch,
+registered as ``UNIT_CHECKS['motion']`` and chosen in :func:`checks_for` when a
+``CheckOptions.motion`` flag is set (``--motion`` in ``offline_check.build_parser``); the
+report, resume, pools and Ray carry the new key as they are.
 """
 import hashlib
 import os
@@ -142,6 +143,11 @@ class UnitCheck:
         """Return the keys this check adds to the unit's report line."""
         raise NotImplementedError
 
+    @staticmethod
+    def summary_lines(records) -> List[str]:
+        """Return this check's lines of the batch's summary (the report's checked lines)."""
+        return []
+
 
 def apply_recorded(topic: SceneTopic, checker, event) -> None:
     """Apply a recorded scene array as the node applies the topic's.
@@ -225,6 +231,17 @@ class ClosestApproach(UnitCheck):
             if records and records[0].distance > 0.0 and (
                     self.best is None or records[0].distance < self.best[0]):
                 self.best = (records[0].distance, index, records[0].link_a, records[0].link_b)
+
+    @staticmethod
+    def summary_lines(records) -> List[str]:
+        near = [r for r in records if r.get('closest_approach')]
+        if not near:
+            return ['', 'closest approach while clear: no pair within --max-distance']
+        r = min(near, key=lambda r: (r['closest_approach']['distance'], r['source']))
+        c = r['closest_approach']
+        return ['', f'closest approach while clear: {c["distance"]:.6f} m ({c["link_a"]} -- '
+                f'{c["link_b"]}) at {c["time"]:.3f} s in {r["source"]}; {len(near)} units came '
+                'within --max-distance']
 
     def result(self) -> Dict[str, object]:
         if self.best is None:
