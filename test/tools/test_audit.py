@@ -342,4 +342,9 @@ def test_closest_approach_is_the_single_checks(fleet, spec, capsys):
                                         'link_a': best.nearest_pair[0],
                                         'link_b': best.nearest_pair[1], 'time': best.time}
     batch.print_summary(result, spec, checker, options, 'this process')
-    assert f'closest approach while clear: {best.min_distance:.6f} m' in capsys.readouterr().out
+    nearest = min((r for r in result.records if r['closest_approach']),
+                  key=lambda r: r['closest_approach']['distance'])
+    c = nearest['closest_approach']
+    assert (f'closest approach while clear: {c["distance"]:.6f} m ({c["link_a"]} -- '
+            f'{c["link_b"]}) at {c["time"]:.3f} s in {nearest["source"]}; 3 units came within '
+            '--max-distance') in capsys.readouterr().out
