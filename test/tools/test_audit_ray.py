@@ -67,3 +67,30 @@ def test_a_killed_actor_costs_only_its_unit(fleet, spec, options, serial, tmp_pa
     error = check_kills(lambda: RayPool(spec, options, 'auto', ship=True), fleet, spec,
                         options, serial, tmp_path)
     assert '(last: the Ray actor died' in error
+
+
+def test_a_death_in_a_call_of_several_units_names_the_unit_that_kills(fleet, spec, options,
+                                                                       serial):
+    """Small recordings go several to a call; an actor dying in such a call charges none of
+    them: they are sent again one per call, and the one that kills again is charged, tried
+    alone once more, then reported. Every other line is the serial one."""
+    import signal
+    from collision_sensor.tools.audit.units import Unit
+    path = os.path.join(fleet[0], 'a', 'paper_experiment.csv')
+    units = [Unit(f'{path}?{k}', 'csv', path) for k in range(40)]
+    killed = []
+
+    def kill(index, attempt, pid):
+        if index == 10:
+            killed.append(attempt)
+            os.kill(pid, signal.SIGKILL)
+
+    result = batch.run_batch(units, spec, options, RayPool(spec, options, 'auto'),
+                             on_start=kill, progress='never')
+    assert killed == [1, 1, 2] and result.stats.deaths == 3 and result.stats.retried == 1
+    (expected,) = [line for line in serial if line['source'] == path]
+    for k, line in enumerate(result.records):
+        if k == 10:
+            assert 'died on each of 2 attempts (last: the Ray actor died' in line['error']
+        else:
+            assert line == {**expected, 'source': f'{path}?{k}'}

@@ -16,9 +16,13 @@ store once while its episodes are being sent). An actor on the driver's machine 
 files itself (shipping a 175 kB file through the object store costs ~3 ms a unit here, a
 third of checking it).
 
-Faults as with local workers (:mod:`~collision_sensor.tools.audit.local_pool`): an actor runs
-its tasks in order, so when it dies the first unit it held is the one charged; it is tried once
-more alone on a new actor, the others are sent again uncharged.
+Small recordings go several to a call (up to :data:`CHUNK_UNITS` units and
+:data:`CHUNK_BYTES`), large ones one per call. Faults as with local workers
+(:mod:`~collision_sensor.tools.audit.local_pool`): an actor runs its calls in order, so when
+it dies its first call was running. A call of one unit charges that unit: it is tried once more
+alone on a new actor, then reported; a call of several charges none, and its units are sent
+again one per call, so that a unit that kills an actor again is the one charged. Calls queued
+behind go again uncharged.
 """
 import collections
 import os
@@ -36,6 +40,23 @@ INSTALL_HINT = ('--ray needs Ray, an optional extra: pip install "collision_sens
                 '(or pip install "ray>=2.9")')
 #: Parquet files kept in the object store while their episodes are sent.
 SHARED_FILES = 4
+#: Units sent in one call at most, and bytes of recordings (a call costs the driver and the
+#: raylet about a millisecond of CPU here, a seventh of a 1000-frame CSV file's check).
+CHUNK_UNITS = 16
+CHUNK_BYTES = 2 * 2 ** 20
+
+
+def unit_weight(unit: Unit) -> int:
+    """Bytes of a unit's recording (an episode: its frames times 64), 0 if unknown."""
+    try:
+        if unit.kind == 'lerobot':
+            return unit.episode.length * 64
+        if os.path.isdir(unit.path):
+            return sum(entry.stat().st_size for entry in os.scandir(unit.path)
+                       if entry.is_file())
+        return os.path.getsize(unit.path)
+    except OSError:
+        return 0
 
 
 def require_ray():
@@ -60,9 +81,17 @@ class RayWorker:
         import ray
         return os.getpid(), rss_bytes(), ray.get_runtime_context().get_node_id()
 
-    def check(self, unit: Unit, payload):
-        """Return (the unit's report line, RSS in bytes after it)."""
-        return self.checker.check(unit, payload), rss_bytes()
+    def check_many(self, items):
+        """Check ``[(unit, payload)]`` in order; return ``[(report line, RSS in bytes)]``. A
+        payload may be an ObjectRef (a parquet file shared by episodes): Ray resolves only
+        the call's own arguments, so it is fetched here."""
+        import ray
+        out = []
+        for unit, payload in items:
+            if isinstance(payload, ray.ObjectRef):
+                payload = ray.get(payload)
+            out.append((self.checker.check(unit, payload), rss_bytes()))
+        return out
 
 
 @dataclass
@@ -108,7 +137,8 @@ class RayPool:
 
     def run(self, units: List[Unit], on_record: Callable[[int, dict], None],
             on_start: Optional[Callable[[int, int, int], None]] = None) -> PoolStats:
-        """Check ``units`` as :meth:`LocalPool.run` does."""
+        """Check ``units`` as :meth:`LocalPool.run` does (``on_start`` for the first unit of
+        each call)."""
         ray = self.ray
         started_here = self._connect()
         remote = ray.remote(num_cpus=1, max_restarts=0, max_task_retries=0)(RayWorker)
@@ -118,9 +148,9 @@ class RayPool:
         shared: Dict[str, object] = collections.OrderedDict()
         pending: Deque[int] = collections.deque(range(len(units)))
         deaths: Dict[int, int] = collections.Counter()
-        alone, remaining = set(), len(units)
+        alone, single, remaining = set(), set(), len(units)
+        most = max(1, min(CHUNK_UNITS, len(units) // (4 * stats.workers)))
         actors: List[_Actor] = []
-
         here = ray.get_runtime_context().get_node_id()
 
         def new_actor() -> _Actor:
@@ -142,9 +172,27 @@ class RayPool:
                     shared.popitem(last=False)
             return shared[key]
 
+        def take_call(actor: _Actor) -> List[int]:
+            """The next units for one call: small units together (up to ``most`` and
+            CHUNK_BYTES); a large one, a suspect or a retried unit on its own."""
+            call, size = [], 0
+            while pending and len(call) < most:
+                index = pending[0]
+                weight = unit_weight(units[index])
+                on_its_own = index in alone or index in single or weight >= CHUNK_BYTES
+                if call and (on_its_own or size + weight > CHUNK_BYTES):
+                    break
+                if index in alone and actor.queue:
+                    break
+                call.append(pending.popleft())
+                size += weight
+                if on_its_own:
+                    break
+            return call
+
         def announce(actor: _Actor) -> None:
             if on_start is not None and actor.queue:
-                index = actor.queue[0][0]
+                index = actor.queue[0][0][0]
                 on_start(index, deaths[index] + 1, actor.pid)
 
         try:
@@ -152,21 +200,24 @@ class RayPool:
             while remaining:
                 for actor in actors:
                     while pending and len(actor.queue) < DEPTH and not actor.alone:
-                        index = pending[0]
-                        if index in alone and actor.queue:
+                        call = take_call(actor)
+                        if not call:
                             break
-                        pending.popleft()
-                        unit = units[index]
-                        try:
-                            data = payload(unit, actor)
-                        except OSError as err:
-                            on_record(index, UnitChecker.failed_record(
-                                unit, self.options, f'{err.filename or unit.path}: cannot '
-                                f'read: {err.strerror or err}'))
-                            remaining -= 1
+                        items = []
+                        for index in call:
+                            try:
+                                items.append((units[index], payload(units[index], actor)))
+                            except OSError as err:
+                                on_record(index, UnitChecker.failed_record(
+                                    units[index], self.options, f'{err.filename or "file"}: '
+                                    f'cannot read: {err.strerror or err}'))
+                                remaining -= 1
+                                call = [i for i in call if i != index]
+                        if not call:
                             continue
-                        actor.queue.append((index, actor.handle.check.remote(unit, data)))
-                        actor.alone = index in alone
+                        actor.queue.append((call, actor.handle.check_many.remote(items)))
+                        actor.alone = call[0] in alone
+                        single.difference_update(call)
                         if len(actor.queue) == 1:
                             announce(actor)
                 heads = {actor.queue[0][1]: actor for actor in actors if actor.queue}
@@ -174,19 +225,20 @@ class RayPool:
                     continue
                 ready, _ = ray.wait(list(heads), num_returns=1)
                 actor = heads[ready[0]]
-                index, ref = actor.queue[0]
+                call, ref = actor.queue[0]
                 try:
-                    record, rss = ray.get(ref)
+                    results = ray.get(ref)
                 except ray.exceptions.RayError as err:
-                    remaining -= self._bury(actor, units, pending, deaths, alone, stats,
-                                            on_record, err)
+                    remaining -= self._bury(actor, units, pending, deaths, alone, single,
+                                            stats, on_record, err)
                     actors[actors.index(actor)] = new_actor()
                     continue
                 actor.queue.popleft()
                 actor.alone = False
-                stats.note_rss(f'pid {actor.pid}', rss)
-                on_record(index, record)
-                remaining -= 1
+                for index, (record, rss) in zip(call, results):
+                    stats.note_rss(f'pid {actor.pid}', rss)
+                    on_record(index, record)
+                remaining -= len(call)
                 announce(actor)
         finally:
             for actor in actors:
@@ -195,14 +247,20 @@ class RayPool:
                 ray.shutdown()
         return stats
 
-    def _bury(self, actor: _Actor, units, pending, deaths, alone, stats, on_record,
+    def _bury(self, actor: _Actor, units, pending, deaths, alone, single, stats, on_record,
               err) -> int:
-        """Handle a dead actor: charge its first unit, requeue the rest; return 1 if that
-        unit is now reported failed."""
+        """Handle a dead actor; return 1 if a unit is now reported failed. A call of one unit
+        charges it (:func:`charge_death`); a call of several charges none, and its units go
+        back to be sent one per call, so that a unit that kills again is named."""
         self.ray.kill(actor.handle)
         stats.deaths += 1
+        calls = [call for call, _ in actor.queue]
+        if len(calls[0]) > 1:
+            single.update(calls[0])
+            pending.extendleft(reversed([index for call in calls for index in call]))
+            return 0
         return charge_death(
-            [index for index, _ in actor.queue], True, deaths, alone, pending, stats,
+            [index for call in calls for index in call], True, deaths, alone, pending, stats,
             lambda index, error: on_record(index, UnitChecker.failed_record(
                 units[index], self.options, error)),
             f'the Ray actor died: {type(err).__name__}')
