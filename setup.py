@@ -101,7 +101,13 @@ setup(
             'ros-jazzy-rclpy[fastrtps]',
             'ros-jazzy-common-interfaces',
         ],
+        # collision_sensor_check --ray: Ray joins or starts a cluster (never a hard requirement)
+        'cluster': ['ray>=2.9'],
+        # LeRobot datasets (parquet files) for collision_sensor_check
+        'parquet': ['pyarrow>=12'],
         'test': [
+            'ray>=2.9',        # the audit's tests run a real local Ray cluster
+            'pyarrow>=12',     # ... and write LeRobot datasets as LeRobot does
             'pybind11>=2.11',  # the packaging tests build wheels and colcon installs themselves
             'pytest>=7',
             'python-fcl>=0.7',

@@ -33,6 +33,7 @@ Errors are :class:`~collision_sensor.errors.SequenceError` and name the file, th
 message (bag) and the fix.
 """
 import csv
+import io
 import math
 import os
 import shutil
@@ -258,10 +259,45 @@ def _data_rows(reader) -> Iterable:
         yield reader.line_num, [field.strip() for field in fields]
 
 
+def _read_csv_fast(path: str, text: str, joint_names: Optional[Sequence[str]]
+                   ) -> Optional[JointSequence]:
+    """Read a plain CSV file (no quotes, no comments after the header) with numpy's parser;
+    return None for anything else or anything wrong, which the exact reader below then
+    reads again and reports line by line. numpy's parser gives the floats Python's ``float``
+    gives (checked by the tests); this path reads a 1000-frame file about four times faster,
+    which is most of the work of checking it (``collision_sensor_check --jobs``)."""
+    lines = text.splitlines()
+    header_index = next((i for i, line in enumerate(lines)
+                         if line.strip() and not line.lstrip().startswith('#')), None)
+    if header_index is None or '"' in lines[header_index]:
+        return None
+    columns = [name.strip() for name in lines[header_index].split(',')]
+    body = '\n'.join(lines[header_index + 1:])
+    if columns[0] != 'time' or len(columns) < 2 or not all(columns) \
+            or len(set(columns)) != len(columns) or '#' in body or '"' in body \
+            or not body.strip():
+        return None
+    if joint_names is not None and set(columns[1:]) != set(joint_names):
+        return None
+    try:
+        values = np.loadtxt(io.StringIO(body), delimiter=',', dtype=np.float64, ndmin=2)
+    except ValueError:
+        return None
+    if values.shape[1] != len(columns) or not np.all(np.isfinite(values)) \
+            or np.any(np.diff(values[:, 0]) <= 0.0):
+        return None
+    seq = JointSequence(tuple(columns[1:]), values[:, 0], values[:, 1:], path)
+    return seq.select(joint_names) if joint_names is not None else seq
+
+
 def _read_csv(path: str, joint_names: Optional[Sequence[str]]) -> JointSequence:
     try:
         with open(path, newline='', encoding='utf-8') as stream:
-            rows = list(_data_rows(csv.reader(stream)))
+            text = stream.read()
+        fast = _read_csv_fast(path, text, joint_names)
+        if fast is not None:
+            return fast
+        rows = list(_data_rows(csv.reader(io.StringIO(text, newline=''))))
     except (OSError, UnicodeDecodeError, csv.Error) as err:
         reason = getattr(err, 'strerror', None) or err
         raise SequenceError(f'{path}: cannot read: {reason}; give a readable UTF-8 CSV file') \

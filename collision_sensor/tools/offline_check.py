@@ -21,6 +21,20 @@ contact, by how far the surfaces are inside the paddings).
 
 Exit status: 0 no frame in collision, 1 at least one frame in collision, 2 error (the error is
 one line on stderr: ``collision_sensor_check: error: ...``).
+
+Many recordings at once (:mod:`collision_sensor.tools.audit`): several inputs, directories
+(searched recursively), globs, LeRobot datasets (one unit per episode, ``--joint-map``), or
+any of ``--report``, ``--jobs``, ``--ray``, ``--resume``::
+
+    collision_sensor_check fleet/ 'extra/**/*.mcap' --urdf panda.urdf --report audit.jsonl \
+        --plot audit.png --jobs 8
+    collision_sensor_check ~/datasets/so101_pick --urdf so101.urdf --joint-map so101.yaml \
+        --ray auto --report so101.jsonl
+
+Each unit gets one JSON line in ``--report`` as it finishes; then a summary table across the
+batch (and ``--plot``: collision rate per recording, pairs most often in contact). Exit status
+then: 0 every unit clear, 1 some unit in collision, 3 some unit failed (its line says why; the
+batch went on), 2 the run itself could not start.
 """
 import argparse
 import json
@@ -33,18 +47,27 @@ from typing import Dict, List, Optional, Sequence, TextIO, Tuple
 
 import numpy as np
 
-from collision_sensor.errors import ConfigError
-from collision_sensor.engine.scene_markers import MarkerError, SceneTopic, apply_array
+from collision_sensor.errors import ConfigError, SequenceError
+from collision_sensor.engine.scene_markers import SceneTopic
+from collision_sensor.model.joint_map import load_joint_map
 from collision_sensor.model.mesh_loading import parse_package_paths
 from collision_sensor.model.sequences import (
     DEFAULT_TOPIC, SCENE_TOPIC, JointSequence, read_sequence)
 from collision_sensor.model.xacro_expansion import parse_xacro_args
+from collision_sensor.tools.audit.batch import (
+    default_jobs, make_runner, print_summary, run_batch)
+from collision_sensor.tools.audit.ray_pool import require_ray
+from collision_sensor.tools.audit.report import plot_batch
+from collision_sensor.tools.audit.unit_check import (
+    CheckOptions, RobotSpec, apply_recorded, frame_durations, with_demo_arm_hint)
+from collision_sensor.tools.audit.units import find_units
 from collision_sensor.tools.command_line import run_command
 from collision_sensor.tools.progress import MODES, ProgressBar
 
 PROG = 'collision_sensor_check'
 DEFAULT_MAX_DISTANCE = 0.1
 EXIT_CLEAR, EXIT_COLLISION, EXIT_ERROR = 0, 1, 2
+EXIT_INTERRUPTED = 130   # as a shell reports a process stopped by SIGINT
 BUNDLED_SEQUENCES = ('paper_experiment', 'into_drum_clear', 'random', 'moving_part')
 
 Pair = Tuple[str, str]
@@ -103,12 +126,7 @@ def run_sequence(checker, seq: JointSequence, incremental: bool = True,
     results = []
     for index, (t, q) in enumerate(zip(seq.times.tolist(), seq.positions)):
         for event in events[index]:
-            try:
-                apply_array(scene, checker, event.markers)
-            except MarkerError as error:
-                raise MarkerError(error.index, event.markers[error.index],
-                                  f'{error.reason} (in the scene array recorded at '
-                                  f'{event.time:.3f} s)') from None
+            apply_recorded(scene, checker, event)
         start = time.perf_counter()
         result = check(q)
         elapsed = time.perf_counter() - start
@@ -123,17 +141,6 @@ def run_sequence(checker, seq: JointSequence, incremental: bool = True,
         if progress is not None:
             progress.update(index + 1)
     return results
-
-
-def frame_durations(times: np.ndarray) -> np.ndarray:
-    """Return how long each frame stands: until the next frame; the last one as the one before.
-
-    :param times: (n,) float seconds, increasing. :return: (n,) float seconds (0 for n = 1).
-    """
-    if len(times) < 2:
-        return np.zeros(len(times))
-    gaps = np.diff(times)
-    return np.append(gaps, gaps[-1])
 
 
 def pair_spans(results: Sequence[FrameResult]) -> List[PairSpan]:
@@ -314,14 +321,17 @@ def build_parser() -> argparse.ArgumentParser:
         prog=PROG,
         description='Check a recorded joint-state sequence for collisions, frame by frame, '
                     'with the incremental checker; no ROS needed.',
-        epilog='exit status: 0 no frame in collision, 1 collisions found, 2 error. '
+        epilog='exit status: 0 no frame in collision, 1 collisions found, 2 error; with many '
+               'recordings also 3: some recording failed (its --report line says why). '
                f'Bundled sequences: {", ".join(BUNDLED_SEQUENCES)}. '
                'Without --urdf the robot is the demo cell (demo_arm.urdf, its SRDF, '
                'demo_scene.yaml); with --urdf, --srdf and --scene default to none.',
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('sequence', metavar='SEQUENCE',
-                        help='CSV file, rosbag2 bag (directory, .mcap or .db3), or the name of '
-                             'a bundled sequence')
+    parser.add_argument('inputs', metavar='INPUT', nargs='+',
+                        help='CSV file, rosbag2 bag (directory, .mcap or .db3), LeRobot dataset '
+                             'directory, a directory holding any of these (searched '
+                             'recursively), a glob (quoted: \'bags/**/*.mcap\'), or the name '
+                             'of a bundled sequence')
     parser.add_argument('--urdf', help='robot description (default: the demo arm)')
     parser.add_argument('--srdf', help='SRDF with disable_collisions pairs')
     parser.add_argument('--package-path', metavar='NAME=DIR', action='append', default=[],
@@ -337,16 +347,35 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--scene-topic', default=SCENE_TOPIC,
                         help='MarkerArray topic of scene changes in a bag, replayed as the '
                              'node applies its scene topic (default %(default)s)')
+    parser.add_argument('--joint-map', metavar='YAML',
+                        help='LeRobot datasets: which entry of the state vector is which URDF '
+                             'joint, with a scale and an offset (see the README); without it '
+                             'the entries must be named as the joints, in rad or m')
+    parser.add_argument('--report', metavar='FILE',
+                        help='many recordings: write one JSON line per recording or episode as '
+                             'it finishes (source, frames, frames_in_collision, pairs with '
+                             'first and last time, error, ...)')
+    parser.add_argument('--resume', action='store_true',
+                        help='continue --report FILE: skip the units it holds already')
+    parser.add_argument('--jobs', metavar='N', type=int,
+                        help='check recordings in N worker processes (default: all cores)')
+    parser.add_argument('--ray', metavar='ADDRESS',
+                        help='check recordings on Ray: "auto" joins the cluster running here, '
+                             '"local" starts one, or a cluster address; needs pip install '
+                             '"collision_sensor[cluster]"')
     parser.add_argument('--json', metavar='FILE',
                         help='write one JSON line per frame: {"index", "time", '
                              '"in_collision", "pairs", "min_distance", "nearest_pair"} (the '
                              'last two null when no pair is within --max-distance); "-" for '
                              'stdout (the summary then goes to stderr)')
     parser.add_argument('--plot', metavar='FILE.png',
-                        help='draw the contact timeline (and the minimum distance below it)')
-    parser.add_argument('--max-distance', metavar='M', type=float, default=DEFAULT_MAX_DISTANCE,
+                        help='draw the contact timeline (and the minimum distance below it); '
+                             'for many recordings, the collision rate per recording and the '
+                             'pairs most often in contact')
+    parser.add_argument('--max-distance', metavar='M', type=float,
                         help='measure each frame\'s smallest pair distance below M metres '
-                             '(default %(default)s; 0: do not measure)')
+                             f'(default {DEFAULT_MAX_DISTANCE} for one recording, 0 for many; '
+                             '0: do not measure)')
     parser.add_argument('--full', action='store_true',
                         help='check every frame from scratch instead of incrementally')
     parser.add_argument('--progress', choices=MODES, default='auto',
@@ -354,32 +383,90 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _run(args) -> int:
-    from collision_sensor import CollisionChecker
+BATCH_OPTIONS = ('report', 'jobs', 'ray', 'resume')
+
+
+def _robot(args) -> RobotSpec:
+    """Load the robot of ``--urdf`` (or the demo cell) as the workers will build it."""
     from collision_sensor.model.share import config_path
 
-    if not (args.max_distance >= 0 and math.isfinite(args.max_distance)):
-        raise ConfigError(f'--max-distance {args.max_distance}: expected a finite distance >= 0 '
-                          '(metres; 0: do not measure)')
     package_paths = parse_package_paths(args.package_path)
     if args.urdf is None:
         urdf, srdf = config_path('demo_arm.urdf'), args.srdf or config_path('demo_arm.srdf')
         scene = args.scene or config_path('demo_scene.yaml')
+        label = 'the bundled demo arm (no --urdf given)'
     else:
-        urdf, srdf, scene = args.urdf, args.srdf, args.scene
+        urdf, srdf, scene, label = args.urdf, args.srdf, args.scene, args.urdf
     if args.no_scene:
         scene = None
-    checker = CollisionChecker.from_urdf(urdf, srdf=srdf, package_paths=package_paths or None,
-                                         scene=scene, config=_load_config(args.config),
-                                         xacro_args=parse_xacro_args(args.xacro_arg) or None)
-    seq = read_sequence(bundled_sequence_path(args.sequence), topic=args.topic,
-                        joint_names=checker.joint_names, scene_topic=args.scene_topic)
+    return RobotSpec.load(urdf, srdf=srdf, package_paths=package_paths or None, scene=scene,
+                          config=_load_config(args.config),
+                          xacro_args=parse_xacro_args(args.xacro_arg) or None, label=label,
+                          demo=args.urdf is None)
+
+
+def _run(args) -> int:
+    max_distance = args.max_distance
+    if max_distance is not None and not (max_distance >= 0 and math.isfinite(max_distance)):
+        raise ConfigError(f'--max-distance {max_distance}: expected a finite distance >= 0 '
+                          '(metres; 0: do not measure)')
+    if args.jobs is not None and args.jobs < 1:
+        raise ConfigError(f'--jobs {args.jobs}: expected 1 or more worker processes')
+    if args.resume and not args.report:
+        raise ConfigError('--resume continues a report: give --report FILE too')
+    units = find_units(args.inputs, bundled_sequence_path)
+    batch = len(units) > 1 or units[0].kind == 'lerobot' or any(
+        getattr(args, name) for name in BATCH_OPTIONS)
+    if batch and args.json:
+        raise ConfigError('--json writes one recording\'s frames; for many recordings use '
+                          '--report FILE (one line per recording)')
+    if args.ray is not None:
+        require_ray()    # before the robot loads: say at once how to install it
+    spec = _robot(args)
+    checker = spec.build()
+    joint_map = load_joint_map(args.joint_map) if args.joint_map else None
+    if joint_map is not None:
+        joint_map.check_robot(checker.joint_names)
+    if batch:
+        return _run_batch(args, units, spec, checker, joint_map,
+                          0.0 if max_distance is None else max_distance)
+    return _run_one(args, units[0], spec, checker,
+                    DEFAULT_MAX_DISTANCE if max_distance is None else max_distance)
+
+
+def _run_batch(args, units, spec, checker, joint_map, max_distance) -> int:
+    options = CheckOptions(incremental=not args.full, max_distance=max_distance,
+                           topic=args.topic, scene_topic=args.scene_topic, joint_map=joint_map)
+    runner = make_runner(spec, options, args.jobs, args.ray)
+    label = (f'Ray ({args.ray})' if args.ray else
+             f'{args.jobs or default_jobs()} local worker processes'
+             if (args.jobs or default_jobs()) > 1 else 'this process')
+    try:
+        result = run_batch(units, spec, options, runner, report_path=args.report,
+                           resume=args.resume, progress=args.progress)
+    except KeyboardInterrupt:
+        where = (f'; the report {args.report} holds every unit finished, --resume continues '
+                 'it') if args.report else ''
+        print(f'{PROG}: stopped{where}', file=sys.stderr)
+        return EXIT_INTERRUPTED
+    if args.plot:
+        plot_batch(result.records, args.plot)
+    print_summary(result, spec, checker, options, label)
+    return result.status
+
+
+def _run_one(args, unit, spec, checker, max_distance) -> int:
+    try:
+        seq = read_sequence(unit.path, topic=args.topic, joint_names=checker.joint_names,
+                            scene_topic=args.scene_topic)
+    except SequenceError as err:
+        raise SequenceError(with_demo_arm_hint(str(err), spec.demo)) from None
 
     label = os.path.basename(os.path.normpath(seq.source))
     with ProgressBar(len(seq), label=label, mode=args.progress) as progress:
         results = run_sequence(checker, seq, incremental=not args.full, progress=progress,
-                               max_distance=args.max_distance,
-                               scene=SceneTopic(package_paths=package_paths or None))
+                               max_distance=max_distance,
+                               scene=SceneTopic(package_paths=dict(spec.package_paths) or None))
 
     to_stdout = args.json == '-'
     if args.json:
@@ -391,9 +478,9 @@ def _run(args) -> int:
             if not to_stdout:
                 stream.close()
     if args.plot:
-        plot_timeline(results, seq, args.plot, max_distance=args.max_distance)
+        plot_timeline(results, seq, args.plot, max_distance=max_distance)
     print(summary(results, seq, checker, incremental=not args.full,
-                  max_distance=args.max_distance),
+                  max_distance=max_distance),
           file=sys.stderr if to_stdout else sys.stdout)
     return EXIT_COLLISION if any(r.in_collision for r in results) else EXIT_CLEAR
 

@@ -228,3 +228,39 @@ def test_a_scene_topic_of_another_type_is_named(tmp_path, seq):
                                             'sensor_msgs/msg/JointState, expected '
                                             'visualization_msgs/msg/MarkerArray'):
         read_sequence(tmp_path / 's.mcap', scene_topic='/joint_states')
+
+
+def test_the_fast_csv_reader_gives_the_exact_readers_floats(tmp_path):
+    """numpy's parser (the fast path) against Python's float (the exact path) on values of
+    every magnitude, written as repr and as people write them."""
+    from collision_sensor.model import sequences
+    rng = np.random.default_rng(7)
+    values = np.concatenate([rng.normal(0, 1, 3000), rng.normal(0, 1e-9, 300),
+                             rng.uniform(-1e6, 1e6, 300), [0.0, -0.0, 5e-324, 1e308]])
+    texts = [repr(float(v)) for v in values] + ['.5', '5.', '1E3', '+2', ' 0.25 ', '-0']
+    rows = [texts[i:i + 3] for i in range(0, len(texts) - len(texts) % 3, 3)]
+    body = '\n'.join(f'{k * 0.01!r},{a},{b},{c}' for k, (a, b, c) in enumerate(rows))
+    path = tmp_path / 'mixed.csv'
+    path.write_text('# header comment\n\ntime,a,b,c\n' + body + '\n\n')
+    fast = sequences._read_csv_fast(str(path), path.read_text(), None)
+    assert fast is not None
+    exact = np.array([[float(x) for x in row] for row in rows])
+    np.testing.assert_array_equal(fast.positions, exact)
+    assert np.array_equal(np.signbit(fast.positions), np.signbit(exact))
+    assert read_sequence(path) == fast
+
+
+@pytest.mark.parametrize('body', ['0,1\n1,2 # late\n', '0,1\n1,"2"\n', '0,1\n1,nan\n',
+                                  '0,1\n0,2\n', '0,1\n,,\n1,2\n', '0,1\n1,2,3\n'])
+def test_what_the_fast_reader_refuses_the_exact_reader_judges(tmp_path, body):
+    from collision_sensor.model import sequences
+    path = tmp_path / 'odd.csv'
+    path.write_text('time,a\n' + body)
+    assert sequences._read_csv_fast(str(path), path.read_text(), None) is None
+    try:
+        exact = sequences._read_csv(str(path), None)
+    except SequenceError as err:
+        assert 'line' in str(err)     # the exact reader names the line
+    else:
+        assert body in ('0,1\n1,"2"\n', '0,1\n,,\n1,2\n')   # quoted and empty rows are fine
+        assert exact.positions.tolist() == [[1.0], [2.0]]

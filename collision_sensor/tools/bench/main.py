@@ -211,9 +211,15 @@ def plot(sections: Sequence[Section], path: str) -> None:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the benchmark; print the markdown and write the requested files."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ['audit']:    # checking many recordings: collision_sensor_bench audit --help
+        from collision_sensor.tools.bench import audit
+        return audit.main(argv[1:])
     parser = argparse.ArgumentParser(
         prog=PROG, description=__doc__.split('\n\n')[0],
-        epilog='Scenarios: ' + __doc__.split('\n\n')[-1].strip().replace('\n  ', ' '))
+        epilog='Scenarios: ' + __doc__.split('\n\n')[-1].strip().replace('\n  ', ' ')
+        + ' Checking many recordings (collision_sensor_check --jobs, --ray): '
+          'collision_sensor_bench audit --help.')
     parser.add_argument('--quick', action='store_true',
                         help='small counts and meshes, for a smoke run (figures are rough)')
     parser.add_argument('--scenario', type=int, action='append', choices=SCENARIOS,

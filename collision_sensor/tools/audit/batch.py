@@ -1,0 +1,159 @@
+"""Check many units: in this process, in local workers (``--jobs``) or on Ray (``--ray``).
+
+:func:`run_batch` skips the units a resumed report holds, runs the rest, writes each line as it
+comes (:mod:`~collision_sensor.tools.audit.report`), draws a tqdm bar of units (frames as its
+note), then prints the summary across the whole report and draws the plot. The exit status:
+0 every unit checked and none in collision, 1 some in collision, 3 some unit failed (its
+``error`` says why; the others were checked).
+"""
+import os
+import sys
+import time
+from dataclasses import dataclass
+from typing import Callable, List, Optional
+
+from collision_sensor.tools.audit import report
+from collision_sensor.tools.audit.local_pool import LocalPool, PoolStats
+from collision_sensor.tools.audit.unit_check import CheckOptions, RobotSpec, UnitChecker, \
+    checks_for, rss_bytes
+from collision_sensor.tools.audit.units import Unit
+from collision_sensor.tools.progress import ProgressBar
+
+EXIT_CLEAR, EXIT_COLLISION, EXIT_FAILED = 0, 1, 3
+
+
+def default_jobs() -> int:
+    """All the cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
+@dataclass
+class BatchResult:
+    """What :func:`run_batch` did: every line of the report (resumed ones first), this run's
+    new ones, the workers' figures and the wall time of the checking."""
+
+    records: List[dict]
+    new: List[dict]
+    stats: PoolStats
+    seconds: float
+    #: seconds from the start to the first new line (the workers' start-up and one unit).
+    first_seconds: float = 0.0
+
+    @property
+    def status(self) -> int:
+        if any(r['error'] is not None for r in self.records):
+            return EXIT_FAILED
+        return EXIT_COLLISION if any(r['frames_in_collision'] for r in self.records) \
+            else EXIT_CLEAR
+
+
+class SerialRunner:
+    """``--jobs 1``: every unit in this process, with one checker."""
+
+    def __init__(self, spec: RobotSpec, options: CheckOptions):
+        self.checker = UnitChecker(spec, options)
+
+    def run(self, units, on_record, on_start=None) -> PoolStats:
+        stats = PoolStats(workers=1)
+        stats.note_rss('driver', rss_bytes())
+        for index, unit in enumerate(units):
+            if on_start is not None:
+                on_start(index, 1, os.getpid())
+            on_record(index, self.checker.check(unit))
+            stats.note_rss('driver', rss_bytes())
+        return stats
+
+
+def make_runner(spec: RobotSpec, options: CheckOptions, jobs: Optional[int],
+                ray_address: Optional[str]):
+    """Return the runner for ``--jobs`` / ``--ray``."""
+    if ray_address:
+        from collision_sensor.tools.audit.ray_pool import RayPool
+        return RayPool(spec, options, ray_address, jobs)
+    jobs = jobs or default_jobs()
+    return SerialRunner(spec, options) if jobs == 1 else LocalPool(spec, options, jobs)
+
+
+def run_batch(units: List[Unit], spec: RobotSpec, options: CheckOptions, runner,
+              report_path: Optional[str] = None, resume: bool = False,
+              progress: str = 'auto',
+              on_start: Optional[Callable[[int, int, int], None]] = None) -> BatchResult:
+    """Check ``units`` with ``runner`` (:func:`make_runner`), writing the report.
+
+    :raises CollisionSensorError: a report that cannot be resumed or written.
+    """
+    digest = spec.digest(options)
+    done = report.read_report(report_path, digest) if (report_path and resume) else []
+    known = {record['source'] for record in done}
+    todo = [unit for unit in units if unit.source not in known]
+    writer = report.ReportWriter(report_path, resume)
+    new: List[dict] = []
+    frames = [0]
+    first = [0.0]
+    start = time.perf_counter()
+    # The bar (and tqdm's monitor thread) starts with the first line, after the local pool
+    # has forked its workers: a forked child gets no copy of a thread's locks then.
+    bar: List[ProgressBar] = []
+
+    def on_record(index: int, record: dict) -> None:
+        record['settings'] = digest
+        if not new:
+            first[0] = time.perf_counter() - start
+            bar.append(ProgressBar(len(todo), label='units', mode=progress))
+        writer.write(record)
+        new.append(record)
+        frames[0] += record['frames'] or 0
+        bar[0].update(len(new), note=f'{frames[0]:,} frames')
+
+    try:
+        stats = runner.run(todo, on_record, on_start) if todo else PoolStats()
+    finally:
+        writer.close()
+        if bar:
+            bar[0].close()
+    seconds = time.perf_counter() - start
+    order = {unit.source: k for k, unit in enumerate(units)}
+    new.sort(key=lambda record: order.get(record['source'], len(order)))
+    return BatchResult(done + new, new, stats, seconds, first[0])
+
+
+def print_summary(result: BatchResult, spec: RobotSpec, checker, options: CheckOptions,
+                  runner_label: str, stream=None) -> None:
+    """Print the summary table (the whole report) and this run's figures."""
+    stream = stream or sys.stdout
+    lines = [f'robot:     {spec.label} ({len(checker.joint_names)} joints, '
+             f'{len(checker.checked_pairs)} pairs checked; '
+             f'{"incremental update" if options.incremental else "full check"})']
+    lines += report.summary_lines(result.records)
+    checked = [r for r in result.records if r['error'] is None]
+    for check in checks_for(options)[1:]:       # the contacts are the table above
+        lines += check.summary_lines(checked)
+    new_frames = sum(r['frames'] or 0 for r in result.new)
+    resumed = len(result.records) - len(result.new)
+    run = (f'this run:  {len(result.new)} units, {new_frames:,} frames in '
+           f'{result.seconds:.1f} s')
+    if result.seconds > 0 and new_frames:
+        run += f' ({new_frames / result.seconds:,.0f} frames/s)'
+    run += f' on {runner_label}'
+    if resumed:
+        run += f'; {resumed} units resumed from the report'
+    lines += ['', run]
+    if result.stats.retried or result.stats.deaths:
+        lines.append(f'workers:   {result.stats.deaths} died; {result.stats.retried} units '
+                     'tried again')
+    if result.stats.rss:
+        first = max(v[0] for v in result.stats.rss.values()) / 2 ** 20
+        last = max(v[1] for v in result.stats.rss.values()) / 2 ** 20
+        lines.append(f'worker RSS: {first:.0f} MiB when ready, {last:.0f} MiB at the end '
+                     '(largest worker)')
+    status = result.status
+    verdict = {0: 'clear', 1: 'COLLISION',
+               3: 'COLLISION and FAILED UNITS' if any(r['frames_in_collision']
+                                                     for r in result.records
+                                                     if r['error'] is None)
+               else 'FAILED UNITS'}[status]
+    lines.append(f'result: {verdict}')
+    print('\n'.join(lines), file=stream)

@@ -1,0 +1,380 @@
+"""The work of one unit: read a recording, check every frame, return its report line.
+
+A worker (a local process, a Ray actor, or the driver itself with ``--jobs 1``) builds a
+:class:`UnitChecker` once from a :class:`RobotSpec` (the robot as loaded by the driver: its
+model, SRDF, scene and settings, plain arrays that pickle; no path is opened on the worker) and
+then checks units one after the other with the same checker. :meth:`UnitChecker.check` never
+raises for a bad unit: the reason goes in the line's ``error``.
+
+What each unit is checked for is a list of :class:`UnitCheck` classes, by name in
+:data:`UNIT_CHECKS`; :func:`checks_for` picks them from the options. Each sees the recording in
+stretches of frames under one scene (a bag's scene arrays are applied between them, by the
+node's rules) and gives the keys it adds to the report line. **The seam for motion checks**
+(``CollisionChecker.check_motion``, issue 25): a ``MotionCheck(UnitCheck)`` whose ``segment``
+calls ``check_motion`` on consecutive frames, whose ``result`` gives ``{"motion": {...}}`` (and
+``EMPTY`` the same key for a failed unit) and whose ``summary_lines`` sums it across the batch,
+registered as ``UNIT_CHECKS['motion']`` and chosen in :func:`checks_for` when a
+``CheckOptions.motion`` flag is set (``--motion`` in ``offline_check.build_parser``); the
+report, resume, pools and Ray carry the new key as they are.
+"""
+import hashlib
+import os
+import pickle
+from dataclasses import dataclass, field
+from typing import Dict, List, Mapping, Optional, Tuple, Type
+
+import numpy as np
+
+from collision_sensor.errors import CollisionSensorError, SequenceError
+from collision_sensor.engine.scene_markers import MarkerError, SceneTopic, apply_array
+from collision_sensor.model.joint_map import JointMap
+from collision_sensor.model import lerobot
+from collision_sensor.model.sequences import (
+    DEFAULT_TOPIC, SCENE_TOPIC, JointSequence, read_sequence)
+from collision_sensor.tools.audit import shipping
+from collision_sensor.tools.audit.units import Unit
+
+DEMO_ARM_HINT = ('these are the joints of the bundled demo arm, the robot checked when no '
+                 '--urdf is given: pass --urdf YOUR_ROBOT.urdf (with --srdf and --package-path '
+                 'NAME=DIR as it needs) to check your robot')
+
+
+def with_demo_arm_hint(message: str, demo: bool) -> str:
+    """Return ``message``, saying the robot is the demo arm when it is and the message is about
+    joints (a recording of another robot checked without ``--urdf``)."""
+    if demo and 'joint' in message:
+        return f'{message} ({DEMO_ARM_HINT})'
+    return message
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """The robot as the driver loaded it, to build the same checker anywhere.
+
+    :ivar model: the URDF's model (links, joints, collision triangles).
+    :ivar srdf: the SRDF's model, or None.
+    :ivar scene: the scene file's objects.
+    :ivar config: checker settings (a mapping), or None.
+    :ivar package_paths: ``{name: dir}`` for ``package://`` meshes of recorded scene arrays.
+    :ivar label: what the robot is, for the summary.
+    :ivar demo: True for the bundled demo arm (no ``--urdf``).
+    """
+
+    model: object
+    srdf: object = None
+    scene: tuple = ()
+    config: Optional[Mapping] = None
+    package_paths: Tuple[Tuple[str, str], ...] = ()
+    label: str = ''
+    demo: bool = False
+
+    @classmethod
+    def load(cls, urdf, srdf=None, package_paths=None, scene=None, config=None,
+             xacro_args=None, label: str = '', demo: bool = False) -> 'RobotSpec':
+        """Load the files as ``CollisionChecker.from_urdf`` does.
+
+        :raises CollisionSensorError: naming the file at fault.
+        """
+        from collision_sensor.engine.checker_config import CheckerConfig
+        from collision_sensor.model.robot_model import load_urdf
+        from collision_sensor.model.scene import load_scene
+        from collision_sensor.model.srdf import load_srdf_for_model
+
+        settings = CheckerConfig.from_mapping(config)
+        model = load_urdf(urdf, package_paths, primitive_sections=settings.primitive_sections,
+                          xacro_args=xacro_args)
+        srdf_model = load_srdf_for_model(srdf, model) if srdf is not None else None
+        objects = load_scene(scene, package_paths,
+                             primitive_sections=settings.primitive_sections) \
+            if scene is not None else ()
+        return cls(model, srdf_model, tuple(objects), dict(config) if config else None,
+                   tuple(sorted((package_paths or {}).items())), label or str(urdf), demo)
+
+    def build(self):
+        """Return a new :class:`~collision_sensor.CollisionChecker` of this robot."""
+        from collision_sensor import CollisionChecker
+        return CollisionChecker(self.model, self.srdf, self.scene, self.config)
+
+    def digest(self, options: 'CheckOptions') -> str:
+        """Return 16 hex digits that change with the robot, its settings or the options: a
+        report's lines written under other ones are not resumed (``--resume``)."""
+        data = pickle.dumps((self.model, self.srdf, self.scene, sorted((self.config or {})
+                                                                       .items()),
+                             options.digest_fields()), protocol=4)
+        return hashlib.sha256(data).hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class CheckOptions:
+    """How every unit is checked (the same on every worker).
+
+    :ivar incremental: ``update_batch`` (the default) or ``check_batch`` (``--full``).
+    :ivar max_distance: > 0: also each unit's closest approach while clear (m).
+    :ivar topic: the JointState topic of bags.
+    :ivar scene_topic: the MarkerArray topic of a bag's scene changes.
+    :ivar joint_map: how dataset state entries become joints (None: named as the joints).
+    """
+
+    incremental: bool = True
+    max_distance: float = 0.0
+    topic: str = DEFAULT_TOPIC
+    scene_topic: str = SCENE_TOPIC
+    joint_map: Optional[JointMap] = None
+
+    def digest_fields(self) -> tuple:
+        return (self.incremental, self.max_distance, self.topic, self.scene_topic,
+                self.joint_map)
+
+
+class UnitCheck:
+    """One kind of check run on every unit (see the module docstring)."""
+
+    #: The report keys it gives, with their value for a unit that failed.
+    EMPTY: Dict[str, object] = {}
+
+    def __init__(self, options: CheckOptions, seq: JointSequence):
+        self.options, self.seq = options, seq
+
+    def segment(self, checker, start: int, stop: int) -> None:
+        """Check frames ``start:stop`` of the sequence; ``checker`` has their scene."""
+        raise NotImplementedError
+
+    def result(self) -> Dict[str, object]:
+        """Return the keys this check adds to the unit's report line."""
+        raise NotImplementedError
+
+    @staticmethod
+    def summary_lines(records) -> List[str]:
+        """Return this check's lines of the batch's summary (the report's checked lines)."""
+        return []
+
+
+def apply_recorded(topic: SceneTopic, checker, event) -> None:
+    """Apply a recorded scene array as the node applies the topic's.
+
+    :raises MarkerError: an array the node would reject, naming the time it was recorded.
+    """
+    try:
+        apply_array(topic, checker, event.markers)
+    except MarkerError as error:
+        raise MarkerError(error.index, event.markers[error.index],
+                          f'{error.reason} (in the scene array recorded at {event.time:.3f} '
+                          's)') from None
+
+
+def frame_durations(times: np.ndarray) -> np.ndarray:
+    """How long each frame stands: until the next; the last as long as the one before."""
+    if len(times) < 2:
+        return np.zeros(len(times))
+    gaps = np.diff(times)
+    return np.append(gaps, gaps[-1])
+
+
+class ContactCheck(UnitCheck):
+    """Which frames are in collision and which pairs touch, first and last time of each.
+
+    Keys: ``frames_in_collision`` (int), ``time_in_collision`` (s, each frame standing until
+    the next), ``pairs``: ``[{"link_a", "link_b", "first", "last", "frames"}]``, times in s
+    from the first frame, sorted by first time then names.
+    """
+
+    EMPTY = {'frames_in_collision': None, 'time_in_collision': None, 'pairs': []}
+
+    def __init__(self, options: CheckOptions, seq: JointSequence):
+        super().__init__(options, seq)
+        self.in_collision = np.zeros(len(seq), dtype=bool)
+        self.spans: Dict[Tuple[str, str], List[int]] = {}   # pair -> [first, last, frames]
+
+    def segment(self, checker, start: int, stop: int) -> None:
+        rows = self.seq.positions[start:stop]
+        statuses = checker.update_batch(rows) if self.options.incremental \
+            else checker.check_batch(rows)
+        self.in_collision[start:stop] = statuses.any(axis=1)
+        pairs = checker.checked_pairs
+        for column in np.flatnonzero(statuses.any(axis=0)).tolist():
+            hits = np.flatnonzero(statuses[:, column])
+            first, last = int(hits[0]) + start, int(hits[-1]) + start
+            span = self.spans.setdefault(tuple(pairs[column]), [first, last, 0])
+            span[1] = last
+            span[2] += len(hits)
+
+    def result(self) -> Dict[str, object]:
+        times = self.seq.times
+        t0 = float(times[0])
+        durations = frame_durations(times)
+        pairs = sorted(self.spans.items(), key=lambda item: (item[1][0], item[0]))
+        return {
+            'frames_in_collision': int(self.in_collision.sum()),
+            'time_in_collision': float(durations[self.in_collision].sum()),
+            'pairs': [{'link_a': a, 'link_b': b, 'first': float(times[first] - t0),
+                       'last': float(times[last] - t0), 'frames': frames}
+                      for (a, b), (first, last, frames) in pairs],
+        }
+
+
+class ClosestApproach(UnitCheck):
+    """The smallest distance between checked pairs while no pair touches (``--max-distance``).
+
+    Key ``closest_approach``: ``{"distance", "link_a", "link_b", "time"}`` (m, s from the first
+    frame), or null when no pair came within ``max_distance`` while clear.
+    """
+
+    EMPTY = {'closest_approach': None}
+
+    def __init__(self, options: CheckOptions, seq: JointSequence):
+        super().__init__(options, seq)
+        self.best: Optional[Tuple[float, int, str, str]] = None
+
+    def segment(self, checker, start: int, stop: int) -> None:
+        for index in range(start, stop):
+            records = checker.proximity(self.seq.positions[index], self.options.max_distance)
+            if records and records[0].distance > 0.0 and (
+                    self.best is None or records[0].distance < self.best[0]):
+                self.best = (records[0].distance, index, records[0].link_a, records[0].link_b)
+
+    @staticmethod
+    def summary_lines(records) -> List[str]:
+        near = [r for r in records if r.get('closest_approach')]
+        if not near:
+            return ['', 'closest approach while clear: no pair within --max-distance']
+        r = min(near, key=lambda r: (r['closest_approach']['distance'], r['source']))
+        c = r['closest_approach']
+        return ['', f'closest approach while clear: {c["distance"]:.6f} m ({c["link_a"]} -- '
+                f'{c["link_b"]}) at {c["time"]:.3f} s in {r["source"]}; {len(near)} units came '
+                'within --max-distance']
+
+    def result(self) -> Dict[str, object]:
+        if self.best is None:
+            return {'closest_approach': None}
+        distance, index, a, b = self.best
+        return {'closest_approach': {'distance': float(distance), 'link_a': a, 'link_b': b,
+                                     'time': float(self.seq.times[index] - self.seq.times[0])}}
+
+
+#: Every kind of check by name (see the module docstring for adding ``motion``).
+UNIT_CHECKS: Dict[str, Type[UnitCheck]] = {'contacts': ContactCheck,
+                                           'closest': ClosestApproach}
+
+
+def checks_for(options: CheckOptions) -> List[Type[UnitCheck]]:
+    """Return the checks every unit runs under ``options``, in report order."""
+    chosen = [UNIT_CHECKS['contacts']]
+    if options.max_distance > 0:
+        chosen.append(UNIT_CHECKS['closest'])
+    return chosen
+
+
+def record_keys(options: CheckOptions) -> List[str]:
+    """Return a report line's keys, in order, under ``options``."""
+    keys = ['source', 'format', 'frames', 'start_time', 'duration', 'scene_changes']
+    for check in checks_for(options):
+        keys += list(check.EMPTY)
+    return keys + ['error']
+
+
+@dataclass
+class UnitChecker:
+    """A worker's checker: built once, then one unit after another (see the module doc)."""
+
+    spec: RobotSpec
+    options: CheckOptions
+    _checker: object = field(default=None, repr=False)
+
+    def __post_init__(self):
+        if self.options.joint_map is not None:
+            self.options.joint_map.check_robot(self.checker.joint_names)
+
+    @property
+    def checker(self):
+        """The checker, with the scene as loaded (rebuilt after a unit changed its scene)."""
+        if self._checker is None:
+            self._checker = self.spec.build()
+        return self._checker
+
+    def check(self, unit: Unit, payload: Optional[shipping.Payload] = None) -> Dict[str, object]:
+        """Return ``unit``'s report line (a dict in :func:`record_keys` order); never raises
+        for the unit's own faults (the reason is in ``error``).
+
+        :param payload: the unit's files (:func:`shipping.pack`) when this worker cannot read
+            ``unit.path``; None to read it.
+        """
+        record = self.failed_record(unit, self.options, None)
+        try:
+            record['format'] = unit.format
+            seq = self._read(unit, payload)
+            record.update(frames=len(seq), start_time=float(seq.times[0]),
+                          duration=seq.duration, scene_changes=len(seq.scene))
+            results = self._run(seq)
+            for keys in results:
+                record.update(keys)
+        except CollisionSensorError as err:
+            record['error'] = with_demo_arm_hint(' '.join(str(err).split()), self.spec.demo)
+        except OSError as err:
+            record['error'] = f'{getattr(err, "filename", None) or unit.path}: cannot read: ' \
+                f'{err.strerror or err}'
+        except Exception as err:     # a fault of ours: reported, and the batch goes on
+            record['error'] = f'internal error: {type(err).__name__}: {err}'
+        if record['error'] is not None:
+            for check in checks_for(self.options):
+                record.update(check.EMPTY)
+        return record
+
+    @staticmethod
+    def failed_record(unit: Unit, options: CheckOptions, error: Optional[str]
+                      ) -> Dict[str, object]:
+        """Return ``unit``'s report line with nothing measured and ``error``."""
+        record: Dict[str, object] = {'source': unit.source, 'format': None, 'frames': None,
+                                     'start_time': None, 'duration': None,
+                                     'scene_changes': None}
+        for check in checks_for(options):
+            record.update(check.EMPTY)
+        record['error'] = error
+        return record
+
+    def _read(self, unit: Unit, payload) -> JointSequence:
+        names = self.checker.joint_names
+        if unit.kind == 'lerobot':
+            joint_map = self.options.joint_map or JointMap.identity(names)
+            return lerobot.read_episode(unit.episode, joint_map, names, data=payload)
+        if payload is None:
+            return read_sequence(unit.path, topic=self.options.topic, joint_names=names,
+                                 scene_topic=self.options.scene_topic)
+        with shipping.unpacked(unit, payload) as local:
+            try:
+                seq = read_sequence(local, topic=self.options.topic, joint_names=names,
+                                    scene_topic=self.options.scene_topic)
+            except SequenceError as err:
+                raise SequenceError(shipping.relabel(str(err), local, unit.path)) from None
+        return JointSequence(seq.joint_names, seq.times, seq.positions, unit.path, seq.scene)
+
+    def _run(self, seq: JointSequence) -> List[Dict[str, object]]:
+        """Run every check over the frames, the recorded scene arrays applied between
+        stretches (:meth:`JointSequence.scene_before`)."""
+        checker = self.checker
+        checks = [kind(self.options, seq) for kind in checks_for(self.options)]
+        events = seq.scene_before() if seq.scene else [()] * len(seq)
+        starts = [0] + [i for i in range(1, len(seq)) if events[i]] + [len(seq)] \
+            if seq.scene else [0, len(seq)]
+        topic = SceneTopic(package_paths=dict(self.spec.package_paths) or None)
+        if seq.scene:
+            self._checker = None   # the next unit gets the scene as loaded
+        try:
+            checker.check(seq.positions[0])
+            for start, stop in zip(starts[:-1], starts[1:]):
+                for event in events[start]:
+                    apply_recorded(topic, checker, event)
+                for check in checks:
+                    check.segment(checker, start, stop)
+        except BaseException:
+            self._checker = None   # whatever state an error left, the next unit starts clean
+            raise
+        return [check.result() for check in checks]
+
+
+def rss_bytes() -> int:
+    """Return this process's resident set size (Linux ``/proc``; 0 elsewhere)."""
+    try:
+        with open('/proc/self/statm') as stream:
+            return int(stream.read().split()[1]) * os.sysconf('SC_PAGE_SIZE')
+    except (OSError, ValueError, IndexError):
+        return 0

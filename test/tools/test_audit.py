@@ -1,0 +1,350 @@
+"""collision_sensor_check on many recordings: units found, every report line against python-fcl,
+the same lines serially and in local workers, failing units reported, resume, killed workers,
+worker memory, the extras' messages. (Ray: ``test_audit_ray.py``.)"""
+import json
+import os
+import signal
+import sys
+
+import pytest
+
+pytest.importorskip('pyarrow')
+
+from collision_sensor.errors import ConfigError  # noqa: E402
+from collision_sensor.tools import offline_check  # noqa: E402
+from collision_sensor.tools.audit import batch, report, shipping  # noqa: E402
+from collision_sensor.tools.audit.local_pool import LocalPool  # noqa: E402
+from collision_sensor.tools.audit.unit_check import (  # noqa: E402
+    CheckOptions, RobotSpec, UnitChecker, record_keys)
+from collision_sensor.tools.audit.units import Unit, find_units  # noqa: E402
+from collision_sensor.model.joint_map import load_joint_map  # noqa: E402
+from collision_sensor.model.sequences import read_sequence  # noqa: E402
+import audit_fleet  # noqa: E402
+from test_demo_cell import CONFIG, FclCell  # noqa: E402
+
+
+@pytest.fixture(scope='module')
+def fleet(tmp_path_factory):
+    root = str(tmp_path_factory.mktemp('fleet'))
+    return root, audit_fleet.build(root)
+
+
+@pytest.fixture(scope='module')
+def spec():
+    return RobotSpec.load(os.path.join(CONFIG, 'demo_arm.urdf'),
+                          srdf=os.path.join(CONFIG, 'demo_arm.srdf'),
+                          scene=os.path.join(CONFIG, 'demo_scene.yaml'), label='demo arm',
+                          demo=True)
+
+
+@pytest.fixture(scope='module')
+def options(fleet):
+    return CheckOptions(joint_map=load_joint_map(os.path.join(fleet[0], 'joint_map.yaml')))
+
+
+@pytest.fixture(scope='module')
+def expected(fleet):
+    """{source: contact keys} by python-fcl for every good unit but moving_part."""
+    oracle = FclCell()
+    out = {}
+    for source, data in fleet[1]['good'].items():
+        if data is not None:
+            times, positions = data
+            out[source] = audit_fleet.expected_keys(
+                times, [oracle.colliding_pairs(q) for q in positions])
+    return out
+
+
+@pytest.fixture(scope='module')
+def serial_records(fleet, spec, options):
+    units = find_units([fleet[0]])
+    return batch.run_batch(units, spec, options, batch.SerialRunner(spec, options),
+                           progress='never')
+
+
+def test_units_come_from_directories_globs_and_datasets_once_each(fleet):
+    root, data = fleet
+    sources = [unit.source for unit in find_units([root])]
+    assert sorted(sources) == sorted(list(data['good']) + list(data['broken']))
+    assert sources == [unit.source for unit in find_units([root])]      # a stable order
+    assert not any('moving/' in s for s in sources)   # a bag directory is one unit
+    globbed = find_units([os.path.join(root, '**', '*.csv'), os.path.join(root, 'a')])
+    assert [u.source for u in globbed] == [os.path.join(root, 'a', 'paper_experiment.csv'),
+                                           os.path.join(root, 'bad', 'nan_rows.csv'),
+                                           os.path.join(root, 'bad', 'panda.csv'),
+                                           os.path.join(root, 'a', 'random.mcap')]
+    episodes = find_units([os.path.join(root, 'ds_v3')])
+    assert [(u.kind, u.format, u.source) for u in episodes] == [
+        ('lerobot', 'lerobot-v3.0', os.path.join(root, 'ds_v3') + f'#{i}') for i in (0, 1)]
+    os.makedirs(os.path.join(root, 'empty'), exist_ok=True)
+    for inputs, pattern in (([os.path.join(root, 'empty')], 'no recordings in it'),
+                            ([os.path.join(root, 'nothing*.mcap')], 'no file matches'),
+                            ([os.path.join(root, 'joint_map.yaml')], 'unknown recording'),
+                            (['/no/such/bag.mcap'], 'no such file or directory')):
+        with pytest.raises(ConfigError, match=pattern):
+            find_units(inputs)
+
+
+def test_every_report_line_matches_python_fcl(fleet, serial_records, expected):
+    lines = audit_fleet.by_source(serial_records.records)
+    for source, keys in expected.items():
+        line = lines[source]
+        assert line['error'] is None, line
+        for key in ('frames', 'frames_in_collision', 'pairs'):
+            assert line[key] == keys[key], (source, key)
+        assert line['time_in_collision'] == pytest.approx(keys['time_in_collision'], abs=1e-9)
+    assert sum(keys['frames_in_collision'] > 0 for keys in expected.values()) >= 4
+    assert any(keys['frames_in_collision'] == 0 for keys in expected.values())
+
+
+def test_the_scene_changes_of_a_bag_are_replayed_as_the_single_check_does(
+        fleet, serial_records):
+    from collision_sensor import CollisionChecker
+    source = os.path.join(fleet[0], 'b', 'moving')
+    line = audit_fleet.by_source(serial_records.records)[source]
+    checker = CollisionChecker.from_urdf(os.path.join(CONFIG, 'demo_arm.urdf'),
+                                         srdf=os.path.join(CONFIG, 'demo_arm.srdf'),
+                                         scene=os.path.join(CONFIG, 'demo_scene.yaml'))
+    seq = read_sequence(source, joint_names=checker.joint_names)
+    frames = offline_check.run_sequence(checker, seq)   # checked against python-fcl there
+    assert line['scene_changes'] == len(seq.scene) > 0
+    assert line['frames_in_collision'] == sum(f.in_collision for f in frames)
+    assert {(p['link_a'], p['link_b']) for p in line['pairs']} == \
+        {pair for f in frames for pair in f.pairs}
+    assert any('crate' in (p['link_a'], p['link_b']) for p in line['pairs'])
+
+
+def test_failing_units_are_reported_and_the_batch_goes_on(fleet, serial_records):
+    lines = audit_fleet.by_source(serial_records.records)
+    for source, reason in fleet[1]['broken'].items():
+        assert lines[source]['error'] is not None and reason in lines[source]['error'], \
+            lines[source]
+        assert lines[source]['frames_in_collision'] is None and lines[source]['pairs'] == []
+    assert 'bundled demo arm' in lines[os.path.join(fleet[0], 'bad', 'panda.csv')]['error']
+    assert serial_records.status == batch.EXIT_FAILED
+    keys = record_keys(CheckOptions())
+    assert all(list(line) == keys + ['settings'] for line in serial_records.records)
+
+
+def test_local_workers_give_the_serial_lines(fleet, spec, options, serial_records):
+    units = find_units([fleet[0]])
+    pooled = batch.run_batch(units, spec, options, LocalPool(spec, options, 2),
+                             progress='never')
+    assert pooled.records == serial_records.records     # sorted into the inputs' order
+    assert pooled.stats.workers == 2 and pooled.stats.deaths == 0
+
+
+def test_a_worker_reads_a_shipped_recording_without_its_path(fleet, spec, options,
+                                                           serial_records, tmp_path):
+    """What Ray workers do: the bytes travel, the path is only a name."""
+    lines = audit_fleet.by_source(serial_records.records)
+    checker = UnitChecker(spec, options)
+    for unit in find_units([fleet[0]]):
+        payload = shipping.pack(unit)
+        moved = Unit(unit.source, unit.kind, unit.path, unit.episode)
+        line = checker.check(moved, payload)
+        expected = dict(lines[unit.source])
+        expected.pop('settings')
+        assert line == expected, unit.source
+
+
+def _cli(capsys, argv):
+    status = offline_check.main(argv + ['--progress', 'never'])
+    out, err = capsys.readouterr()
+    return status, out, err
+
+
+def test_the_command_writes_the_report_summary_and_plot(fleet, serial_records, capsys,
+                                                       tmp_path):
+    root = fleet[0]
+    path, png = tmp_path / 'audit.jsonl', tmp_path / 'audit.png'
+    status, out, err = _cli(capsys, [root, '--joint-map', os.path.join(root, 'joint_map.yaml'),
+                                     '--report', str(path), '--plot', str(png), '--jobs', '2'])
+    assert status == 3, err
+    lines = [json.loads(line) for line in path.read_text().splitlines()]
+    assert sorted(lines, key=lambda r: r['source']) == \
+        sorted(serial_records.records, key=lambda r: r['source'])
+    assert 'failed units (3):' in out and 'pairs most often in contact:' in out
+    assert 'highest collision rate' in out and '2 local worker processes' in out
+    assert out.rstrip().endswith('result: COLLISION and FAILED UNITS')
+    assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    status, _, err = _cli(capsys, [root, '--report', str(path)])
+    assert status == 2 and 'exists already; pass --resume' in err
+
+
+def test_resume_skips_what_the_report_holds_and_drops_a_torn_line(fleet, serial_records,
+                                                                  capsys, tmp_path):
+    root = fleet[0]
+    whole = [json.dumps(r) for r in serial_records.records]
+    path = tmp_path / 'cut.jsonl'
+    path.write_text('\n'.join(whole[:4]) + '\n' + whole[4][:40])    # cut mid-line
+    joint_map = ['--joint-map', os.path.join(root, 'joint_map.yaml')]
+    status, out, err = _cli(capsys, [root, '--report', str(path), '--resume', '--jobs', '1']
+                            + joint_map)
+    assert status == 3, err
+    lines = [json.loads(line) for line in path.read_text().splitlines()]
+    assert lines == serial_records.records[:4] + serial_records.records[4:]
+    assert f'{len(whole) - 4} units' in out and '4 units resumed from the report' in out
+    status, _, err = _cli(capsys, [root, '--report', str(path), '--resume', '--full']
+                          + joint_map)
+    assert status == 2 and 'written for another robot or other settings' in err
+
+
+def _heavy(tmp_path, name='heavy', frames=150_000):
+    """A long clear recording of the demo arm (a few tenths of a second to check)."""
+    import numpy as np
+    from collision_sensor.model.sequences import JointSequence, write_sequence
+    rng = np.random.default_rng(5)
+    walk = np.clip(np.cumsum(rng.normal(0, 0.001, (frames, 6)), axis=0), -0.3, 0.3)
+    path = str(tmp_path / f'{name}.csv')
+    write_sequence(JointSequence(audit_fleet.JOINTS, np.arange(frames) * 0.002, walk), path)
+    return path
+
+
+def check_kills(make_runner, fleet, spec, options, serial_records, tmp_path):
+    """Kill the worker of one long unit once (it is checked on its retry) and of another on
+    both attempts (it is reported); every other line as a serial run gives it."""
+    units = find_units([fleet[0], _heavy(tmp_path, 'once'), _heavy(tmp_path, 'twice')])
+    once, twice = len(units) - 2, len(units) - 1
+    killed = []
+
+    def kill(index, attempt, pid):
+        if index == once and attempt == 1 or index == twice:
+            killed.append((index, attempt))
+            os.kill(pid, signal.SIGKILL)
+
+    path = tmp_path / 'faults.jsonl'
+    result = batch.run_batch(units, spec, options, make_runner(), report_path=str(path),
+                             on_start=kill, progress='never')
+    assert sorted(killed) == [(once, 1), (twice, 1), (twice, 2)]
+    assert result.stats.deaths == 3 and result.stats.retried == 2
+    lines = [json.loads(line) for line in path.read_text().splitlines()]   # valid JSON lines
+    by_source = audit_fleet.by_source(lines)
+    assert len(lines) == len(by_source) == len(units)
+    for line in serial_records:
+        assert by_source[line['source']] == line         # nothing else lost or changed
+    assert by_source[units[once].source]['error'] is None
+    assert by_source[units[once].source]['frames'] == 150_000
+    failed = by_source[units[twice].source]
+    assert failed['frames'] is None and 'died on each of 2 attempts (last: ' in failed['error']
+    return failed['error']
+
+
+def test_a_killed_worker_costs_only_its_unit(fleet, spec, options, serial_records, tmp_path):
+    error = check_kills(lambda: LocalPool(spec, options, 2), fleet, spec, options,
+                        serial_records.records, tmp_path)
+    assert '(last: killed by SIGKILL)' in error
+
+
+def test_worker_memory_does_not_grow_with_units(fleet, spec, options):
+    path = os.path.join(fleet[0], 'a', 'paper_experiment.csv')
+    units = [Unit(f'{path}?{k}', 'csv', path) for k in range(400)]
+    stats = LocalPool(spec, options, 1).run(units, lambda index, record: None)
+    (trace,) = stats.trace.values()
+    assert len(trace) == 401
+    grown = max(trace[50:]) - trace[50]
+    assert grown < 4 * 2 ** 20, f'worker RSS grew by {grown / 2 ** 20:.1f} MiB over 350 units'
+
+
+def test_without_urdf_a_mismatch_says_the_robot_is_the_demo_arm(fleet, capsys):
+    status, _, err = _cli(capsys, [os.path.join(fleet[0], 'bad', 'panda.csv')])
+    assert status == 2
+    assert 'joints of the bundled demo arm' in err and 'pass --urdf YOUR_ROBOT.urdf' in err
+
+
+@pytest.mark.parametrize('argv, pattern', [
+    (['--ray', 'auto'], r'--ray needs Ray.*pip install "collision_sensor\[cluster\]"'),
+    (['--json', 'x.jsonl'], 'for many recordings use --report FILE'),
+    (['--resume'], '--resume continues a report: give --report FILE too'),
+    (['--jobs', '0'], '--jobs 0: expected 1 or more'),
+])
+def test_option_errors_say_the_fix(fleet, capsys, monkeypatch, argv, pattern):
+    import re
+    monkeypatch.setitem(sys.modules, 'ray', None)
+    status, _, err = _cli(capsys, [os.path.join(fleet[0], 'a'), os.path.join(fleet[0], 'b')]
+                          + argv)
+    assert status == 2 and re.search(pattern, err), err
+
+
+def test_a_dataset_without_pyarrow_says_how_to_install(fleet, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, 'pyarrow', None)
+    monkeypatch.setitem(sys.modules, 'pyarrow.parquet', None)
+    status, _, err = _cli(capsys, [os.path.join(fleet[0], 'ds_v3')])
+    assert status == 2 and 'pip install "collision_sensor[parquet]"' in err
+
+
+def test_summary_and_plot_of_hand_made_lines(tmp_path):
+    def line(source, frames, hit, pairs=(), error=None):
+        return {'source': source, 'frames': frames, 'frames_in_collision': hit,
+                'pairs': [{'link_a': a, 'link_b': b, 'first': 0.0, 'last': 1.0, 'frames': n}
+                          for a, b, n in pairs], 'error': error}
+    records = [line('x', 100, 50, [('a', 'b', 50)]), line('y', 10, 1, [('a', 'b', 1),
+                                                                      ('a', 'c', 1)]),
+               line('z', 10, 0), line('w', None, None, error='broken: fix it')]
+    text = '\n'.join(report.summary_lines(records))
+    assert 'units:               4 (3 checked, 1 failed)' in text
+    assert 'units in collision:  2 of 3 (66.7 %)' in text
+    assert '   50.0 %       100        50      1  x' in text
+    assert '       2        51  a -- b' in text
+    assert 'w: broken: fix it' in text
+    report.plot_batch(records, str(tmp_path / 'b.png'))
+    assert (tmp_path / 'b.png').read_bytes()[:4] == b'\x89PNG'
+
+
+def test_ctrl_c_keeps_a_valid_report_that_resume_completes(fleet, serial_records, tmp_path):
+    import subprocess
+    import time
+    root = fleet[0]
+    heavy = [_heavy(tmp_path, f'long{k}', frames=60_000) for k in range(3)]
+    path = tmp_path / 'stopped.jsonl'
+    argv = [sys.executable, '-m', 'collision_sensor.tools.offline_check', root, *heavy,
+            '--joint-map', os.path.join(root, 'joint_map.yaml'), '--report', str(path),
+            '--jobs', '2', '--progress', 'never']
+    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and (not path.exists()
+                                           or path.read_text().count('\n') < 3):
+        time.sleep(0.05)
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == 130, err
+    assert 'stopped; the report' in err and '--resume continues it' in err
+    before = [json.loads(line) for line in path.read_text().splitlines()]
+    assert 3 <= len(before) < len(serial_records.records) + 3
+    done = subprocess.run(argv + ['--resume'], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 3, done.stderr
+    after = [json.loads(line) for line in path.read_text().splitlines()]
+    assert after[:len(before)] == before
+    lines = audit_fleet.by_source(after)
+    assert len(lines) == len(after) == len(serial_records.records) + 3
+    for line in serial_records.records:
+        assert lines[line['source']] == line
+
+
+def test_closest_approach_is_the_single_checks(fleet, spec, capsys):
+    """--max-distance in a batch: each unit's closest approach while clear is the one the
+    single-recording check finds frame by frame (checked against fcl.distance there)."""
+    from collision_sensor import CollisionChecker
+    source = os.path.join(fleet[0], 'a', 'paper_experiment.csv')
+    options = CheckOptions(max_distance=0.05)
+    result = batch.run_batch(find_units([source, os.path.join(fleet[0], 'b')]), spec,
+                             options, batch.SerialRunner(spec, options), progress='never')
+    line = audit_fleet.by_source(result.records)[source]
+    checker = CollisionChecker.from_urdf(os.path.join(CONFIG, 'demo_arm.urdf'),
+                                         srdf=os.path.join(CONFIG, 'demo_arm.srdf'),
+                                         scene=os.path.join(CONFIG, 'demo_scene.yaml'))
+    seq = read_sequence(source, joint_names=checker.joint_names)
+    frames = offline_check.run_sequence(checker, seq, max_distance=0.05)
+    clear = [f for f in frames if not f.in_collision and f.min_distance is not None]
+    best = min(clear, key=lambda f: f.min_distance)
+    assert line['closest_approach'] == {'distance': best.min_distance,
+                                        'link_a': best.nearest_pair[0],
+                                        'link_b': best.nearest_pair[1], 'time': best.time}
+    batch.print_summary(result, spec, checker, options, 'this process')
+    nearest = min((r for r in result.records if r['closest_approach']),
+                  key=lambda r: r['closest_approach']['distance'])
+    c = nearest['closest_approach']
+    assert (f'closest approach while clear: {c["distance"]:.6f} m ({c["link_a"]} -- '
+            f'{c["link_b"]}) at {c["time"]:.3f} s in {nearest["source"]}; 3 units came within '
+            '--max-distance') in capsys.readouterr().out
