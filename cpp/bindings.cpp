@@ -188,6 +188,69 @@ struct PyEngine {
         std::lock_guard<std::mutex> hold(engine->lock());
         engine->refresh_all_poses();
     }
+
+    // The motion checks (engine.hpp): each answer's pairs and t are kept, for last_motion.
+    std::vector<uint8_t> motion_pairs;
+    double motion_t = 0.0;
+
+    uint8_t* motion_rows() {
+        motion_pairs.assign(engine->model().n_pairs, 0);
+        return motion_pairs.data();
+    }
+
+    int64_t motion(const Array<double>& q0, const Array<double>& q1) {
+        const int64_t J = engine->model().n_joints;
+        expect_shape("q0", q0, {J});
+        expect_shape("q1", q1, {J});
+        uint8_t* out = motion_rows();
+        py::gil_scoped_release release;
+        std::lock_guard<std::mutex> hold(engine->lock());
+        return engine->motion(q0.data(), q1.data(), &motion_t, out);
+    }
+
+    // q as query takes it (NOT_AN_ARRAY else). The answer is 2 * the query's code + the
+    // motion's (1: it met contact), or the motion's -1 - j: one call on a stream's path.
+    int64_t update_motion(py::handle q) {
+        const double* data = exact_doubles(q, {engine->model().n_joints});
+        if (!data) return NOT_AN_ARRAY;
+        uint8_t* out = motion_rows();
+        py::gil_scoped_release release;
+        std::lock_guard<std::mutex> hold(engine->lock());
+        int64_t query_code = 0;
+        const int64_t code = engine->update_motion(data, &motion_t, out, &query_code);
+        return code < 0 ? code : 2 * query_code + code;
+    }
+
+    py::tuple path(const Array<double>& Q) {
+        expect_shape("Q", Q, {-1, engine->model().n_joints});
+        if (Q.shape(0) < 1) throw std::invalid_argument("Q: no waypoint");
+        uint8_t* out = motion_rows();
+        int64_t segment = -1, code;
+        {
+            py::gil_scoped_release release;
+            std::lock_guard<std::mutex> hold(engine->lock());
+            code = engine->path(Q.data(), Q.shape(0), &segment, &motion_t, out);
+        }
+        return py::make_tuple(code, segment);
+    }
+
+    py::tuple spline(const Array<double>& coef) {
+        expect_shape("coef", coef, {-1, engine->model().n_joints, 6});
+        uint8_t* out = motion_rows();
+        int64_t segment = -1, code;
+        {
+            py::gil_scoped_release release;
+            std::lock_guard<std::mutex> hold(engine->lock());
+            code = engine->spline(coef.data(), coef.shape(0), &segment, &motion_t, out);
+        }
+        return py::make_tuple(code, segment);
+    }
+
+    py::tuple last_motion() {
+        Array<uint8_t> pairs(py::ssize_t(motion_pairs.size()));
+        std::copy(motion_pairs.begin(), motion_pairs.end(), pairs.mutable_data());
+        return py::make_tuple(motion_t, pairs);
+    }
 };
 
 // A kinematic tree whose arrays are checked and held once, for Python callers of FK.
@@ -339,6 +402,10 @@ void export_constants(py::module_& m) {
     CS_EXPORT(JOINT_FIXED) CS_EXPORT(JOINT_REVOLUTE) CS_EXPORT(JOINT_PRISMATIC)
     CS_EXPORT(JOINT_PLANAR) CS_EXPORT(JOINT_FLOATING)
     CS_EXPORT(PRISMATIC_VALUE_MAX) CS_EXPORT(QUATERNION_NORM_MIN)
+    CS_EXPORT(MOTION_LINEAR) CS_EXPORT(MOTION_WRAP) CS_EXPORT(MOTION_QUATERNION)
+    CS_EXPORT(MOTION_QUATERNION_REST)
+    // motion.hpp
+    CS_EXPORT(MOTION_TOUCH_TOLERANCE) CS_EXPORT(MOTION_BOUND_REL) CS_EXPORT(MOTION_FRONT_MAX)
     m.attr("JOINT_VARIABLES") = py::make_tuple(cs::JOINT_VARIABLES[0], cs::JOINT_VARIABLES[1],
                                                cs::JOINT_VARIABLES[2], cs::JOINT_VARIABLES[3],
                                                cs::JOINT_VARIABLES[4]);
@@ -380,6 +447,23 @@ void bind_engine(py::module_& m) {
              "Give world object b the pose T ((4, 4) C-contiguous float64) and force its pairs, "
              "if T is a rigid transform within MAX_COORDINATE; return 0, or MOVE_REFUSED "
              "(nothing changed then, also for anything but such an array).")
+        .def("motion", &PyEngine::motion, py::arg("q0"), py::arg("q1"),
+             "The straight motion q0 -> q1 (J,), carried state untouched: 0 free, 1 contact "
+             "(last_motion() then), or -1 - j for an unusable value (j >= J: q1's).")
+        .def("update_motion", &PyEngine::update_motion, py::arg("q"),
+             "The motion from the carried state to q (as query takes it: NOT_AN_ARRAY else), "
+             "then query(q, False): 2 * query's code + 1 if the motion met contact "
+             "(last_motion() then), or -1 - j for an unusable value (nothing changed then).")
+        .def("path", &PyEngine::path, py::arg("Q"),
+             "The straight motions between consecutive rows of Q (n >= 1, J) until one is not "
+             "free: (code, segment), code as motion, -1 - (J i + j) for row i's value j.")
+        .def("spline", &PyEngine::spline, py::arg("coef"),
+             "The polynomial segments coef (n, J, 6) (q_j(t) = sum_k coef[i, j, k] t^k, t in "
+             "[0, 1]) until one is not free: (code, segment) as path; -1 - i for a segment i "
+             "the engine refuses.")
+        .def("last_motion", &PyEngine::last_motion,
+             "The last motion check's (t, pairs (P,) uint8): its first contact's fraction and "
+             "the pairs in contact (or within MOTION_TOUCH_TOLERANCE) there.")
         .def("place_attached_body", &PyEngine::place_attached_body, py::arg("b"), py::arg("T"),
              py::arg("pairs"), py::arg("reach"), py::arg("reach_ext"),
              "Give attached object b (a link on a fixed joint) the pose T (4, 4) in its link's "
@@ -672,7 +756,7 @@ void bind_build_kernels(py::module_& m) {
 
 //: Bumped whenever the binding's functions or the packed layouts change; the Python side
 //: refuses an extension built from other sources (collision_sensor/engine/compiled.py).
-constexpr int ENGINE_API = 3;
+constexpr int ENGINE_API = 4;
 
 PYBIND11_MODULE(_engine, m) {
     m.doc() = "collision_sensor's compiled engine (C++17); see collision_sensor.engine.compiled";

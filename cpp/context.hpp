@@ -118,13 +118,23 @@ struct Scratch {
     std::vector<int64_t> own_counters_, own_scene_culled_, own_nearest_;
 };
 
+// What an incremental check records for the motion check that follows it (motion.hpp:
+// update_motion): each pair's gap at the last state, before its travel sums move (prev_gap,
+// (P,); -INF: in contact, or forced by a scene change), and those sums (prev_sums, (P, 2)).
+struct MotionRecord {
+    double* prev_gap;
+    double* prev_sums;
+};
+
 // One check's context (coal's traversal node, for a whole query): the model it reads, the
-// state it carries forward, the areas it works in, the options it runs with.
+// state it carries forward, the areas it works in, the options it runs with, and (update_motion
+// only) where it records the pairs' gaps at the last state.
 struct CheckContext {
     const Model& model;
     State& state;
     Scratch& scratch;
     const Options& options;
+    MotionRecord* record = nullptr;
 };
 
 // What a query other than the incremental check may read of an engine: its model and its

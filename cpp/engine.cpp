@@ -111,10 +111,10 @@ int64_t Engine::query(const double* q, bool full) {
     return run(q, full);
 }
 
-int64_t Engine::run(const double* q, bool full) {
+int64_t Engine::run(const double* q, bool full, MotionRecord* record) {
     const Model& m = model_;
     State& s = state_;
-    CheckContext c = {m, s, scratch_, options_};
+    CheckContext c = {m, s, scratch_, options_, record};
     full = full || s.flags[QUERY_CHECKED_ONCE] == 0;
     bool any_moved = full;
     const double tolerance = options_.motion_tolerance;
@@ -165,6 +165,117 @@ int64_t Engine::proximity(const double* q, const ProximityRequest& request,
     refresh_all_poses();
     measure_proximity(view(), request, scratch_, result);
     return code;
+}
+
+int64_t Engine::motion(const double* q0, const double* q1, double* t, uint8_t* pairs) {
+    const int64_t J = model_.n_joints;
+    const int64_t bad0 = unusable_variable(model_.kin, q0, J);
+    if (bad0 >= 0) return -1 - bad0;
+    const int64_t bad1 = unusable_variable(model_.kin, q1, J);
+    if (bad1 >= 0) return -1 - (J + bad1);
+    MotionContext c = motion_context();
+    return check_straight_motion(c, q0, q1, nullptr, model_.n_pairs, t, pairs);
+}
+
+// The motion from the last state q0 to q, on the incremental query (issue 25):
+//   - a pair in contact at q0: the motion starts in contact (t = 0);
+//   - a pair the query does not re-check is apart along the whole straight motion: no joint on
+//     its path moved (its pose is the same all along), or its travel bound is below its
+//     clearance at both ends, and that bound, sum_j |q_j - q_eval_j| reach[p, j] (+ E ...), is
+//     convex in q: below the clearance on the whole segment (planning.cpp checks the segment
+//     when a slider moved E);
+//   - a pair it re-checks and finds apart with clearance c1, whose gap at q0 was c0
+//     (planning.cpp: record_gap), is apart all along when c0 + c1 exceeds the step's bound r
+//     (the distance at t is at least max(c0 - t r, c1 - (1 - t) r));
+//   - every other pair marches along the step (check_step_motion).
+int64_t Engine::update_motion(const double* q, double* t, uint8_t* pairs,
+                              int64_t* query_code) {
+    const Model& m = model_;
+    const int64_t bad = unusable_variable(m.kin, q, m.n_joints);
+    if (bad >= 0) return -1 - bad;
+    bool contact = false;
+    for (int64_t p = 0; p < m.n_pairs && !contact; ++p) contact = state_.status[p] != 0;
+    if (!state_.flags[QUERY_CHECKED_ONCE] || contact) {
+        // In contact at the start (t = 0: the start's pairs), or no state before (the motion
+        // is the instant q: its pairs).
+        if (contact)
+            for (int64_t p = 0; p < m.n_pairs; ++p) pairs[p] = uint8_t(state_.status[p]);
+        *query_code = run(q, false);
+        if (!contact) {
+            for (int64_t p = 0; p < m.n_pairs; ++p) {
+                pairs[p] = uint8_t(state_.status[p]);
+                contact |= state_.status[p] != 0;
+            }
+        }
+        *t = 0.0;
+        return contact ? 1 : 0;
+    }
+    motion_work_.size_for(m);
+    std::vector<double>& q0 = motion_work_.q_prev;
+    std::copy(state_.q_last, state_.q_last + m.n_joints, q0.begin());
+    const double extension_before = state_.extension[0];
+    MotionRecord record = motion_work_.record();
+    *query_code = run(q, false, &record);
+    MotionContext c = motion_context();
+    return check_step_motion(c, q0.data(), q, scratch_.todo.data(), *query_code >> 1,
+                             extension_before, t, pairs);
+}
+
+int64_t Engine::path(const double* Q, int64_t n, int64_t* segment, double* t,
+                     uint8_t* pairs) {
+    const int64_t J = model_.n_joints;
+    for (int64_t i = 0; i < n; ++i) {  // all rows first: a bad row answers before any work
+        const int64_t bad = unusable_variable(model_.kin, Q + J * i, J);
+        if (bad >= 0) return -1 - (J * i + bad);
+    }
+    MotionContext c = motion_context();
+    *segment = -1;
+    if (n == 1) {  // one waypoint: its instant
+        if (!check_straight_motion(c, Q, Q, nullptr, model_.n_pairs, t, pairs)) return 0;
+        *segment = 0;
+        return 1;
+    }
+    for (int64_t i = 0; i + 1 < n; ++i) {
+        if (check_straight_motion(c, Q + J * i, Q + J * (i + 1), nullptr, model_.n_pairs, t,
+                                  pairs)) {
+            *segment = i;
+            return 1;
+        }
+    }
+    return 0;
+}
+
+int64_t Engine::spline(const double* coef, int64_t n, int64_t* segment, double* t,
+                       uint8_t* pairs) {
+    const Model& m = model_;
+    const int64_t J = m.n_joints;
+    motion_work_.size_for(m);
+    std::vector<double>& q = motion_work_.q_prev;
+    for (int64_t i = 0; i < n; ++i) {  // every segment first: a bad one answers before any work
+        const double* c = coef + 6 * J * i;
+        for (int64_t k = 0; k < 6 * J; ++k)
+            if (!std::isfinite(c[k])) return -1 - i;
+        const SplinePath path{c, J};
+        for (int64_t l = 0; l < m.n_links; ++l) {
+            const int64_t kind = m.kin.joint_type[l];
+            if (kind != JOINT_PLANAR && kind != JOINT_FLOATING) continue;
+            for (int64_t v = 0; v < joint_variable_count(kind); ++v)
+                if (path.moves(m.kin.q_index[l] + v)) return -1 - i;
+        }
+        for (double end : {0.0, 1.0}) {
+            path.at(end, q.data());
+            if (unusable_variable(m.kin, q.data(), J) >= 0) return -1 - i;
+        }
+    }
+    MotionContext c = motion_context();
+    *segment = -1;
+    for (int64_t i = 0; i < n; ++i) {
+        if (check_spline_motion(c, coef + 6 * J * i, t, pairs)) {
+            *segment = i;
+            return 1;
+        }
+    }
+    return 0;
 }
 
 }  // namespace collision_sensor

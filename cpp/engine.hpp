@@ -19,8 +19,9 @@
 // do (collision_sensor/engine/dynamic_scene.py).
 //
 // Adding a query: a function of its own file over an EngineView and a Scratch (as
-// proximity.hpp), an entry point here that brings the state up to date and calls it, its
-// binding (bindings.cpp), and the checker's method (collision_sensor/engine/checker.py).
+// proximity.hpp, motion.hpp), an entry point here that brings the state up to date and calls
+// it, its binding (bindings.cpp), and the checker's method
+// (collision_sensor/engine/checker.py).
 #pragma once
 
 #include <cstdint>
@@ -29,6 +30,7 @@
 #include "context.hpp"
 #include "layout.hpp"
 #include "model.hpp"
+#include "motion.hpp"
 #include "proximity.hpp"
 
 namespace collision_sensor {
@@ -69,6 +71,25 @@ class Engine {
     // Bring every link pose up to date (incremental calls compute them only on demand).
     void refresh_all_poses();
 
+    // Motion checks (motion.hpp), none of which changes the carried state but update_motion.
+    // Each answers 0 (the motion proven free) or 1 (contact: *t the first contact's fraction
+    // of the motion, pairs (P,) 1 for the pairs in contact, or within the touching
+    // tolerance, there); a value that is not usable answers before any work, as noted.
+    // The straight motion q0 -> q1: -1 - j when q0[j] (j < J) or q1[j - J] is not usable.
+    int64_t motion(const double* q0, const double* q1, double* t, uint8_t* pairs);
+    // The motion from the carried state (the last query's q; none before the first: the
+    // instant q) to q, then query(q, false) (its code in *query_code): -1 - j when q[j] is
+    // not usable (nothing changed then).
+    int64_t update_motion(const double* q, double* t, uint8_t* pairs, int64_t* query_code);
+    // The straight motions Q[0] -> Q[1] -> ... -> Q[n - 1] (n >= 1; one row: its instant) in
+    // turn until one is not free (*segment its index, -1: none): -1 - (J i + j) when row
+    // i's value j is not usable.
+    int64_t path(const double* Q, int64_t n, int64_t* segment, double* t, uint8_t* pairs);
+    // The spline segments coef (n, J, 6) (SplinePath) in turn, as path: -1 - i when segment
+    // i has a coefficient that is not finite, moves a planar or floating joint, or starts or
+    // ends at a value that is not usable.
+    int64_t spline(const double* coef, int64_t n, int64_t* segment, double* t, uint8_t* pairs);
+
     // Give world object b the pose T (4, 4, row-major) and force its pairs, if T is a rigid
     // transform (is_rigid_transform). Returns 0, or MOVE_REFUSED when b is no world object or
     // T no such transform (nothing changed then).
@@ -87,7 +108,8 @@ class Engine {
     std::mutex& lock() { return lock_; }
 
    private:
-    int64_t run(const double* q, bool full);
+    int64_t run(const double* q, bool full, MotionRecord* record = nullptr);
+    MotionContext motion_context() { return {view(), scratch_, motion_work_}; }
     void force(int64_t p);
 
     std::mutex lock_;
@@ -96,6 +118,7 @@ class Engine {
     Model model_;
     State state_;
     Scratch scratch_;  // the engine's own context (its work group slots packed)
+    MotionWork motion_work_;  // the motion checks' own areas, sized on their first use
 };
 
 }  // namespace collision_sensor

@@ -27,6 +27,13 @@ namespace collision_sensor {
 constexpr int64_t JOINT_FIXED = 0, JOINT_REVOLUTE = 1, JOINT_PRISMATIC = 2, JOINT_PLANAR = 3,
                   JOINT_FLOATING = 4;
 
+// How variable j moves along a motion between two states (motion.hpp; the checker sets each
+// variable's kind from its joint, MoveIt's interpolation):
+constexpr int64_t MOTION_LINEAR = 0;      // revolute with limits, prismatic, translations
+constexpr int64_t MOTION_WRAP = 1;        // continuous joint, planar theta: the shorter way
+constexpr int64_t MOTION_QUATERNION = 2;  // a floating joint's rot_x; with rot_y, rot_z, rot_w
+constexpr int64_t MOTION_QUATERNION_REST = 3;  // (kind 3) slerp along the shorter arc
+
 // How many consecutive variables of q a joint of each type reads (JOINT_VARIABLES[kind]).
 constexpr int64_t JOINT_VARIABLES[5] = {0, 1, 1, 3, 7};
 inline int64_t joint_variable_count(int64_t kind) { return JOINT_VARIABLES[kind]; }

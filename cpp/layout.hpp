@@ -121,6 +121,7 @@ constexpr int SOLID_NONE = 0, SOLID_BOX = 1, SOLID_SPHERE = 2, SOLID_CYLINDER = 
     X(joint_links_start, MODEL, shape(plus_one(DIM_JOINTS)))  /* the links it moves */      \
     X(joint_links, MODEL, shape(DIM_JOINT_LINKS))                                           \
     X(joint_prismatic, MODEL, shape(DIM_JOINTS))        /* 1: it drives a slider */         \
+    X(motion_kind, MODEL, shape(DIM_JOINTS))            /* MOTION_*: how it moves (motion) */ \
     X(query_flags, STATE, shape(N_QUERY_FLAGS))         /* QUERY_* */                       \
     X(stale, STATE, shape(DIM_BODIES))                  /* 1: pose behind q_ref */          \
     X(status, STATE, shape(DIM_PAIRS))                  /* 1: in contact */                 \

@@ -146,7 +146,11 @@ Model make_model(const ResolvedLayout& r) {
     m.joint_links_start = r.i[slot::joint_links_start];
     m.joint_links = r.i[slot::joint_links];
     m.joint_prismatic = r.i[slot::joint_prismatic];
+    m.motion_kind = r.i[slot::motion_kind];
     require(m.n_links >= 1, "parent", "the robot has no links");
+    for (int64_t j = 0; j < m.n_joints; ++j)
+        require(m.motion_kind[j] >= MOTION_LINEAR && m.motion_kind[j] <= MOTION_QUATERNION_REST,
+                "motion_kind", "not one of MOTION_*");
     check_indices(m, r.dims[DIM_JOINT_PAIRS], r.dims[DIM_JOINT_LINKS]);
     derive_trees(m);
     derive_bodies(m);

@@ -42,6 +42,7 @@ struct Model {
     const int64_t* joint_links_start;
     const int64_t* joint_links;
     const int64_t* joint_prismatic;  // (J,) 1 where j drives a slider
+    const int64_t* motion_kind;      // (J,) MOTION_*: how j moves along a motion (motion.hpp)
 
     // Derived once, when the model is made.
     std::vector<int64_t> elem_tris;    // (E, 2) each tree's triangle range (its leaves')

@@ -1,6 +1,7 @@
 // Re-check planning: which pairs a query re-checks (planning.hpp).
 #include "planning.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "poses.hpp"
@@ -62,6 +63,34 @@ CS_ALWAYS_INLINE bool needs_recheck(const Model& m, State& s, int64_t p, double 
     return !(s.travel[2 * p] + extension * s.travel[2 * p + 1] < c);
 }
 
+// Pair p's gap at the last state, before its travel sums move (E there: extension): its
+// clearance less its travel since, which bounds its distance from below; 0 when it has no
+// clearance (known apart, by how much unknown), -INF in contact. Its sums are kept too.
+CS_ALWAYS_INLINE void record_gap(const State& s, MotionRecord& r, int64_t p, double extension) {
+    r.prev_sums[2 * p] = s.travel[2 * p];
+    r.prev_sums[2 * p + 1] = s.travel[2 * p + 1];
+    double gap = 0.0;
+    if (s.status[p] != 0) {
+        gap = -INF;
+    } else if (s.clearance[p] > 0.0) {
+        // The running sums' rounding is a few ulps of the clearance (see above).
+        const double travel = s.travel[2 * p] + extension * s.travel[2 * p + 1];
+        gap = std::max(s.clearance[p] - travel - 1e-9 * s.clearance[p], 0.0);
+    }
+    r.prev_gap[p] = gap;
+}
+
+// True iff pair p, which needs_recheck skips at the new state (its travel below its
+// clearance), is below its clearance on the whole straight segment from the last state too,
+// E having changed from extension_before to extension: each of its sums is convex in q, so
+// on the segment the travel is at most max(f0, f1) + max(E0, E1) max(x0, x1).
+CS_ALWAYS_INLINE bool below_all_along(const State& s, const MotionRecord& r, int64_t p,
+                                      double extension_before, double extension) {
+    const double f = std::max(r.prev_sums[2 * p], s.travel[2 * p]);
+    const double x = std::max(r.prev_sums[2 * p + 1], s.travel[2 * p + 1]);
+    return f + std::max(extension_before, extension) * x < TRAVEL_GUARD * s.clearance[p];
+}
+
 }  // namespace
 
 void plan_full(CheckContext& c, const double* q) {
@@ -97,6 +126,11 @@ int64_t plan_update(CheckContext& c, const double* q) {
     s.flags[QUERY_CALLS] += 1;
     const bool resync = s.flags[QUERY_CALLS] >= TRAVEL_RESYNC_CALLS;
     double ext = s.extension[0];
+    const double ext_before = ext;
+    // update_motion: a skipped pair must be apart on the whole segment too, which a moved
+    // slider (E changing) can make a stricter question than at the two ends.
+    MotionRecord* record = c.record;
+    const bool segment_bound = record != nullptr && prismatic;
     int64_t n = 0;
     if (n_moved == 1 && !resync) {
         const int64_t j = moved[0];
@@ -105,8 +139,11 @@ int64_t plan_update(CheckContext& c, const double* q) {
         if (prismatic) s.extension[0] = ext = extension(m, s.q_ref);
         for (int64_t t = m.joint_pairs_start[j]; t < m.joint_pairs_start[j + 1]; ++t) {
             const int64_t p = m.joint_pairs[t];
+            if (record) record_gap(s, *record, p, ext_before);
             if (s.clearance[p] > 0.0) add_travel(m, s, p, j, old_value, new_value);
-            if (needs_recheck(m, s, p, ext)) todo[n++] = p;
+            if (needs_recheck(m, s, p, ext) ||
+                (segment_bound && !below_all_along(s, *record, p, ext_before, ext)))
+                todo[n++] = p;
         }
         return n;
     }
@@ -116,11 +153,12 @@ int64_t plan_update(CheckContext& c, const double* q) {
         const double new_value = s.q_ref[j] = q[j];
         for (int64_t t = m.joint_pairs_start[j]; t < m.joint_pairs_start[j + 1]; ++t) {
             const int64_t p = m.joint_pairs[t];
-            if (s.clearance[p] > 0.0 && !resync) add_travel(m, s, p, j, old_value, new_value);
-            if (!pending[p]) {
+            if (!pending[p]) {  // first seen: its sums are still those of the last state
+                if (record) record_gap(s, *record, p, ext_before);
                 pending[p] = 1;
                 todo[n++] = p;
             }
+            if (s.clearance[p] > 0.0 && !resync) add_travel(m, s, p, j, old_value, new_value);
         }
     }
     if (prismatic) s.extension[0] = ext = extension(m, s.q_ref);
@@ -133,7 +171,9 @@ int64_t plan_update(CheckContext& c, const double* q) {
     for (int64_t t = 0; t < n; ++t) {
         const int64_t p = todo[t];
         pending[p] = 0;
-        if (needs_recheck(m, s, p, ext)) todo[kept++] = p;
+        if (needs_recheck(m, s, p, ext) ||
+            (segment_bound && !below_all_along(s, *record, p, ext_before, ext)))
+            todo[kept++] = p;
     }
     return kept;
 }
@@ -153,6 +193,7 @@ int64_t add_forced(CheckContext& c, int64_t n) {
         if (!s.forced[p]) continue;
         s.forced[p] = 0;
         s.fronts.state[2 * p] = 0;
+        if (c.record) c.record->prev_gap[p] = -INF;  // no gap known in the new scene
         if (!pending[p]) {
             pending[p] = 1;
             todo[n++] = p;

@@ -25,6 +25,8 @@ from collision_sensor.engine.dynamic_scene import (
     AddObject, PlacedObject, PreparedSceneChanges, RemoveObject, SceneChange, SceneChangeError,
     checked_pose, prepare_changes)
 from collision_sensor.engine.kinematics import KinematicTree, build_kinematic_tree
+from collision_sensor.engine.motion import FREE, MotionResult, PathResult
+from collision_sensor.engine.trajectory import TrajectoryResult, check_trajectory
 from collision_sensor.engine.obb_tree import forest_view
 from collision_sensor.engine.robot_block import (
     allowed_names_to_come, build_robot_block, joint_tables, with_virtual_joint, world_frames)
@@ -602,6 +604,124 @@ class CollisionChecker:
             raise JointStateError(self._unusable_message(-1 - code, q))
         self._result = self._result_from_status(code >> 1)
         return self._proximity_records(distance, points)
+
+    # ------------------------------------------------------------------ motion
+    @property
+    def motion_kinds(self) -> np.ndarray:
+        """(J,) int64: how each variable of :attr:`joint_names` moves along a motion
+        (``engine.MOTION_*``; see :func:`collision_sensor.engine.motion.interpolate`)."""
+        return self._joints.motion_kind
+
+    def check_motion(self, q_from: Positions, q_to: Positions) -> MotionResult:
+        """Check the straight motion from ``q_from`` to ``q_to``: certified, never sampled.
+
+        Revolute and prismatic joints move linearly, continuous joints (and a planar joint's
+        theta) the shorter way round, planar and floating joints their translation linearly
+        and their rotation along the shorter arc; mimic joints follow (MoveIt's
+        interpolation, :mod:`collision_sensor.engine.motion`). A motion reported free has no
+        state in contact; a reported ``first_contact`` t is in contact or within
+        :data:`~collision_sensor.engine.motion.TOUCH_TOLERANCE` of it, and no earlier state is
+        in contact. Padding, the exception list, world and attached objects count as in
+        :meth:`check`. The carried incremental state is left as it was.
+
+        :param q_from: the start, as ``positions`` of :meth:`check` (joints not given keep
+            their current value).
+        :param q_to: the end, the same way.
+        :raises JointStateError: as :meth:`check`, naming the end at fault; nothing changes.
+        """
+        ends = []
+        for end, positions in (('q_from', q_from), ('q_to', q_to)):
+            try:
+                ends.append(self._merged(positions))
+            except JointStateError as error:
+                raise JointStateError(f'{end}: {error}') from None
+        q0, q1 = ends
+        code = self._engine.motion(q0, q1)
+        if code < 0:
+            j = -1 - code
+            end, q = ('q_from', q0) if j < len(q0) else ('q_to', q1)
+            raise JointStateError(f'{end}: ' + self._unusable_message(j % len(q0), q))
+        return self._motion_result(code)
+
+    def update_motion(self, positions: Positions) -> MotionResult:
+        """Check the motion from the current state to ``positions`` (as :meth:`check_motion`),
+        then move the state there as :meth:`update` does: what a stream of joint states
+        needs, at about the cost of :meth:`update` (pairs its clearance keeps apart at both
+        ends are apart all along). Before any state was checked there is no motion: the
+        answer is ``positions``' own instant.
+
+        :raises JointStateError: as :meth:`check`; nothing changes then.
+        """
+        code = self._engine.update_motion(positions)
+        if code == _NOT_AN_ARRAY:
+            positions = self._merged(positions)
+            code = self._engine.update_motion(positions)
+        if code < 0:
+            raise JointStateError(self._unusable_message(-1 - code, positions))
+        query_code = code >> 1   # as update settles it (the commonest answer: no change)
+        if query_code & 1 or query_code >> 1 != self._result.rechecked_pairs:
+            self._settle(query_code, positions, False)
+        return FREE if not code & 1 else self._motion_result(1)
+
+    def check_path(self, configurations: np.ndarray) -> PathResult:
+        """Check the straight motions between consecutive waypoints, in one compiled call,
+        until one is not free (a single waypoint: its instant). The carried state is left as
+        it was.
+
+        :param configurations: (n, J) float, rows in the order of :attr:`joint_names`.
+        :raises JointStateError: on a wrong shape or an unusable value (naming the row and
+            joint); nothing changes then.
+        """
+        Q = np.ascontiguousarray(configurations, dtype=np.float64)
+        if Q.ndim != 2 or Q.shape[1] != len(self.joint_names) or not len(Q):
+            raise JointStateError(f'expected waypoints of shape (n, {len(self.joint_names)}), '
+                                  f'n >= 1, in the order of joint_names, got {Q.shape}')
+        code, segment = self._engine.path(Q)
+        if code < 0:
+            row, j = divmod(-1 - code, len(self.joint_names))
+            raise JointStateError(self._unusable_message(j, Q[row], row))
+        if code == 0:
+            return PathResult(None, FREE)
+        return PathResult(int(segment), self._motion_result(code))
+
+    def check_spline(self, coefficients: np.ndarray) -> PathResult:
+        """Check polynomial path segments in turn, in one compiled call, until one is not free:
+        segment i is ``q_j(t) = sum_k coefficients[i, j, k] t^k`` for t in [0, 1] (degree at
+        most 5; planar and floating joints constant). ``first_contact`` is a fraction of the
+        segment. The carried state is left as it was.
+
+        :param coefficients: (S, J, 6) float, variables in the order of :attr:`joint_names`.
+        :raises JointStateError: on a wrong shape, or a segment the engine cannot take (not
+            finite, moving a planar or floating joint, or an unusable value at an end).
+        """
+        coef = np.ascontiguousarray(coefficients, dtype=np.float64)
+        if coef.ndim != 3 or coef.shape[1:] != (len(self.joint_names), 6):
+            raise JointStateError(f'expected coefficients of shape (S, {len(self.joint_names)},'
+                                  f' 6), got {coef.shape}')
+        code, segment = self._engine.spline(coef)
+        if code < 0:
+            raise JointStateError(
+                f'segment {-1 - code}: a coefficient is not finite, a planar or floating joint '
+                'moves, or an end is beyond the engine\'s range; give finite polynomials of '
+                'the 1-DOF joints')
+        if code == 0:
+            return PathResult(None, FREE)
+        return PathResult(int(segment), self._motion_result(code))
+
+    def check_trajectory(self, joint_names, points, start=None,
+                         limit_tolerance: float = 0.0) -> TrajectoryResult:
+        """Check a planned trajectory (``trajectory_msgs/JointTrajectory``'s joint names and
+        points) along the path joint_trajectory_controller will follow, from ``start``
+        (default: the current positions): see :mod:`collision_sensor.engine.trajectory`.
+        A malformed trajectory is invalid with its reason; nothing changes in the checker."""
+        return check_trajectory(self, joint_names, points, start, limit_tolerance)
+
+    def _motion_result(self, code: int) -> MotionResult:
+        if code == 0:
+            return FREE
+        t, pairs = self._engine.last_motion()
+        names = self.checked_pairs
+        return MotionResult(True, float(t), tuple(names[p] for p in np.flatnonzero(pairs)))
 
     def _proximity_records(self, distance: np.ndarray,
                            points: np.ndarray) -> List[ProximityRecord]:

@@ -25,6 +25,7 @@ from collision_sensor.engine.checker_config import CheckerConfig
 from collision_sensor.engine.compiled import engine
 from collision_sensor.engine.dynamic_scene import solid_row
 from collision_sensor.engine.kinematics import JOINT_PRISMATIC, KinematicTree, variables
+from collision_sensor.engine.motion import motion_kinds
 from collision_sensor.engine.obb_tree import box_table, build_forest, node_table
 from collision_sensor.errors import ConfigError, SrdfError
 from collision_sensor.model.exception_list import adjacent_pairs, parse_pair_strings, sorted_pair
@@ -64,9 +65,10 @@ class RobotBlock(NamedTuple):
 
 
 class JointTables(NamedTuple):
-    """The joint variables' names, index, limits and mimic joints, and the incremental rule's
+    """The joint variables' names, index, limits and mimic joints, the incremental rule's
     inputs: ``link_depends (J, L) bool`` (link i's pose depends on variable j) and
-    ``prismatic (J,) int64`` (how many sliders variable j drives)."""
+    ``prismatic (J,) int64`` (how many sliders variable j drives), and ``motion_kind (J,)
+    int64``, how each moves along a motion (:func:`~collision_sensor.engine.motion.motion_kinds`)."""
 
     names: Tuple[str, ...]
     index: Dict[str, int]
@@ -74,6 +76,7 @@ class JointTables(NamedTuple):
     limits: Dict[str, Tuple[float, float]]
     link_depends: np.ndarray
     prismatic: np.ndarray
+    motion_kind: np.ndarray
 
 
 def build_robot_block(model: RobotModel, kin: KinematicTree, config: CheckerConfig,
@@ -152,7 +155,7 @@ def joint_tables(model: RobotModel, kin: KinematicTree) -> JointTables:
                           if joint.mimic is not None and joint.type != 'fixed'),
         limits={name: (float(kin.lower[j]), float(kin.upper[j]))
                 for j, name in enumerate(names)},
-        link_depends=depends, prismatic=prismatic)
+        link_depends=depends, prismatic=prismatic, motion_kind=motion_kinds(model, names))
 
 
 def link_padding(config: CheckerConfig, robot_name: str, link_names: List[str],

@@ -152,6 +152,7 @@ class SceneLayout:
             joint_pairs=on_path[1],
             joint_links_start=np.searchsorted(moves[0], np.arange(n_joints + 1)),
             joint_links=moves[1], joint_prismatic=joints.prismatic,
+            motion_kind=joints.motion_kind,
             # state: at the neutral configuration, nothing checked, every pair forced
             q_last=kin.neutral(), q_ref=kin.neutral(), extension=np.zeros(1),
             T_world_body=T_world_body, clearance=np.zeros(n_pairs),
