@@ -441,21 +441,24 @@ int64_t MotionQuery::march_pairs(const int64_t* list, int64_t n, const Path& pat
     const auto later = [](const MotionWork::March& x, const MotionWork::March& y) {
         return x.t > y.t;
     };
-    path_speeds(path, 0.5, 0.5);
-    for (int64_t i = 0; i < n && *best > 0.0; ++i) {
+    // The start first, as an instant: a pair in contact there is the first contact (marching
+    // would only halve its way down to it), and a pair nothing moves is as it is there all
+    // along.
+    evaluate(q0);
+    w_.side_n[0] = w_.side_n[1] = 0;
+    for (int64_t i = 0; i < n; ++i) {
         const int64_t p = list ? list[i] : i;
-        if (sides(p)) {
-            heap.push_back({p, 0.0, 1.0, 1.0});
-        } else {  // nothing moves the pair: as it is at q0 all the way
-            w_.side_n[0] = w_.side_n[1] = 0;
-            evaluate(q0);
-            pair_pose(m_.pair_a[p], m_.pair_b[p], pose);
-            margin(p, 0.0);
-            if (pair_within(p, pose, 0.0).within) {
-                *best = 0.0;
-                best_pair = p;
-            }
+        pair_pose(m_.pair_a[p], m_.pair_b[p], pose);
+        margin(p, 0.0);
+        if (pair_within(p, pose, 0.0).within) {
+            *best = 0.0;
+            return p;
         }
+    }
+    path_speeds(path, 0.5, 0.5);
+    for (int64_t i = 0; i < n; ++i) {
+        const int64_t p = list ? list[i] : i;
+        if (sides(p)) heap.push_back({p, 0.0, 1.0, 1.0});
     }
     std::make_heap(heap.begin(), heap.end(), later);
     while (!heap.empty() && heap.front().t < *best) {
