@@ -454,6 +454,91 @@ PYBIND11_MODULE(_engine, m) {
               "Distances (n,) between the closed triangles P[i] and Q[i] ((n, 3, 3), rows the "
               "vertices) and nearest points x (n, 3) on P[i], y (n, 3) on Q[i].");
     }
+    {  // motion checks (motion.hpp, motion.cpp): issue 25
+        m.attr("MOTION_LINEAR") = cs::MOTION_LINEAR;
+        m.attr("MOTION_WRAP") = cs::MOTION_WRAP;
+        m.attr("MOTION_QUATERNION") = cs::MOTION_QUATERNION;
+        m.attr("MOTION_QUATERNION_REST") = cs::MOTION_QUATERNION_REST;
+        m.attr("MOTION_TOUCH_TOLERANCE") = cs::MOTION_TOUCH_TOLERANCE;
+        py::reinterpret_borrow<py::class_<PyEngine>>(m.attr("Engine"))
+            .def("set_motion_kinds",
+                 [](PyEngine& self, const Array<int64_t>& kinds) {
+                     cs::Engine& engine = *self.engine;
+                     expect_shape("kinds", kinds, {engine.n_joints()});
+                     for (py::ssize_t j = 0; j < kinds.shape(0); ++j) {
+                         const int64_t k = kinds.data()[j];
+                         if (k < cs::MOTION_LINEAR || k > cs::MOTION_QUATERNION_REST)
+                             throw py::value_error("kinds: unknown motion kind " +
+                                                   std::to_string(k));
+                     }
+                     std::lock_guard<std::mutex> hold(engine.lock());
+                     engine.set_motion_kinds(kinds.data());
+                 },
+                 py::arg("kinds").noconvert(),
+                 "How each variable moves along a straight motion (MOTION_*), (J,) int64.")
+            .def("motion",
+                 [](PyEngine& self, const Array<double>& q0, const Array<double>& q1,
+                    Array<uint8_t> pairs) {
+                     cs::Engine& engine = *self.engine;
+                     expect_shape("q0", q0, {engine.n_joints()});
+                     expect_shape("q1", q1, {engine.n_joints()});
+                     expect_shape("pairs", pairs, {engine.n_pairs()});
+                     const double* a = q0.data();
+                     const double* b = q1.data();
+                     uint8_t* out = writable("pairs", pairs);
+                     double t = -1.0;
+                     int64_t code;
+                     {
+                         py::gil_scoped_release release;
+                         std::lock_guard<std::mutex> hold(engine.lock());
+                         code = engine.motion(a, b, &t, out);
+                     }
+                     return py::make_tuple(code, t);
+                 },
+                 py::arg("q0"), py::arg("q1"), py::arg("pairs").noconvert(),
+                 "The straight motion q0 -> q1, carried state untouched: (code, t), code 0 "
+                 "free, 1 contact (t its fraction, pairs (P,) uint8 written), or -1 - j for an "
+                 "unusable value (j >= J: q1's).")
+            .def("update_motion",
+                 [](PyEngine& self, const Array<double>& q, Array<uint8_t> pairs) {
+                     cs::Engine& engine = *self.engine;
+                     expect_shape("q", q, {engine.n_joints()});
+                     expect_shape("pairs", pairs, {engine.n_pairs()});
+                     const double* data = q.data();
+                     uint8_t* out = writable("pairs", pairs);
+                     double t = -1.0;
+                     int64_t code, query_code = 0;
+                     {
+                         py::gil_scoped_release release;
+                         std::lock_guard<std::mutex> hold(engine.lock());
+                         code = engine.update_motion(data, &t, out, &query_code);
+                     }
+                     return py::make_tuple(code, t, query_code);
+                 },
+                 py::arg("q"), py::arg("pairs").noconvert(),
+                 "The motion from the carried state to q, then query(q, full=False): (code, t, "
+                 "query's code), code as motion.")
+            .def("path",
+                 [](PyEngine& self, const Array<double>& Q, Array<uint8_t> pairs) {
+                     cs::Engine& engine = *self.engine;
+                     expect_shape("Q", Q, {-1, engine.n_joints()});
+                     expect_shape("pairs", pairs, {engine.n_pairs()});
+                     const double* data = Q.data();
+                     const int64_t n = Q.shape(0);
+                     uint8_t* out = writable("pairs", pairs);
+                     double t = -1.0;
+                     int64_t segment = -1, code;
+                     {
+                         py::gil_scoped_release release;
+                         std::lock_guard<std::mutex> hold(engine.lock());
+                         code = engine.path(data, n, &segment, &t, out);
+                     }
+                     return py::make_tuple(code, segment, t);
+                 },
+                 py::arg("Q"), py::arg("pairs").noconvert(),
+                 "The straight motions between consecutive rows of Q until one is not free: "
+                 "(code, segment, t), code as motion (-1 - (J i + j) for row i's value j).");
+    }
 
     // ---- end of query engine
 

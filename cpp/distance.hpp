@@ -44,8 +44,10 @@ struct NearestPoints {
 // more rounds converge to a nearest pair, but pruned no more node pairs on the Panda and
 // UR5). The gap along u is (min over B of u.p) - (max over A of u.p), with each box's support
 // |u . axis_k| h_k. (The face axes' gap, tried on top of it, pruned almost nothing more.)
-// Boxes whose projection meets (overlapping, or nearly) get face_gap.
-CS_ALWAYS_INLINE double projected_gap(const double* A, const double* B, const double* T) {
+// Boxes whose projection meets (overlapping, or nearly) get face_gap. With dir, u / |u| (A's
+// box frame) is written there, or 0 for face_gap's answer.
+CS_ALWAYS_INLINE double projected_gap(const double* A, const double* B, const double* T,
+                                      double* dir = nullptr) {
     using std::fabs;
     const double* ha = A + BOX_HALF;
     const double* hb = B + BOX_HALF;
@@ -62,13 +64,21 @@ CS_ALWAYS_INLINE double projected_gap(const double* A, const double* B, const do
     for (int i = 0; i < 3; ++i) x[i] = clamp(y[i], ha[i]);
     const double u0 = y[0] - x[0], u1 = y[1] - x[1], u2 = y[2] - x[2];
     const double uu = u0 * u0 + u1 * u1 + u2 * u2;
-    if (!(uu > 0.0)) return face_gap(A, B, T);
+    if (!(uu > 0.0)) {
+        if (dir) dir[0] = dir[1] = dir[2] = 0.0;
+        return face_gap(A, B, T);
+    }
     // The gap along u / |u|, computed along u and divided once.
     double g = u0 * t[0] + u1 * t[1] + u2 * t[2] -
                (ha[0] * fabs(u0) + ha[1] * fabs(u1) + ha[2] * fabs(u2));
     for (int k = 0; k < 3; ++k) g -= hb[k] * fabs(R[k] * u0 + R[3 + k] * u1 + R[6 + k] * u2);
-    g /= std::sqrt(uu);
-    return g;
+    const double norm = std::sqrt(uu);
+    if (dir) {
+        dir[0] = u0 / norm;
+        dir[1] = u1 / norm;
+        dir[2] = u2 / norm;
+    }
+    return g / norm;
 }
 
 // Tree b's boxes placed in body a's frame, each computed once per traversal (a node of tree b

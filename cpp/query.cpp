@@ -66,7 +66,7 @@ Engine::Engine(double* F, int64_t f_size, int64_t* I, int64_t i_size) {
     n_joints_ = fs[q_ref].size;
     n_pairs_ = is[status].size;
     n_scene_ = n_bodies_ - n_links_;
-    const int64_t n_nodes = is[nodes].d0;
+    const int64_t n_nodes = n_nodes_ = is[nodes].d0;
     const int64_t L1 = std::max<int64_t>(n_links_, 1);
     if (n_links_ < 1 || n_scene_ < 0)
         throw std::invalid_argument("the robot has no links, or more links than bodies");

@@ -44,6 +44,7 @@
 
 #include "distance.hpp"
 #include "kinematics.hpp"
+#include "motion.hpp"
 #include "traversal.hpp"
 
 namespace collision_sensor {
@@ -140,6 +141,22 @@ class Engine {
     int64_t move_world_body(int64_t b, const double* T, double max_coordinate,
                             double rotation_tolerance);
 
+    // motion.cpp. How each variable moves along a straight motion (MOTION_*), (J,).
+    void set_motion_kinds(const int64_t* kinds);
+    // The straight motion q0 -> q1 (motion.hpp), proven free or its first contact found,
+    // without touching the carried state. Returns 0 (free), 1 (contact: *t its fraction of
+    // the motion, pairs[p] = 1 for the pairs in contact, or within MOTION_TOUCH_TOLERANCE,
+    // there, else 0), or -1 - j when q0[j] (j < J) or q1[j - J] is not usable.
+    int64_t motion(const double* q0, const double* q1, double* t, uint8_t* pairs);
+    // The motion from the carried state (the last query's q; none before the first: q itself)
+    // to q, then query(q, false), whose code goes to *query_code. Returns motion()'s code
+    // (q unusable: nothing changed).
+    int64_t update_motion(const double* q, double* t, uint8_t* pairs, int64_t* query_code);
+    // The straight motions Q[0] -> Q[1] -> ... -> Q[n - 1] in turn until one is not free:
+    // *segment its index (-1: all free), *t and pairs as motion(). Returns 0, 1, or -1 -
+    // (J i + j) when Q[i][j] is not usable (every row is validated first).
+    int64_t path(const double* Q, int64_t n, int64_t* segment, double* t, uint8_t* pairs);
+
     int64_t n_joints() const { return n_joints_; }
     int64_t n_pairs() const { return n_pairs_; }
     std::mutex& lock() { return lock_; }
@@ -178,11 +195,50 @@ class Engine {
                               int64_t a, int64_t b, const double* pose, int64_t wa, int64_t wb,
                               double pad);
 
+    // motion.cpp: a pair's march along a path (march_step).
+    struct PairMarch {
+        int64_t p;
+        double t, length, factor;
+    };
+    // motion.cpp: the work of the motion queries, sized on their first call.
+    struct MotionWork {
+        std::vector<int64_t> kind;              // (J,) MOTION_*
+        std::vector<double> delta, var, quat0;  // (J,) StraightPath's
+        std::vector<double> q;                  // (J,) the state being evaluated
+        std::vector<double> T;                  // (L, 16) link poses at q
+        std::vector<int64_t> stamp, chain;      // (L,) T[i] is current when stamp[i] == tag
+        int64_t tag = 0;
+        std::vector<double> trans, rot, speed;  // (L,) each link's joint's speeds
+        std::vector<int64_t> depth;             // (L,) links above each
+        // The two sides of the pair at hand (motion_sides, motion_margin).
+        int64_t side_n[2] = {0, 0};
+        std::vector<int64_t> side_link[2];
+        std::vector<double> side_trans[2], side_rot[2], side_origin[2], side_axis[2];
+        std::vector<double> side_speed[2], side_above[2];
+        std::vector<BoxMotion> node_motion[2];  // (N,) MotionMargin's caches
+        std::vector<int64_t> node_stamp[2];
+        MotionMargin margin{};
+        std::vector<double> q_prev;             // (J,) update_motion's start
+        std::vector<PairMarch> heap;            // the pairs' marches (straight_motion)
+    };
+    MotionWork motion_;
+    void motion_prepare();
+    void motion_evaluate(const double* q);
+    void motion_link_pose(int64_t i);
+    void motion_pair_pose(int64_t a, int64_t b, double* pose);
+    bool motion_sides(int64_t p);
+    void motion_margin(int64_t p, double h2);
+    WithinResult pair_within(int64_t p, const double* pose, double h, double extra = 0.0);
+    double solid_gap(int64_t a, int64_t b, const double* pose) const;
+    static constexpr int MARCH_ON = 0, MARCH_FREE = 1, MARCH_CONTACT = 2;
+    int march_step(PairMarch& s, const StraightPath& path, double t_end);
+    int64_t straight_motion(const double* q0, const double* q1, double* t, uint8_t* pairs);
+
     std::mutex lock_;
     int64_t* header_;
     double* scalars_;
     int64_t n_links_, n_bodies_, n_joints_, n_pairs_, n_scene_, culled_width_;
-    int64_t stack_rows_, front_capacity_, n_tris_;
+    int64_t stack_rows_, front_capacity_, n_tris_, n_nodes_;
     KinematicTree kin_;
     Forest forest_;
     const double* elem_solid_;

@@ -122,10 +122,9 @@ CS_ALWAYS_INLINE void box_in_frame(const double* A, const double* B, const doubl
 // A lower bound of the distance between boxes A and B (B in A's frame: T): the largest gap
 // of the two boxes' projections on the six face normals (unit axes, so each gap is at most
 // the Euclidean distance; <= 0 if no face axis separates them). Rounding is the caller's.
-CS_ALWAYS_INLINE double face_gap(const double* A, const double* B, const double* T) {
+CS_ALWAYS_INLINE double face_gap_of(const double* ha, const double* hb, const double* T) {
     using std::fabs;
-    const int h = BOX_HALF;
-    const double a0 = A[h], a1 = A[h + 1], a2 = A[h + 2], b0 = B[h], b1 = B[h + 1], b2 = B[h + 2];
+    const double a0 = ha[0], a1 = ha[1], a2 = ha[2], b0 = hb[0], b1 = hb[1], b2 = hb[2];
     const double r00 = T[0], r01 = T[1], r02 = T[2], r10 = T[3], r11 = T[4], r12 = T[5],
                  r20 = T[6], r21 = T[7], r22 = T[8], t0 = T[9], t1 = T[10], t2 = T[11];
     double g = fabs(t0) - a0 - (fabs(r00) * b0 + fabs(r01) * b1 + fabs(r02) * b2);
@@ -138,6 +137,11 @@ CS_ALWAYS_INLINE double face_gap(const double* A, const double* B, const double*
     g = std::max(g, fabs(r02 * t0 + r12 * t1 + r22 * t2) - b2 -
                         (fabs(r02) * a0 + fabs(r12) * a1 + fabs(r22) * a2));
     return g;
+}
+
+// face_gap_of with the boxes' own half extents.
+CS_ALWAYS_INLINE double face_gap(const double* A, const double* B, const double* T) {
+    return face_gap_of(A + BOX_HALF, B + BOX_HALF, T);
 }
 
 // A lower bound of the distance between boxes A and B (body b at pose P): the larger of the
@@ -320,6 +324,27 @@ CS_ALWAYS_INLINE int64_t record(const FrontRows& front, int64_t n_front, int64_t
     return n_front + 1;
 }
 
+// The paper's node expansion consideration (sec. 4.1): true iff node pair (na, nb), whose
+// boxes A and B overlap, is expanded on side a (a's two children against nb).
+CS_ALWAYS_INLINE bool expand_first(const Forest& f, int64_t na, int64_t nb, const double* A,
+                                   const double* B, bool leaf_a, bool leaf_b, int64_t level,
+                                   int expansion) {
+    if (leaf_a) return false;
+    if (leaf_b) return true;
+    switch (expansion) {
+        case EXPAND_SAME:
+            return true;
+        case EXPAND_ALTERNATE:
+            return level % 2 == 0;
+        case EXPAND_LARGER:
+            return f.volume[na] >= f.volume[nb];
+        case EXPAND_WIDER:
+            return A[BOX_RADIUS] >= B[BOX_RADIUS];
+        default:
+            return f.gain[na] >= f.gain[nb];
+    }
+}
+
 struct TreesResult {
     bool hit;
     int64_t ia, ib;
@@ -428,21 +453,7 @@ inline TreesResult trees_collide(int64_t n_seeds, const double* P, const Forest&
             best = std::min(best, leaf.gap);
             continue;
         }
-        bool expand_a;
-        if (leaf_a)
-            expand_a = false;
-        else if (leaf_b)
-            expand_a = true;
-        else if (expansion == EXPAND_SAME)
-            expand_a = true;
-        else if (expansion == EXPAND_ALTERNATE)
-            expand_a = level % 2 == 0;
-        else if (expansion == EXPAND_LARGER)
-            expand_a = f.volume[na] >= f.volume[nb];
-        else if (expansion == EXPAND_WIDER)
-            expand_a = A[BOX_RADIUS] >= B[BOX_RADIUS];
-        else
-            expand_a = f.gain[na] >= f.gain[nb];
+        const bool expand_a = expand_first(f, na, nb, A, B, leaf_a, leaf_b, level, expansion);
         // Visit first the child nearer the other box's centre (more likely to meet it: a
         // colliding pair stops at its first meeting triangles), or the one holding the last
         // witness.

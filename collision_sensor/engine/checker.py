@@ -26,6 +26,7 @@ from collision_sensor.engine.dynamic_scene import (
     MAX_COORDINATE, ROTATION_TOLERANCE, AddObject, MoveObject, PlacedObject, PreparedSceneChanges,
     RemoveObject, SceneChange, SceneChangeError, build_object_block, check_geometry, checked_pose,
     same_geometry, solid_row)
+from collision_sensor.engine.motion import FREE, MotionResult, PathResult, motion_kinds
 from collision_sensor.engine.kinematics import (JOINT_FIXED, JOINT_FLOATING, JOINT_PLANAR,
                                                 JOINT_PRISMATIC, KinematicTree,
                                                 build_kinematic_tree)
@@ -159,6 +160,7 @@ class CollisionChecker:
         self.kinematics: KinematicTree = build_kinematic_tree(model)
         scene = tuple(scene)
         self._link_index = {name: i for i, name in enumerate(self.kinematics.link_names)}
+        self._motion_kinds = motion_kinds(model, self.kinematics.joint_names)
         #: Frames a world object's pose may be given in: the root link, and the parent frame of
         #: an SRDF fixed virtual joint (MoveIt's "world" above the robot).
         self.world_frames = frozenset([model.root_link] + [
@@ -833,6 +835,7 @@ class CollisionChecker:
             I[engine.H_RESYNC_COUNTDOWN] = self._I[engine.H_RESYNC_COUNTDOWN]
         I[engine.H_FORCED] = int(int_views['forced'].any())
         new_engine = engine.Engine(F, I)
+        new_engine.set_motion_kinds(self._motion_kinds)
 
         # Nothing above changed the checker; from here on, nothing can fail.
         self._F, self._I, self._views = F, I, {**float_views, **int_views}
@@ -1167,6 +1170,78 @@ class CollisionChecker:
             raise JointStateError(self._unusable_message(-1 - code, q))
         self._result = self._result_from_status(code >> 1)
         return self._proximity_records(distance, points)
+
+    # ------------------------------------------------------------------ motion
+    def check_motion(self, q_from: Positions, q_to: Positions) -> MotionResult:
+        """Check the straight motion from ``q_from`` to ``q_to``: certified, never sampled.
+
+        Revolute and prismatic joints move linearly, continuous joints (and a planar joint's
+        theta) the shorter way round, planar and floating joints their translation linearly
+        and their rotation along the shorter arc; mimic joints follow (MoveIt's
+        interpolation, :mod:`collision_sensor.engine.motion`). A motion reported free has no
+        state in contact; a reported ``first_contact`` t is in contact or within
+        :data:`~collision_sensor.engine.motion.TOUCH_TOLERANCE` of it, and no earlier state is
+        in contact beyond that tolerance. Padding, the exception list, world and attached
+        objects count as in :meth:`check`. The carried incremental state is left as it was.
+
+        :param q_from: the start, as ``positions`` of :meth:`check` (joints not given keep
+            their current value).
+        :param q_to: the end, the same way.
+        :raises JointStateError: as :meth:`check`, naming the end at fault; nothing changes.
+        """
+        q0 = self._merged(q_from)
+        q1 = self._merged(q_to)
+        pairs = np.zeros(len(self.checked_pairs), dtype=np.uint8)
+        code, t = self._engine.motion(q0, q1, pairs)
+        if code < 0:
+            j = -1 - code
+            end, q = ('q_from', q0) if j < len(q0) else ('q_to', q1)
+            raise JointStateError(f'{end}: ' + self._unusable_message(j % len(q0), q))
+        return self._motion_result(code, t, pairs)
+
+    def update_motion(self, positions: Positions) -> MotionResult:
+        """Check the motion from the current state to ``positions`` (as :meth:`check_motion`),
+        then move the state there as :meth:`update` does: what a stream of joint states
+        needs. Before any state was checked there is no motion: the answer is ``positions``'
+        own instant.
+
+        :raises JointStateError: as :meth:`check`; nothing changes then.
+        """
+        q = self._merged(positions)
+        pairs = np.zeros(len(self.checked_pairs), dtype=np.uint8)
+        code, t, query_code = self._engine.update_motion(q, pairs)
+        if code < 0:
+            raise JointStateError(self._unusable_message(-1 - code, q))
+        self._settle(query_code, q, False)
+        return self._motion_result(code, t, pairs)
+
+    def check_path(self, configurations: np.ndarray) -> PathResult:
+        """Check the straight motions between consecutive waypoints, in one compiled call,
+        until one is not free (a single waypoint: its instant). The carried state is left as
+        it was.
+
+        :param configurations: (n, J) float, rows in the order of :attr:`joint_names`.
+        :raises JointStateError: on a wrong shape or an unusable value (naming the row and
+            joint); nothing changes then.
+        """
+        Q = np.ascontiguousarray(configurations, dtype=np.float64)
+        if Q.ndim != 2 or Q.shape[1] != len(self.joint_names):
+            raise JointStateError(f'expected waypoints of shape (n, {len(self.joint_names)}) '
+                                  f'in the order of joint_names, got {Q.shape}')
+        pairs = np.zeros(len(self.checked_pairs), dtype=np.uint8)
+        code, segment, t = self._engine.path(Q, pairs)
+        if code < 0:
+            row, j = divmod(-1 - code, len(self.joint_names))
+            raise JointStateError(self._unusable_message(j, Q[row], row))
+        if code == 0:
+            return PathResult(None, FREE)
+        return PathResult(int(segment), self._motion_result(code, t, pairs))
+
+    def _motion_result(self, code: int, t: float, pairs: np.ndarray) -> MotionResult:
+        if code == 0:
+            return FREE
+        names = self.checked_pairs
+        return MotionResult(True, float(t), tuple(names[p] for p in np.flatnonzero(pairs)))
 
     def _proximity_records(self, distance: np.ndarray,
                            points: np.ndarray) -> List[ProximityRecord]:

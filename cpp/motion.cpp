@@ -1,0 +1,437 @@
+// Certified motion checks (motion.hpp): Engine::motion, update_motion and path.
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "motion.hpp"
+#include "query.hpp"
+#include <cstdio>
+#include <cstdlib>
+static bool cs_debug = std::getenv("CS_MOTION_DEBUG") != nullptr;
+static long cs_calls = 0, cs_fail = 0, cs_first = 0;
+static double cs_g = std::getenv("CS_G") ? std::atof(std::getenv("CS_G")) : 1.25;
+static double cs_gmax = std::getenv("CS_GMAX") ? std::atof(std::getenv("CS_GMAX")) : 2.0;
+static double cs_s = std::getenv("CS_S") ? std::atof(std::getenv("CS_S")) : 0.7;
+static double cs_smin = std::getenv("CS_SMIN") ? std::atof(std::getenv("CS_SMIN")) : 0.25;
+static long cs_pair = std::getenv("CS_MOTION_PAIR") ? std::atol(std::getenv("CS_MOTION_PAIR")) : -1;
+
+namespace collision_sensor {
+
+namespace {
+
+// [R_ab, t_ab] = T_world_a^-1 T_world_b = [Ra' Rb, Ra' (tb - ta)] (POSE_WIDTH numbers).
+void relative_pose(const double* Ta, const double* Tb, double* pose) {
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j)
+            pose[3 * i + j] = Ta[i] * Tb[j] + Ta[4 + i] * Tb[4 + j] + Ta[8 + i] * Tb[8 + j];
+        pose[9 + i] = Ta[i] * (Tb[3] - Ta[3]) + Ta[4 + i] * (Tb[7] - Ta[7]) +
+                      Ta[8 + i] * (Tb[11] - Ta[11]);
+    }
+}
+
+}  // namespace
+
+void Engine::set_motion_kinds(const int64_t* kinds) {
+    motion_.kind.assign(kinds, kinds + n_joints_);
+}
+
+// Size the work on the first call; take the joint offsets as they are now (an attached
+// object's pose is its link's offset, and may have moved since the last call).
+void Engine::motion_prepare() {
+    MotionWork& w = motion_;
+    const int64_t J = n_joints_, L = n_links_, N = n_nodes_;
+    if (int64_t(w.q.size()) == J && int64_t(w.T.size()) == 16 * L &&
+        int64_t(w.node_motion[0].size()) == N)
+        return;
+    if (int64_t(w.kind.size()) != J) w.kind.assign(J, MOTION_LINEAR);
+    w.delta.assign(J, 0.0);
+    w.var.assign(J, 0.0);
+    w.quat0.assign(J, 0.0);
+    w.q.assign(J, 0.0);
+    w.q_prev.assign(J, 0.0);
+    w.T.assign(16 * L, 0.0);
+    w.stamp.assign(L, 0);
+    w.chain.assign(L, 0);
+    w.trans.assign(L, 0.0);
+    w.rot.assign(L, 0.0);
+    w.speed.assign(L, 0.0);
+    w.depth.assign(L, 0);
+    for (int64_t i = 1; i < L; ++i) w.depth[i] = w.depth[kin_.parent[i]] + 1;
+    for (int s = 0; s < 2; ++s) {
+        w.side_link[s].assign(L, 0);
+        w.side_trans[s].assign(L, 0.0);
+        w.side_rot[s].assign(L, 0.0);
+        w.side_origin[s].assign(3 * L, 0.0);
+        w.side_axis[s].assign(3 * L, 0.0);
+        w.side_speed[s].assign(L, 0.0);
+        w.side_above[s].assign(L, 0.0);
+        w.node_motion[s].assign(N, BoxMotion{});
+        w.node_stamp[s].assign(N, 0);
+    }
+    w.tag = 0;
+    w.margin.tag = 0;
+}
+
+// Evaluate the link poses at q from now on (computed on demand, motion_link_pose).
+void Engine::motion_evaluate(const double* q) {
+    MotionWork& w = motion_;
+    if (q != w.q.data()) std::copy(q, q + n_joints_, w.q.begin());
+    ++w.tag;
+}
+
+// Link i's world pose at the evaluated state: it and the ancestors not yet computed, top down.
+void Engine::motion_link_pose(int64_t i) {
+    MotionWork& w = motion_;
+    int64_t n = 0;
+    for (int64_t k = i; k >= 0 && w.stamp[k] != w.tag; k = kin_.parent[k]) w.chain[n++] = k;
+    for (int64_t t = n - 1; t >= 0; --t) {
+        set_link_pose(kin_, w.chain[t], w.q.data(), w.T.data());
+        w.stamp[w.chain[t]] = w.tag;
+    }
+}
+
+// Body b's pose in body a's frame at the evaluated state (a is a link; b a link, or a world
+// object, which no joint moves).
+void Engine::motion_pair_pose(int64_t a, int64_t b, double* pose) {
+    motion_link_pose(a);
+    const double* Tb = T_world_body_ + 16 * b;
+    if (b < n_links_) {
+        motion_link_pose(b);
+        Tb = motion_.T.data() + 16 * b;
+    }
+    relative_pose(motion_.T.data() + 16 * a, Tb, pose);
+}
+
+// Prepare pair p's two sides for path: the joints between each body and the pair's lowest
+// common ancestor (none above a world object: it is the world's), lowest first, those the
+// path moves, with their speeds per unit of the parameter. Returns whether any moves.
+bool Engine::motion_sides(int64_t p) {
+    MotionWork& w = motion_;
+    const int64_t a = pair_a_[p], b = pair_b_[p];
+    int64_t common = -1;
+    if (b < n_links_) {
+        int64_t x = a, y = b;
+        while (w.depth[x] > w.depth[y]) x = kin_.parent[x];
+        while (w.depth[y] > w.depth[x]) y = kin_.parent[y];
+        while (x != y) {
+            x = kin_.parent[x];
+            y = kin_.parent[y];
+        }
+        common = x;
+    }
+    bool moves = false;
+    for (int s = 0; s < 2; ++s) {
+        const int64_t x = s == 0 ? a : b;
+        int64_t n = 0;
+        if (s == 0 || b < n_links_) {
+            for (int64_t k = x; k > 0 && k != common; k = kin_.parent[k]) {
+                if (w.trans[k] > 0.0 || w.rot[k] > 0.0) {
+                    w.side_link[s][n] = k;
+                    w.side_trans[s][n] = w.trans[k];
+                    w.side_rot[s][n] = w.rot[k];
+                    w.side_speed[s][n] = w.speed[k];
+                    ++n;
+                }
+            }
+        }
+        w.side_n[s] = n;
+        // How fast each joint's own frame turns: the turns of the joints above it, summed.
+        double above = 0.0;
+        for (int64_t i = n - 1; i >= 0; --i) {
+            w.side_above[s][i] = above;
+            above += w.side_rot[s][i];
+        }
+        moves |= n > 0;
+    }
+    return moves;
+}
+
+// The motion margin of pair p at the evaluated state (motion_pair_pose computed its poses):
+// each side's joints placed in the world (MotionMargin).
+void Engine::motion_margin(int64_t p, double h2) {
+    MotionWork& w = motion_;
+    MotionMargin& m = w.margin;
+    for (int s = 0; s < 2; ++s) {
+        const int64_t x = s == 0 ? pair_a_[p] : pair_b_[p];
+        SideMotion& side = m.side[s];
+        side.first_order = true;
+        side.omega[0] = side.omega[1] = side.omega[2] = 0.0;
+        for (int64_t i = 0; i < w.side_n[s]; ++i) {
+            const int64_t k = w.side_link[s][i];
+            motion_link_pose(k);
+            const double* T = w.T.data() + 16 * k;
+            double* o = w.side_origin[s].data() + 3 * i;
+            double* u = w.side_axis[s].data() + 3 * i;
+            o[0] = T[3];
+            o[1] = T[7];
+            o[2] = T[11];
+            // The axis in the world: the joint frame's (revolute, prismatic: axis[k]; planar:
+            // z), which the child frame shares, turned by the child's world rotation.
+            const int64_t kind = kin_.joint_type[k];
+            double v[3] = {0.0, 0.0, 0.0};
+            if (kind == JOINT_REVOLUTE || kind == JOINT_PRISMATIC) {
+                v[0] = kin_.axis[3 * k];
+                v[1] = kin_.axis[3 * k + 1];
+                v[2] = kin_.axis[3 * k + 2];
+            } else if (kind == JOINT_PLANAR) {
+                v[2] = 1.0;
+            }
+            for (int r = 0; r < 3; ++r)
+                u[r] = T[4 * r] * v[0] + T[4 * r + 1] * v[1] + T[4 * r + 2] * v[2];
+            if (kind == JOINT_REVOLUTE) {
+                for (int r = 0; r < 3; ++r) side.omega[r] += w.side_speed[s][i] * u[r];
+            } else if (kind != JOINT_PRISMATIC) {
+                side.first_order = false;  // planar, floating: the zeroth order only
+            }
+        }
+        side.n = w.side_n[s];
+        side.origin = w.side_origin[s].data();
+        side.axis = w.side_axis[s].data();
+        side.trans = w.side_trans[s].data();
+        side.rot = w.side_rot[s].data();
+        side.speed = w.side_speed[s].data();
+        side.above = w.side_above[s].data();
+        side.T = x < n_links_ ? w.T.data() + 16 * x : T_world_body_ + 16 * x;
+        m.cache[s] = w.node_motion[s].data();
+        m.stamp[s] = w.node_stamp[s].data();
+    }
+    m.h2 = h2;
+    ++m.tag;
+}
+
+// The smallest distance from a solid element of one body to the first vertex of an element
+// of the other (contained()'s test vertex), INF if neither body has a solid element.
+double Engine::solid_gap(int64_t a, int64_t b, const double* P) const {
+    double best = INF;
+    for (int64_t ea = body_elem_start_[a]; ea < body_elem_end_[a]; ++ea) {
+        for (int64_t eb = body_elem_start_[b]; eb < body_elem_end_[b]; ++eb) {
+            if (elem_tris_[2 * ea] == elem_tris_[2 * ea + 1] ||
+                elem_tris_[2 * eb] == elem_tris_[2 * eb + 1])
+                continue;  // an element without triangles
+            if (elem_solid_[SOLID_WIDTH * ea] != SOLID_NONE) {  // eb's vertex, in body a
+                const double* v = forest_.tris + 9 * elem_tris_[2 * eb];
+                double x[3];
+                for (int i = 0; i < 3; ++i)
+                    x[i] = P[3 * i] * v[0] + P[3 * i + 1] * v[1] + P[3 * i + 2] * v[2] + P[9 + i];
+                best = std::min(best, solid_distance(elem_solid_ + SOLID_WIDTH * ea, x));
+            }
+            if (elem_solid_[SOLID_WIDTH * eb] != SOLID_NONE) {  // ea's vertex, in body b
+                const double* v = forest_.tris + 9 * elem_tris_[2 * ea];
+                const double d0 = v[0] - P[9], d1 = v[1] - P[10], d2 = v[2] - P[11];
+                const double y[3] = {P[0] * d0 + P[3] * d1 + P[6] * d2,
+                                     P[1] * d0 + P[4] * d1 + P[7] * d2,
+                                     P[2] * d0 + P[5] * d1 + P[8] * d2};
+                best = std::min(best, solid_distance(elem_solid_ + SOLID_WIDTH * eb, y));
+            }
+        }
+    }
+    return best;
+}
+
+// Is pair p (body b at pose in body a) within its motion margin of contact over the
+// half-width h of the path (motion_margin: triangles within padding + margin, or a test
+// vertex within its margin of a solid element)? Else over what half-width is it apart?
+WithinResult Engine::pair_within(int64_t p, const double* pose, double h, double extra) {
+    const int64_t a = pair_a_[p], b = pair_b_[p];
+    MotionMargin& margin = motion_.margin;
+    const double* A = body_boxes_ + BOX_WIDTH * a;
+    const double* B = body_boxes_ + BOX_WIDTH * b;
+    const int box_method = int(header_[H_BOX_METHOD]);
+    const BoxMotion ma = margin.box_motion(A, 0), mb = margin.box_motion(B, 1);
+    const double rate = ma.rate + mb.rate;
+    const double r = h * rate + extra;
+    double reach = margin.h2;
+    if (node_pair_apart(A, B, pose, margin.side[0].T, ma, mb, h, extra, margin, box_method,
+                        &reach))
+        return {false, 0.0, reach};
+    reach = margin.h2;
+    if (body_solid_[a] || body_solid_[b]) {
+        // A test vertex of one body moves no farther than the body's box allows.
+        const double solid = solid_gap(a, b, pose);
+        if (solid <= r) return {true, r, rate > 0.0 ? std::max((solid - extra) / rate, 0.0) : 0.0};
+        if (rate > 0.0) reach = std::min(reach, (solid - extra) / rate);
+    }
+    int64_t n_seeds = 0;
+    for (int64_t ea = body_elem_start_[a]; ea < body_elem_end_[a]; ++ea) {
+        for (int64_t eb = body_elem_start_[b]; eb < body_elem_end_[b]; ++eb) {
+            int64_t* row = stack_ + 3 * n_seeds++;
+            row[0] = roots_[ea];
+            row[1] = roots_[eb];
+            row[2] = 0;
+        }
+    }
+    WithinResult trees =
+        trees_within(n_seeds, pose, forest_, box_method, int(header_[H_EXPANSION]), stack_,
+                     counters_, h, extra, margin, padding_[a] + padding_[b]);
+    if (!trees.within) trees.reach = std::min(trees.reach, reach);
+    return trees;
+}
+
+// One step of pair s.p's march along the path (motion_sides(s.p) prepared): the pair is proven
+// apart on [0, s.t). The interval [t, t + length] is tested at its midpoint m over its
+// half-width h (pair_within): apart, the pair is proven apart on the whole interval and
+// further, on [m, m + reach], and the next interval is sized from that reach (its half-width
+// a factor of it, which grows while intervals pass and shrinks when one does not: near an
+// obstacle the distance, and so the reach, shrinks from one interval to the next). Within its
+// margin: the interval is halved, and once twice the margin is at most the touching tolerance,
+// the state at t is within the tolerance of contact: the first contact. Returns MARCH_*.
+int Engine::march_step(PairMarch& s, const StraightPath& path, double t_end) {
+    const int64_t a = pair_a_[s.p], b = pair_b_[s.p];
+    double pose[POSE_WIDTH];
+    const double hi = std::min(s.t + s.length, t_end);
+    const double m = 0.5 * (s.t + hi);
+    const double h = 0.5 * (hi - s.t);
+    path.at(m, motion_.q.data());
+    motion_evaluate(motion_.q.data());
+    motion_pair_pose(a, b, pose);
+    motion_margin(s.p, 2.0 * h);
+    const int64_t v0 = counters_[COUNT_BOX_TESTS];
+    const WithinResult w = pair_within(s.p, pose, h);
+    ++cs_calls;
+    if (cs_debug) std::fprintf(stderr, "step %ld %d %ld %.3g\n", (long)s.p, (int)w.within, (long)(counters_[COUNT_BOX_TESTS] - v0), h);
+    if (w.within) ++cs_fail;
+    if (s.t == 0.0 && s.length == 1.0) ++cs_first;
+    if (s.p == cs_pair) std::fprintf(stderr, "  t %.9f h %.3g within %d margin %.3g reach %.3g f %.3g\n", s.t, h, (int)w.within, w.margin, w.reach, s.factor);
+    if (!w.within) {
+        if (hi >= t_end) return MARCH_FREE;
+        const double next = std::max(hi, m + w.reach * (1.0 - MOTION_BOUND_REL));
+        s.length = 2.0 * s.factor * (next - m);
+        s.factor = std::min(cs_g * s.factor, cs_gmax);
+        s.t = next;
+        return MARCH_ON;
+    }
+    if (2.0 * w.margin <= MOTION_TOUCH_TOLERANCE) return MARCH_CONTACT;
+    s.length = 0.5 * (hi - s.t);
+    s.factor = std::max(cs_s * s.factor, cs_smin);
+    return MARCH_ON;
+}
+
+int64_t Engine::straight_motion(const double* q0, const double* q1, double* t_out,
+                                uint8_t* pairs) {
+    MotionWork& w = motion_;
+    StraightPath path{q0, w.kind.data(), n_joints_, w.delta.data(), w.var.data(),
+                      w.quat0.data()};
+    path.prepare(q1);
+    w.side_n[0] = w.side_n[1] = 0;
+    // Each link's joint's speed along the motion, per unit of the parameter.
+    for (int64_t k = 0; k < n_links_; ++k) {
+        const int64_t kind = kin_.joint_type[k];
+        const int64_t j = kin_.q_index[k];
+        double trans = 0.0, rot = 0.0;
+        if (kind == JOINT_REVOLUTE) {
+            rot = std::fabs(kin_.multiplier[k]) * w.var[j];
+        } else if (kind == JOINT_PRISMATIC) {
+            trans = std::fabs(kin_.multiplier[k]) * w.var[j];
+        } else if (kind == JOINT_PLANAR) {
+            trans = std::hypot(w.delta[j], w.delta[j + 1]);
+            rot = w.var[j + 2];
+        } else if (kind == JOINT_FLOATING) {
+            trans = std::sqrt(w.delta[j] * w.delta[j] + w.delta[j + 1] * w.delta[j + 1] +
+                              w.delta[j + 2] * w.delta[j + 2]);
+            rot = w.var[j + 3];
+        }
+        w.trans[k] = trans * (1.0 + MOTION_BOUND_REL);
+        w.rot[k] = rot * (1.0 + MOTION_BOUND_REL);
+        w.speed[k] = (kind == JOINT_REVOLUTE || kind == JOINT_PRISMATIC)
+                         ? kin_.multiplier[k] * w.delta[j]
+                         : 0.0;
+    }
+    // The pairs march side by side, the one proven apart least far first (a heap on t): a
+    // contact found bounds every other march, so no later contact is ever localised.
+    double best = INF;
+    int64_t best_pair = -1;
+    double pose[POSE_WIDTH];
+    std::vector<PairMarch>& heap = w.heap;
+    heap.clear();
+    const auto later = [](const PairMarch& x, const PairMarch& y) { return x.t > y.t; };
+    for (int64_t p = 0; p < n_pairs_ && best > 0.0; ++p) {
+        if (motion_sides(p)) {
+            heap.push_back({p, 0.0, 1.0, 1.0});
+        } else {  // nothing moves the pair: as it is at q0 all the way
+            motion_evaluate(q0);
+            motion_pair_pose(pair_a_[p], pair_b_[p], pose);
+            motion_margin(p, 0.0);
+            if (pair_within(p, pose, 0.0).within) {
+                best = 0.0;
+                best_pair = p;
+            }
+        }
+    }
+    std::make_heap(heap.begin(), heap.end(), later);
+    while (!heap.empty() && heap.front().t < best) {
+        std::pop_heap(heap.begin(), heap.end(), later);
+        PairMarch& s = heap.back();
+        motion_sides(s.p);
+        const int state = march_step(s, path, std::min(best, 1.0));
+        if (state == MARCH_ON) {
+            std::push_heap(heap.begin(), heap.end(), later);
+            continue;
+        }
+        if (state == MARCH_CONTACT && s.t < best) {
+            best = s.t;
+            best_pair = s.p;
+        }
+        heap.pop_back();
+    }
+    if (cs_debug) std::fprintf(stderr, "evals %ld fail %ld first %ld\n", cs_calls, cs_fail, cs_first);
+    cs_calls = cs_fail = cs_first = 0;
+    if (best_pair < 0) return 0;
+    // The pairs in contact there, or within the touching tolerance.
+    path.at(best, w.q.data());
+    motion_evaluate(w.q.data());
+    for (int64_t p = 0; p < n_pairs_; ++p) {
+        // Within the tolerance: a margin of MOTION_TOUCH_TOLERANCE everywhere.
+        motion_pair_pose(pair_a_[p], pair_b_[p], pose);
+        motion_.side_n[0] = motion_.side_n[1] = 0;
+        motion_margin(p, 0.0);
+        pairs[p] = pair_within(p, pose, 0.0, MOTION_TOUCH_TOLERANCE).within ? 1 : 0;
+    }
+    pairs[best_pair] = 1;
+    *t_out = best;
+    return 1;
+}
+
+int64_t Engine::motion(const double* q0, const double* q1, double* t, uint8_t* pairs) {
+    const int64_t bad0 = unusable_variable(kin_, q0, n_joints_);
+    if (bad0 >= 0) return -1 - bad0;
+    const int64_t bad1 = unusable_variable(kin_, q1, n_joints_);
+    if (bad1 >= 0) return -1 - (n_joints_ + bad1);
+    motion_prepare();
+    return straight_motion(q0, q1, t, pairs);
+}
+
+int64_t Engine::update_motion(const double* q, double* t, uint8_t* pairs,
+                              int64_t* query_code) {
+    const int64_t bad = unusable_variable(kin_, q, n_joints_);
+    if (bad >= 0) return -1 - bad;
+    motion_prepare();
+    MotionWork& w = motion_;
+    // From the last query's state; before any, the motion is the instant q.
+    const double* from = header_[H_CHECKED_ONCE] ? q_last_ : q;
+    std::copy(from, from + n_joints_, w.q_prev.begin());
+    const int64_t code = straight_motion(w.q_prev.data(), q, t, pairs);
+    *query_code = run(q, false);
+    return code;
+}
+
+int64_t Engine::path(const double* Q, int64_t n, int64_t* segment, double* t, uint8_t* pairs) {
+    for (int64_t i = 0; i < n; ++i) {  // all rows first: a bad row answers before any work
+        const int64_t bad = unusable_variable(kin_, Q + n_joints_ * i, n_joints_);
+        if (bad >= 0) return -1 - (n_joints_ * i + bad);
+    }
+    motion_prepare();
+    *segment = -1;
+    if (n == 1 && straight_motion(Q, Q, t, pairs)) {  // one waypoint: its instant
+        *segment = 0;
+        return 1;
+    }
+    for (int64_t i = 0; i + 1 < n; ++i) {
+        if (straight_motion(Q + n_joints_ * i, Q + n_joints_ * (i + 1), t, pairs)) {
+            *segment = i;
+            return 1;
+        }
+    }
+    return 0;
+}
+
+}  // namespace collision_sensor
