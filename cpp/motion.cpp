@@ -5,15 +5,6 @@
 
 #include "motion.hpp"
 #include "query.hpp"
-#include <cstdio>
-#include <cstdlib>
-static bool cs_debug = std::getenv("CS_MOTION_DEBUG") != nullptr;
-static long cs_calls = 0, cs_fail = 0, cs_first = 0;
-static double cs_g = std::getenv("CS_G") ? std::atof(std::getenv("CS_G")) : 1.25;
-static double cs_gmax = std::getenv("CS_GMAX") ? std::atof(std::getenv("CS_GMAX")) : 2.0;
-static double cs_s = std::getenv("CS_S") ? std::atof(std::getenv("CS_S")) : 0.7;
-static double cs_smin = std::getenv("CS_SMIN") ? std::atof(std::getenv("CS_SMIN")) : 0.25;
-static long cs_pair = std::getenv("CS_MOTION_PAIR") ? std::atol(std::getenv("CS_MOTION_PAIR")) : -1;
 
 namespace collision_sensor {
 
@@ -57,6 +48,8 @@ void Engine::motion_prepare() {
     w.speed.assign(L, 0.0);
     w.depth.assign(L, 0);
     for (int64_t i = 1; i < L; ++i) w.depth[i] = w.depth[kin_.parent[i]] + 1;
+    w.prev_gap.assign(n_pairs_, 0.0);
+    w.prev_sums.assign(2 * n_pairs_, 0.0);
     for (int s = 0; s < 2; ++s) {
         w.side_link[s].assign(L, 0);
         w.side_trans[s].assign(L, 0.0);
@@ -285,35 +278,28 @@ int Engine::march_step(PairMarch& s, const StraightPath& path, double t_end) {
     motion_evaluate(motion_.q.data());
     motion_pair_pose(a, b, pose);
     motion_margin(s.p, 2.0 * h);
-    const int64_t v0 = counters_[COUNT_BOX_TESTS];
     const WithinResult w = pair_within(s.p, pose, h);
-    ++cs_calls;
-    if (cs_debug) std::fprintf(stderr, "step %ld %d %ld %.3g\n", (long)s.p, (int)w.within, (long)(counters_[COUNT_BOX_TESTS] - v0), h);
-    if (w.within) ++cs_fail;
-    if (s.t == 0.0 && s.length == 1.0) ++cs_first;
-    if (s.p == cs_pair) std::fprintf(stderr, "  t %.9f h %.3g within %d margin %.3g reach %.3g f %.3g\n", s.t, h, (int)w.within, w.margin, w.reach, s.factor);
     if (!w.within) {
         if (hi >= t_end) return MARCH_FREE;
         const double next = std::max(hi, m + w.reach * (1.0 - MOTION_BOUND_REL));
         s.length = 2.0 * s.factor * (next - m);
-        s.factor = std::min(cs_g * s.factor, cs_gmax);
+        s.factor = std::min(MARCH_GROW * s.factor, MARCH_FACTOR_MAX);
         s.t = next;
         return MARCH_ON;
     }
     if (2.0 * w.margin <= MOTION_TOUCH_TOLERANCE) return MARCH_CONTACT;
     s.length = 0.5 * (hi - s.t);
-    s.factor = std::max(cs_s * s.factor, cs_smin);
+    s.factor = std::max(MARCH_SHRINK * s.factor, MARCH_FACTOR_MIN);
     return MARCH_ON;
 }
 
-int64_t Engine::straight_motion(const double* q0, const double* q1, double* t_out,
-                                uint8_t* pairs) {
+// The straight path q0 -> q1 in motion_ (path.prepare done): each link's joint's speeds per
+// unit of the parameter.
+void Engine::straight_speeds(const double* q0, const double* q1) {
     MotionWork& w = motion_;
-    StraightPath path{q0, w.kind.data(), n_joints_, w.delta.data(), w.var.data(),
-                      w.quat0.data()};
-    path.prepare(q1);
+    (void)q0;
+    (void)q1;
     w.side_n[0] = w.side_n[1] = 0;
-    // Each link's joint's speed along the motion, per unit of the parameter.
     for (int64_t k = 0; k < n_links_; ++k) {
         const int64_t kind = kin_.joint_type[k];
         const int64_t j = kin_.q_index[k];
@@ -336,15 +322,23 @@ int64_t Engine::straight_motion(const double* q0, const double* q1, double* t_ou
                          ? kin_.multiplier[k] * w.delta[j]
                          : 0.0;
     }
-    // The pairs march side by side, the one proven apart least far first (a heap on t): a
-    // contact found bounds every other march, so no later contact is ever localised.
-    double best = INF;
+}
+
+// March the pairs list[:n] (all pairs when list is null) along the path, side by side, the
+// one proven apart least far first (a heap on t): a contact found bounds every other march,
+// so no later contact is ever localised. Returns the pair of the first contact (-1: none),
+// its parameter in *best.
+int64_t Engine::march_pairs(const int64_t* list, int64_t n, const StraightPath& path,
+                            const double* q0, double* best) {
+    MotionWork& w = motion_;
+    *best = INF;
     int64_t best_pair = -1;
     double pose[POSE_WIDTH];
     std::vector<PairMarch>& heap = w.heap;
     heap.clear();
     const auto later = [](const PairMarch& x, const PairMarch& y) { return x.t > y.t; };
-    for (int64_t p = 0; p < n_pairs_ && best > 0.0; ++p) {
+    for (int64_t i = 0; i < n && *best > 0.0; ++i) {
+        const int64_t p = list ? list[i] : i;
         if (motion_sides(p)) {
             heap.push_back({p, 0.0, 1.0, 1.0});
         } else {  // nothing moves the pair: as it is at q0 all the way
@@ -352,40 +346,59 @@ int64_t Engine::straight_motion(const double* q0, const double* q1, double* t_ou
             motion_pair_pose(pair_a_[p], pair_b_[p], pose);
             motion_margin(p, 0.0);
             if (pair_within(p, pose, 0.0).within) {
-                best = 0.0;
+                *best = 0.0;
                 best_pair = p;
             }
         }
     }
     std::make_heap(heap.begin(), heap.end(), later);
-    while (!heap.empty() && heap.front().t < best) {
+    while (!heap.empty() && heap.front().t < *best) {
         std::pop_heap(heap.begin(), heap.end(), later);
         PairMarch& s = heap.back();
         motion_sides(s.p);
-        const int state = march_step(s, path, std::min(best, 1.0));
+        const int state = march_step(s, path, std::min(*best, 1.0));
         if (state == MARCH_ON) {
             std::push_heap(heap.begin(), heap.end(), later);
             continue;
         }
-        if (state == MARCH_CONTACT && s.t < best) {
-            best = s.t;
+        if (state == MARCH_CONTACT && s.t < *best) {
+            *best = s.t;
             best_pair = s.p;
         }
         heap.pop_back();
     }
-    if (cs_debug) std::fprintf(stderr, "evals %ld fail %ld first %ld\n", cs_calls, cs_fail, cs_first);
-    cs_calls = cs_fail = cs_first = 0;
-    if (best_pair < 0) return 0;
-    // The pairs in contact there, or within the touching tolerance.
-    path.at(best, w.q.data());
+    return best_pair;
+}
+
+// pairs[p] = 1 for the pairs list[:n] (all: list null) in contact at path(t), or within the
+// touching tolerance: a margin of MOTION_TOUCH_TOLERANCE everywhere; 0 for every other.
+void Engine::motion_contacts(const int64_t* list, int64_t n, const StraightPath& path,
+                             double t, uint8_t* pairs) {
+    MotionWork& w = motion_;
+    double pose[POSE_WIDTH];
+    std::fill(pairs, pairs + n_pairs_, uint8_t(0));
+    path.at(t, w.q.data());
     motion_evaluate(w.q.data());
-    for (int64_t p = 0; p < n_pairs_; ++p) {
-        // Within the tolerance: a margin of MOTION_TOUCH_TOLERANCE everywhere.
+    w.side_n[0] = w.side_n[1] = 0;
+    for (int64_t i = 0; i < n; ++i) {
+        const int64_t p = list ? list[i] : i;
         motion_pair_pose(pair_a_[p], pair_b_[p], pose);
-        motion_.side_n[0] = motion_.side_n[1] = 0;
         motion_margin(p, 0.0);
         pairs[p] = pair_within(p, pose, 0.0, MOTION_TOUCH_TOLERANCE).within ? 1 : 0;
     }
+}
+
+int64_t Engine::straight_motion(const double* q0, const double* q1, double* t_out,
+                                uint8_t* pairs) {
+    MotionWork& w = motion_;
+    StraightPath path{q0, w.kind.data(), n_joints_, w.delta.data(), w.var.data(),
+                      w.quat0.data()};
+    path.prepare(q1);
+    straight_speeds(q0, q1);
+    double best;
+    const int64_t best_pair = march_pairs(nullptr, n_pairs_, path, q0, &best);
+    if (best_pair < 0) return 0;
+    motion_contacts(nullptr, n_pairs_, path, best, pairs);
     pairs[best_pair] = 1;
     *t_out = best;
     return 1;
@@ -400,18 +413,121 @@ int64_t Engine::motion(const double* q0, const double* q1, double* t, uint8_t* p
     return straight_motion(q0, q1, t, pairs);
 }
 
+// Pair p's gap at the last state, before plan_update moves its travel sums (extension: E
+// there): its clearance less its travel since, which bounds its distance from below; 0 when
+// the pair has no clearance (known apart, by how much unknown), -INF in contact. The sums are
+// kept too (motion_skip).
+void Engine::record_gap(int64_t p, double extension) {
+    motion_.prev_sums[2 * p] = travel_[2 * p];
+    motion_.prev_sums[2 * p + 1] = travel_[2 * p + 1];
+    double gap = 0.0;
+    if (status_[p] != 0) {
+        gap = -INF;
+    } else if (clearance_[p] > 0.0) {
+        // The running sums' rounding is a few ulps of the clearance (plan_update).
+        const double travel = travel_[2 * p] + extension * travel_[2 * p + 1];
+        gap = std::max(clearance_[p] - travel - 1e-9 * clearance_[p], 0.0);
+    }
+    motion_.prev_gap[p] = gap;
+}
+
+// The incremental motion check (issue 25) on the incremental query:
+//   - a pair in contact at the last state: the motion starts in contact (t = 0);
+//   - a pair the query does not re-check is apart along the whole straight motion: no joint on
+//     its path moved (its pose is the same all along), or its travel bound is below its
+//     clearance at both ends, and the bound, sum_j |q_j - q_eval_j| reach[p, j] (+ E ...), is
+//     convex in q: below the clearance on the whole segment between the two;
+//   - a pair the query re-checks and finds apart with clearance c_now, whose gap at the last
+//     state was c_prev (record_gap), is apart all along when c_prev + c_now exceeds the
+//     step's bound r = sum_j |dq_j| (reach[p, j] + E_max reach_ext[p, j]) (the distance at t
+//     is at least max(c_prev - t r, c_now - (1 - t) r));
+//   - every other pair marches (march_pairs) along the step.
+// A moved prismatic joint changes E: then the bound is max(f0, f1) + max(E0, E1) max(x0, x1)
+// over the segment (its two sums, each convex, at the two ends), which plan_update checks too
+// (motion_skip). A continuous joint that jumped by more than pi (the same pose, the other way
+// round) makes the straight motion in q another path than the motion's: then every pair marches
+// (straight_motion on all pairs).
 int64_t Engine::update_motion(const double* q, double* t, uint8_t* pairs,
                               int64_t* query_code) {
     const int64_t bad = unusable_variable(kin_, q, n_joints_);
     if (bad >= 0) return -1 - bad;
     motion_prepare();
     MotionWork& w = motion_;
-    // From the last query's state; before any, the motion is the instant q.
-    const double* from = header_[H_CHECKED_ONCE] ? q_last_ : q;
-    std::copy(from, from + n_joints_, w.q_prev.begin());
-    const int64_t code = straight_motion(w.q_prev.data(), q, t, pairs);
+    if (!header_[H_CHECKED_ONCE]) {  // no state before: the instant q
+        *query_code = run(q, false);
+        bool any = false;
+        for (int64_t p = 0; p < n_pairs_; ++p) {
+            pairs[p] = uint8_t(status_[p]);
+            any |= status_[p] != 0;
+        }
+        *t = 0.0;
+        return any ? 1 : 0;
+    }
+    bool contact = false;
+    for (int64_t p = 0; p < n_pairs_ && !contact; ++p) contact = status_[p] != 0;
+    if (contact) {  // in contact already at the start
+        for (int64_t p = 0; p < n_pairs_; ++p) pairs[p] = uint8_t(status_[p]);
+        *query_code = run(q, false);
+        *t = 0.0;
+        return 1;
+    }
+    std::copy(q_last_, q_last_ + n_joints_, w.q_prev.begin());
+    const double* q0 = w.q_prev.data();
+    StraightPath path{q0, w.kind.data(), n_joints_, w.delta.data(), w.var.data(),
+                      w.quat0.data()};
+    path.prepare(q);
+    // The query's skipped pairs are apart along the straight motion in q, which is this one
+    // unless a continuous joint goes the shorter way round the other way.
+    bool convex = true;
+    for (int64_t j = 0; j < n_joints_; ++j)
+        if (w.kind[j] == MOTION_WRAP && w.var[j] != std::fabs(q[j] - q0[j])) convex = false;
+    const double e_before = scalars_[S_EXTENSION];
+    motion_record_ = true;
     *query_code = run(q, false);
-    return code;
+    motion_record_ = false;
+    straight_speeds(q0, q);
+    if (!convex) return straight_motion_marched(nullptr, n_pairs_, path, q0, t, pairs);
+    // The re-checked pairs are todo[:n] (run's incremental plan).
+    const int64_t n = *query_code >> 1;
+    const double e_max = std::max(e_before, scalars_[S_EXTENSION]);
+    w.marched.clear();
+    for (int64_t i = 0; i < n; ++i) {
+        const int64_t p = todo_[i];
+        if (status_[p] == 0 && w.prev_gap[p] > -INF) {
+            double r = 0.0;
+            const double* reach = reach_ + n_joints_ * p;
+            const double* reach_ext = reach_ext_ + n_joints_ * p;
+            for (int64_t j = 0; j < n_joints_; ++j)
+                if (w.var[j] > 0.0) r += w.var[j] * (reach[j] + e_max * reach_ext[j]);
+            if (w.prev_gap[p] + clearance_[p] > r * (1.0 + MOTION_BOUND_REL)) continue;
+        }
+        w.marched.push_back(p);
+    }
+    if (w.marched.empty()) return 0;
+    return straight_motion_marched(w.marched.data(), int64_t(w.marched.size()), path, q0, t,
+                                   pairs);
+}
+
+// straight_motion on the pairs list[:n] (all: null) of the prepared path.
+// True iff pair p, which plan_update skips at the new state (its travel below its clearance),
+// is below its clearance on the whole segment from the last state too, E having changed from
+// extension_before to extension (record_gap kept its sums at the last state).
+bool Engine::motion_skip(int64_t p, double extension_before, double extension) const {
+    const double f = std::max(motion_.prev_sums[2 * p], travel_[2 * p]);
+    const double x = std::max(motion_.prev_sums[2 * p + 1], travel_[2 * p + 1]);
+    return f + std::max(extension_before, extension) * x < TRAVEL_GUARD * clearance_[p];
+}
+
+int64_t Engine::straight_motion_marched(const int64_t* list, int64_t n,
+                                        const StraightPath& path, const double* q0, double* t,
+                                        uint8_t* pairs) {
+    double best;
+    const int64_t best_pair = march_pairs(list, n, path, q0, &best);
+    if (best_pair < 0) return 0;
+    motion_contacts(list, n, path, best, pairs);
+    pairs[best_pair] = 1;
+    *t = best;
+    return 1;
 }
 
 int64_t Engine::path(const double* Q, int64_t n, int64_t* segment, double* t, uint8_t* pairs) {

@@ -502,6 +502,7 @@ int64_t Engine::plan_update(const double* q) {
     header_[H_RESYNC_COUNTDOWN] -= 1;
     const bool resync = header_[H_RESYNC_COUNTDOWN] <= 0;
     double ext = scalars_[S_EXTENSION];
+    const double ext_before = ext;
     int64_t n = 0;
     if (n_moved == 1 && !resync) {
         const int64_t j = moved_[0];
@@ -510,8 +511,11 @@ int64_t Engine::plan_update(const double* q) {
         if (prismatic) scalars_[S_EXTENSION] = ext = extension();
         for (int64_t t = joint_pairs_start_[j]; t < joint_pairs_start_[j + 1]; ++t) {
             const int64_t p = joint_pairs_[t];
+            if (motion_record_) record_gap(p, ext_before);
             if (clearance_[p] > 0.0) add_travel(p, j, old_value, new_value);
-            if (needs_recheck(p, ext)) todo_[n++] = p;
+            if (needs_recheck(p, ext) ||
+                (motion_record_ && prismatic && !motion_skip(p, ext_before, ext)))
+                todo_[n++] = p;
         }
         return n;
     }
@@ -521,11 +525,12 @@ int64_t Engine::plan_update(const double* q) {
         const double new_value = q_ref_[j] = q[j];
         for (int64_t t = joint_pairs_start_[j]; t < joint_pairs_start_[j + 1]; ++t) {
             const int64_t p = joint_pairs_[t];
-            if (clearance_[p] > 0.0 && !resync) add_travel(p, j, old_value, new_value);
-            if (!pending_[p]) {
+            if (!pending_[p]) {  // first seen: its sums are still those of the last state
+                if (motion_record_) record_gap(p, ext_before);
                 pending_[p] = 1;
                 todo_[n++] = p;
             }
+            if (clearance_[p] > 0.0 && !resync) add_travel(p, j, old_value, new_value);
         }
     }
     if (prismatic) scalars_[S_EXTENSION] = ext = extension();
@@ -538,7 +543,9 @@ int64_t Engine::plan_update(const double* q) {
     for (int64_t t = 0; t < n; ++t) {
         const int64_t p = todo_[t];
         pending_[p] = 0;
-        if (needs_recheck(p, ext)) todo_[kept++] = p;
+        if (needs_recheck(p, ext) ||
+            (motion_record_ && prismatic && !motion_skip(p, ext_before, ext)))
+            todo_[kept++] = p;
     }
     return kept;
 }
@@ -885,6 +892,7 @@ int64_t Engine::add_forced(int64_t n) {
         if (!forced_[p]) continue;
         forced_[p] = 0;
         front_state_[2 * p] = 0;
+        if (motion_record_) motion_.prev_gap[p] = -INF;  // no gap known in the new scene
         if (!pending_[p]) {
             pending_[p] = 1;
             todo_[n++] = p;

@@ -220,8 +220,18 @@ class Engine {
         MotionMargin margin{};
         std::vector<double> q_prev;             // (J,) update_motion's start
         std::vector<PairMarch> heap;            // the pairs' marches (straight_motion)
+        std::vector<double> prev_gap, prev_sums;  // (P,), (P, 2) update_motion: record_gap's
+        std::vector<int64_t> marched;           // the pairs update_motion marches
     };
     MotionWork motion_;
+    // While true, plan_update and add_forced record each pair's gap at the last state
+    // (record_gap) before moving its travel sums: update_motion's.
+    bool motion_record_ = false;
+    void record_gap(int64_t p, double extension);
+    bool motion_skip(int64_t p, double extension_before, double extension) const;
+    int64_t march_pairs(const int64_t* list, int64_t n, const StraightPath& path,
+                        const double* q0, double* best);
+    void straight_speeds(const double* q0, const double* q1);
     void motion_prepare();
     void motion_evaluate(const double* q);
     void motion_link_pose(int64_t i);
@@ -233,6 +243,10 @@ class Engine {
     static constexpr int MARCH_ON = 0, MARCH_FREE = 1, MARCH_CONTACT = 2;
     int march_step(PairMarch& s, const StraightPath& path, double t_end);
     int64_t straight_motion(const double* q0, const double* q1, double* t, uint8_t* pairs);
+    int64_t straight_motion_marched(const int64_t* list, int64_t n, const StraightPath& path,
+                                    const double* q0, double* t, uint8_t* pairs);
+    void motion_contacts(const int64_t* list, int64_t n, const StraightPath& path, double t,
+                         uint8_t* pairs);
 
     std::mutex lock_;
     int64_t* header_;
