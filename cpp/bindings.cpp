@@ -537,7 +537,28 @@ PYBIND11_MODULE(_engine, m) {
                  },
                  py::arg("Q"), py::arg("pairs").noconvert(),
                  "The straight motions between consecutive rows of Q until one is not free: "
-                 "(code, segment, t), code as motion (-1 - (J i + j) for row i's value j).");
+                 "(code, segment, t), code as motion (-1 - (J i + j) for row i's value j).")
+            .def("spline",
+                 [](PyEngine& self, const Array<double>& coef, Array<uint8_t> pairs) {
+                     cs::Engine& engine = *self.engine;
+                     expect_shape("coef", coef, {-1, engine.n_joints(), 6});
+                     expect_shape("pairs", pairs, {engine.n_pairs()});
+                     const double* data = coef.data();
+                     const int64_t n = coef.shape(0);
+                     uint8_t* out = writable("pairs", pairs);
+                     double t = -1.0;
+                     int64_t segment = -1, code;
+                     {
+                         py::gil_scoped_release release;
+                         std::lock_guard<std::mutex> hold(engine.lock());
+                         code = engine.spline(data, n, &segment, &t, out);
+                     }
+                     return py::make_tuple(code, segment, t);
+                 },
+                 py::arg("coef"), py::arg("pairs").noconvert(),
+                 "The polynomial segments coef (n, J, 6) (q_j(t) = sum_k coef[i, j, k] t^k, t in "
+                 "[0, 1]) in turn until one is not free: (code, segment, t) as path; code -1 - i "
+                 "for a segment i the engine refuses.");
     }
 
     // ---- end of query engine

@@ -46,6 +46,8 @@ void Engine::motion_prepare() {
     w.trans.assign(L, 0.0);
     w.rot.assign(L, 0.0);
     w.speed.assign(L, 0.0);
+    w.accel.assign(L, 0.0);
+    w.moving.assign(L, 0);
     w.depth.assign(L, 0);
     for (int64_t i = 1; i < L; ++i) w.depth[i] = w.depth[kin_.parent[i]] + 1;
     w.prev_gap.assign(n_pairs_, 0.0);
@@ -58,6 +60,7 @@ void Engine::motion_prepare() {
         w.side_axis[s].assign(3 * L, 0.0);
         w.side_speed[s].assign(L, 0.0);
         w.side_above[s].assign(L, 0.0);
+        w.side_accel[s].assign(L, 0.0);
         w.node_motion[s].assign(N, BoxMotion{});
         w.node_stamp[s].assign(N, 0);
     }
@@ -96,8 +99,9 @@ void Engine::motion_pair_pose(int64_t a, int64_t b, double* pose) {
 }
 
 // Prepare pair p's two sides for path: the joints between each body and the pair's lowest
-// common ancestor (none above a world object: it is the world's), lowest first, those the
-// path moves, with their speeds per unit of the parameter. Returns whether any moves.
+// common ancestor (none above a world object: it is the world's), lowest first, those moving
+// at the evaluated part of the path, with their speeds per unit of the parameter. Returns
+// whether any of those joints moves anywhere on the path.
 bool Engine::motion_sides(int64_t p) {
     MotionWork& w = motion_;
     const int64_t a = pair_a_[p], b = pair_b_[p];
@@ -118,11 +122,13 @@ bool Engine::motion_sides(int64_t p) {
         int64_t n = 0;
         if (s == 0 || b < n_links_) {
             for (int64_t k = x; k > 0 && k != common; k = kin_.parent[k]) {
+                moves |= w.moving[k] != 0;
                 if (w.trans[k] > 0.0 || w.rot[k] > 0.0) {
                     w.side_link[s][n] = k;
                     w.side_trans[s][n] = w.trans[k];
                     w.side_rot[s][n] = w.rot[k];
                     w.side_speed[s][n] = w.speed[k];
+                    w.side_accel[s][n] = w.accel[k];
                     ++n;
                 }
             }
@@ -134,7 +140,6 @@ bool Engine::motion_sides(int64_t p) {
             w.side_above[s][i] = above;
             above += w.side_rot[s][i];
         }
-        moves |= n > 0;
     }
     return moves;
 }
@@ -183,6 +188,7 @@ void Engine::motion_margin(int64_t p, double h2) {
         side.trans = w.side_trans[s].data();
         side.rot = w.side_rot[s].data();
         side.speed = w.side_speed[s].data();
+        side.accel = w.side_accel[s].data();
         side.above = w.side_above[s].data();
         side.T = x < n_links_ ? w.T.data() + 16 * x : T_world_body_ + 16 * x;
         m.cache[s] = w.node_motion[s].data();
@@ -268,12 +274,15 @@ WithinResult Engine::pair_within(int64_t p, const double* pose, double h, double
 // obstacle the distance, and so the reach, shrinks from one interval to the next). Within its
 // margin: the interval is halved, and once twice the margin is at most the touching tolerance,
 // the state at t is within the tolerance of contact: the first contact. Returns MARCH_*.
-int Engine::march_step(PairMarch& s, const StraightPath& path, double t_end) {
+template <class Path>
+int Engine::march_step(PairMarch& s, const Path& path, double t_end) {
     const int64_t a = pair_a_[s.p], b = pair_b_[s.p];
     double pose[POSE_WIDTH];
     const double hi = std::min(s.t + s.length, t_end);
     const double m = 0.5 * (s.t + hi);
     const double h = 0.5 * (hi - s.t);
+    path_speeds(path, m, 2.0 * h);
+    motion_sides(s.p);
     path.at(m, motion_.q.data());
     motion_evaluate(motion_.q.data());
     motion_pair_pose(a, b, pose);
@@ -321,6 +330,38 @@ void Engine::straight_speeds(const double* q0, const double* q1) {
         w.speed[k] = (kind == JOINT_REVOLUTE || kind == JOINT_PRISMATIC)
                          ? kin_.multiplier[k] * w.delta[j]
                          : 0.0;
+        w.accel[k] = 0.0;
+        w.moving[k] = (trans > 0.0 || rot > 0.0) ? 1 : 0;
+    }
+}
+
+// A spline's speeds around t (SplinePath::rates over [t - h2, t + h2]); the planar and
+// floating joints stay (spline_motion refuses anything else).
+void Engine::path_speeds(const SplinePath& path, double t, double h2) {
+    MotionWork& w = motion_;
+    for (int64_t k = 0; k < n_links_; ++k) {
+        const int64_t kind = kin_.joint_type[k];
+        w.trans[k] = w.rot[k] = w.speed[k] = w.accel[k] = 0.0;
+        if (!w.moving[k]) continue;
+        double speed, speed_max, accel_max;
+        path.rates(kin_.q_index[k], t, h2, &speed, &speed_max, &accel_max);
+        const double mult = kin_.multiplier[k], scale = std::fabs(mult) * (1.0 + MOTION_BOUND_REL);
+        if (kind == JOINT_REVOLUTE)
+            w.rot[k] = scale * speed_max;
+        else
+            w.trans[k] = scale * speed_max;
+        w.speed[k] = mult * speed;
+        w.accel[k] = scale * accel_max;
+    }
+}
+
+// The links a spline moves (revolute and prismatic joints whose variable is not constant).
+void Engine::spline_moving(const SplinePath& path) {
+    MotionWork& w = motion_;
+    for (int64_t k = 0; k < n_links_; ++k) {
+        const int64_t kind = kin_.joint_type[k];
+        w.moving[k] = (kind == JOINT_REVOLUTE || kind == JOINT_PRISMATIC) &&
+                      path.moves(kin_.q_index[k]);
     }
 }
 
@@ -328,8 +369,9 @@ void Engine::straight_speeds(const double* q0, const double* q1) {
 // one proven apart least far first (a heap on t): a contact found bounds every other march,
 // so no later contact is ever localised. Returns the pair of the first contact (-1: none),
 // its parameter in *best.
-int64_t Engine::march_pairs(const int64_t* list, int64_t n, const StraightPath& path,
-                            const double* q0, double* best) {
+template <class Path>
+int64_t Engine::march_pairs(const int64_t* list, int64_t n, const Path& path, const double* q0,
+                            double* best) {
     MotionWork& w = motion_;
     *best = INF;
     int64_t best_pair = -1;
@@ -337,11 +379,13 @@ int64_t Engine::march_pairs(const int64_t* list, int64_t n, const StraightPath& 
     std::vector<PairMarch>& heap = w.heap;
     heap.clear();
     const auto later = [](const PairMarch& x, const PairMarch& y) { return x.t > y.t; };
+    path_speeds(path, 0.5, 0.5);
     for (int64_t i = 0; i < n && *best > 0.0; ++i) {
         const int64_t p = list ? list[i] : i;
         if (motion_sides(p)) {
             heap.push_back({p, 0.0, 1.0, 1.0});
         } else {  // nothing moves the pair: as it is at q0 all the way
+            w.side_n[0] = w.side_n[1] = 0;
             motion_evaluate(q0);
             motion_pair_pose(pair_a_[p], pair_b_[p], pose);
             motion_margin(p, 0.0);
@@ -355,7 +399,6 @@ int64_t Engine::march_pairs(const int64_t* list, int64_t n, const StraightPath& 
     while (!heap.empty() && heap.front().t < *best) {
         std::pop_heap(heap.begin(), heap.end(), later);
         PairMarch& s = heap.back();
-        motion_sides(s.p);
         const int state = march_step(s, path, std::min(*best, 1.0));
         if (state == MARCH_ON) {
             std::push_heap(heap.begin(), heap.end(), later);
@@ -372,8 +415,9 @@ int64_t Engine::march_pairs(const int64_t* list, int64_t n, const StraightPath& 
 
 // pairs[p] = 1 for the pairs list[:n] (all: list null) in contact at path(t), or within the
 // touching tolerance: a margin of MOTION_TOUCH_TOLERANCE everywhere; 0 for every other.
-void Engine::motion_contacts(const int64_t* list, int64_t n, const StraightPath& path,
-                             double t, uint8_t* pairs) {
+template <class Path>
+void Engine::motion_contacts(const int64_t* list, int64_t n, const Path& path, double t,
+                             uint8_t* pairs) {
     MotionWork& w = motion_;
     double pose[POSE_WIDTH];
     std::fill(pairs, pairs + n_pairs_, uint8_t(0));
@@ -395,13 +439,7 @@ int64_t Engine::straight_motion(const double* q0, const double* q1, double* t_ou
                       w.quat0.data()};
     path.prepare(q1);
     straight_speeds(q0, q1);
-    double best;
-    const int64_t best_pair = march_pairs(nullptr, n_pairs_, path, q0, &best);
-    if (best_pair < 0) return 0;
-    motion_contacts(nullptr, n_pairs_, path, best, pairs);
-    pairs[best_pair] = 1;
-    *t_out = best;
-    return 1;
+    return motion_marched(nullptr, n_pairs_, path, q0, t_out, pairs);
 }
 
 int64_t Engine::motion(const double* q0, const double* q1, double* t, uint8_t* pairs) {
@@ -486,7 +524,7 @@ int64_t Engine::update_motion(const double* q, double* t, uint8_t* pairs,
     *query_code = run(q, false);
     motion_record_ = false;
     straight_speeds(q0, q);
-    if (!convex) return straight_motion_marched(nullptr, n_pairs_, path, q0, t, pairs);
+    if (!convex) return motion_marched(nullptr, n_pairs_, path, q0, t, pairs);
     // The re-checked pairs are todo[:n] (run's incremental plan).
     const int64_t n = *query_code >> 1;
     const double e_max = std::max(e_before, scalars_[S_EXTENSION]);
@@ -504,7 +542,7 @@ int64_t Engine::update_motion(const double* q, double* t, uint8_t* pairs,
         w.marched.push_back(p);
     }
     if (w.marched.empty()) return 0;
-    return straight_motion_marched(w.marched.data(), int64_t(w.marched.size()), path, q0, t,
+    return motion_marched(w.marched.data(), int64_t(w.marched.size()), path, q0, t,
                                    pairs);
 }
 
@@ -518,9 +556,9 @@ bool Engine::motion_skip(int64_t p, double extension_before, double extension) c
     return f + std::max(extension_before, extension) * x < TRAVEL_GUARD * clearance_[p];
 }
 
-int64_t Engine::straight_motion_marched(const int64_t* list, int64_t n,
-                                        const StraightPath& path, const double* q0, double* t,
-                                        uint8_t* pairs) {
+template <class Path>
+int64_t Engine::motion_marched(const int64_t* list, int64_t n, const Path& path,
+                               const double* q0, double* t, uint8_t* pairs) {
     double best;
     const int64_t best_pair = march_pairs(list, n, path, q0, &best);
     if (best_pair < 0) return 0;
@@ -543,6 +581,42 @@ int64_t Engine::path(const double* Q, int64_t n, int64_t* segment, double* t, ui
     }
     for (int64_t i = 0; i + 1 < n; ++i) {
         if (straight_motion(Q + n_joints_ * i, Q + n_joints_ * (i + 1), t, pairs)) {
+            *segment = i;
+            return 1;
+        }
+    }
+    return 0;
+}
+
+int64_t Engine::spline(const double* coef, int64_t n, int64_t* segment, double* t,
+                       uint8_t* pairs) {
+    MotionWork& w = motion_;
+    const int64_t J = n_joints_;
+    std::vector<double>& q0 = w.q_prev;
+    for (int64_t i = 0; i < n; ++i) {  // every segment first: a bad one answers before any work
+        const double* c = coef + 6 * J * i;
+        for (int64_t k = 0; k < 6 * J; ++k)
+            if (!std::isfinite(c[k])) return -1 - i;
+        const SplinePath path{c, J};
+        for (int64_t l = 0; l < n_links_; ++l) {
+            const int64_t kind = kin_.joint_type[l];
+            if (kind != JOINT_PLANAR && kind != JOINT_FLOATING) continue;
+            for (int64_t v = 0; v < joint_variable_count(kind); ++v)
+                if (path.moves(kin_.q_index[l] + v)) return -1 - i;
+        }
+        if (q0.size() != size_t(J)) q0.assign(J, 0.0);
+        for (double end : {0.0, 1.0}) {
+            path.at(end, q0.data());
+            if (unusable_variable(kin_, q0.data(), J) >= 0) return -1 - i;
+        }
+    }
+    motion_prepare();
+    *segment = -1;
+    for (int64_t i = 0; i < n; ++i) {
+        const SplinePath path{coef + 6 * J * i, J};
+        path.at(0.0, w.q_prev.data());
+        spline_moving(path);
+        if (motion_marched(nullptr, n_pairs_, path, w.q_prev.data(), t, pairs)) {
             *segment = i;
             return 1;
         }

@@ -135,6 +135,59 @@ struct StraightPath {
     }
 };
 
+// A path of polynomials, t in [0, 1]: q_j(t) = sum_k coef[6 j + k] t^k, degree at most 5 (a
+// segment of joint_trajectory_controller's spline, linear, cubic or quintic in time, with time
+// rescaled to [0, 1]); the variables of planar and floating joints stay constant.
+struct SplinePath {
+    const double* coef;  // (n, 6)
+    int64_t n;
+
+    void at(double t, double* q) const {
+        for (int64_t j = 0; j < n; ++j) {
+            const double* c = coef + 6 * j;
+            q[j] = c[0] + t * (c[1] + t * (c[2] + t * (c[3] + t * (c[4] + t * c[5]))));
+        }
+    }
+
+    // Variable j around t: its speed q'(t), and bounds of |q'| and |q''| on [t - h, t + h]
+    // (a polynomial is its own Taylor series: |f(t + s)| <= sum_k |f^(k)(t) / k!| |s|^k).
+    void rates(int64_t j, double t, double h, double* speed, double* speed_max,
+               double* accel_max) const {
+        const double* c = coef + 6 * j;
+        // D[k] = q^(k)(t) / k! = sum_{i >= k} C(i, k) c_i t^(i - k).
+        static constexpr double BINOMIAL[6][6] = {{1, 1, 1, 1, 1, 1},  {0, 1, 2, 3, 4, 5},
+                                                  {0, 0, 1, 3, 6, 10}, {0, 0, 0, 1, 4, 10},
+                                                  {0, 0, 0, 0, 1, 5},  {0, 0, 0, 0, 0, 1}};
+        double D[6];
+        for (int k = 0; k < 6; ++k) {
+            double d = 0.0, power = 1.0;
+            for (int i = k; i < 6; ++i) {
+                d += BINOMIAL[k][i] * c[i] * power;
+                power *= t;
+            }
+            D[k] = d;
+        }
+        *speed = D[1];
+        double vmax = 0.0, amax = 0.0, power = 1.0;
+        for (int k = 1; k < 6; ++k) {  // power = h^(k - 1)
+            vmax += k * std::fabs(D[k]) * power;
+            power *= h;
+        }
+        power = 1.0;
+        for (int k = 2; k < 6; ++k) {  // power = h^(k - 2)
+            amax += k * (k - 1) * std::fabs(D[k]) * power;
+            power *= h;
+        }
+        *speed_max = vmax;
+        *accel_max = amax;
+    }
+
+    bool moves(int64_t j) const {
+        const double* c = coef + 6 * j;
+        return c[1] != 0.0 || c[2] != 0.0 || c[3] != 0.0 || c[4] != 0.0 || c[5] != 0.0;
+    }
+};
+
 // How the joints between one body of a pair and the pair's common ancestor move its points,
 // at one state of the path (motion.cpp fills it), the joints from the body upwards: joint i
 // has its origin at origin[i] (world frame; a joint's child frame sits at its origin) and a
@@ -143,7 +196,8 @@ struct StraightPath {
 // most rot[i] rad and translates it by at most trans[i] m; speed[i] is a revolute joint's
 // signed turn about axis[i] or a prismatic joint's signed slide along it; above[i] bounds how
 // fast the joint's own frame turns (the joints above it on this side, summed). Relative to the
-// common ancestor the body turns at omega (world frame). first_order: every joint is
+// common ancestor the body turns at omega (world frame); accel[i] bounds how fast speed[i]
+// changes (a spline's second derivative; 0 on a straight motion). first_order: every joint is
 // revolute, prismatic or fixed, for which the first-order bound below is exact.
 struct SideMotion {
     int64_t n;
@@ -152,6 +206,7 @@ struct SideMotion {
     const double* trans;   // (n,)
     const double* rot;     // (n,)
     const double* speed;   // (n,)
+    const double* accel;   // (n,) bound of |speed'| (0 along a straight motion)
     const double* above;   // (n,)
     const double* T;       // (16,) the body's world pose
     bool first_order;
@@ -181,9 +236,11 @@ struct BoxMotion {
 // them): a point p of the box moves as p(m + s) = p(m) + s p'(m) + e(s), |e(s)| <= s^2 acc / 2,
 // with p'(m) = v + omega x (p - c), v = sum_i speed_i axis_i x (c - origin_i) (revolute) +
 // speed_i axis_i (prismatic), and
-//     |p''| <= sum_i rot_i ((2 above_i + rot_i) L_i + R_i) + trans_i above_i,
+//     |p''| <= sum_i rot_i ((2 above_i + rot_i) L_i + R_i) + accel_i L_i       (revolute)
+//            + trans_i above_i + accel_i                                       (prismatic),
 // L_i = |c - origin_i| + rho + R_i h2 (differentiating p' = sum_i speed_i axis_i x (p - o_i):
-// the axis turns at most above_i, p - o_i at most (above_i + rot_i) L_i + R_i). Along a fixed
+// the axis turns at most above_i, p - o_i at most (above_i + rot_i) L_i + R_i, the speed
+// itself at most accel_i). Along a fixed
 // unit direction n, the gap between two boxes then closes at most by
 //     h (|n . (v_b - v_a)| + rho_a |n x omega_a| + rho_b |n x omega_b|) + h^2 (acc_a + acc_b) / 2
 // over the half-width h: the motion towards each other, not all motion. Two links sliding
@@ -218,14 +275,15 @@ struct MotionMargin {
             const double lever = std::sqrt(std::max(dd - du * du, 0.0)) + spread;
             const double w = m.rot[i], tr = m.trans[i];
             if (w > 0.0) {
-                acc += w * ((2.0 * m.above[i] + w) * (std::sqrt(dd) + spread) + R);
+                const double L = std::sqrt(dd) + spread;
+                acc += w * ((2.0 * m.above[i] + w) * L + R) + m.accel[i] * L;
                 const double sp = m.speed[i];  // v += speed axis x d
                 out.v[0] += sp * (u[1] * d2 - u[2] * d1);
                 out.v[1] += sp * (u[2] * d0 - u[0] * d2);
                 out.v[2] += sp * (u[0] * d1 - u[1] * d0);
             }
             if (tr > 0.0) {
-                acc += tr * m.above[i];
+                acc += tr * m.above[i] + m.accel[i];
                 const double sp = m.speed[i];
                 out.v[0] += sp * u[0];
                 out.v[1] += sp * u[1];

@@ -156,6 +156,11 @@ class Engine {
     // *segment its index (-1: all free), *t and pairs as motion(). Returns 0, 1, or -1 -
     // (J i + j) when Q[i][j] is not usable (every row is validated first).
     int64_t path(const double* Q, int64_t n, int64_t* segment, double* t, uint8_t* pairs);
+    // The spline segments coef (n, J, 6) (motion.hpp: SplinePath, each over t in [0, 1]) in
+    // turn until one is not free: as path(). Returns -1 - i when segment i has a coefficient
+    // that is not finite, moves a planar or floating joint, or starts or ends at an unusable
+    // value (every segment is validated first).
+    int64_t spline(const double* coef, int64_t n, int64_t* segment, double* t, uint8_t* pairs);
 
     int64_t n_joints() const { return n_joints_; }
     int64_t n_pairs() const { return n_pairs_; }
@@ -208,13 +213,14 @@ class Engine {
         std::vector<double> T;                  // (L, 16) link poses at q
         std::vector<int64_t> stamp, chain;      // (L,) T[i] is current when stamp[i] == tag
         int64_t tag = 0;
-        std::vector<double> trans, rot, speed;  // (L,) each link's joint's speeds
+        std::vector<double> trans, rot, speed, accel;  // (L,) each link's joint's speeds
+        std::vector<uint8_t> moving;            // (L,) its joint moves somewhere on the path
         std::vector<int64_t> depth;             // (L,) links above each
         // The two sides of the pair at hand (motion_sides, motion_margin).
         int64_t side_n[2] = {0, 0};
         std::vector<int64_t> side_link[2];
         std::vector<double> side_trans[2], side_rot[2], side_origin[2], side_axis[2];
-        std::vector<double> side_speed[2], side_above[2];
+        std::vector<double> side_speed[2], side_above[2], side_accel[2];
         std::vector<BoxMotion> node_motion[2];  // (N,) MotionMargin's caches
         std::vector<int64_t> node_stamp[2];
         MotionMargin margin{};
@@ -229,8 +235,9 @@ class Engine {
     bool motion_record_ = false;
     void record_gap(int64_t p, double extension);
     bool motion_skip(int64_t p, double extension_before, double extension) const;
-    int64_t march_pairs(const int64_t* list, int64_t n, const StraightPath& path,
-                        const double* q0, double* best);
+    template <class Path>
+    int64_t march_pairs(const int64_t* list, int64_t n, const Path& path, const double* q0,
+                        double* best);
     void straight_speeds(const double* q0, const double* q1);
     void motion_prepare();
     void motion_evaluate(const double* q);
@@ -241,11 +248,17 @@ class Engine {
     WithinResult pair_within(int64_t p, const double* pose, double h, double extra = 0.0);
     double solid_gap(int64_t a, int64_t b, const double* pose) const;
     static constexpr int MARCH_ON = 0, MARCH_FREE = 1, MARCH_CONTACT = 2;
-    int march_step(PairMarch& s, const StraightPath& path, double t_end);
+    template <class Path>
+    int march_step(PairMarch& s, const Path& path, double t_end);
+    void path_speeds(const StraightPath&, double, double) {}  // constant: straight_speeds
+    void path_speeds(const SplinePath& path, double t, double h2);
+    void spline_moving(const SplinePath& path);
     int64_t straight_motion(const double* q0, const double* q1, double* t, uint8_t* pairs);
-    int64_t straight_motion_marched(const int64_t* list, int64_t n, const StraightPath& path,
-                                    const double* q0, double* t, uint8_t* pairs);
-    void motion_contacts(const int64_t* list, int64_t n, const StraightPath& path, double t,
+    template <class Path>
+    int64_t motion_marched(const int64_t* list, int64_t n, const Path& path, const double* q0,
+                           double* t, uint8_t* pairs);
+    template <class Path>
+    void motion_contacts(const int64_t* list, int64_t n, const Path& path, double t,
                          uint8_t* pairs);
 
     std::mutex lock_;
