@@ -27,6 +27,7 @@ from collision_sensor.engine.dynamic_scene import (
     RemoveObject, SceneChange, SceneChangeError, build_object_block, check_geometry, checked_pose,
     same_geometry, solid_row)
 from collision_sensor.engine.motion import FREE, MotionResult, PathResult, motion_kinds
+from collision_sensor.engine.trajectory import TrajectoryResult, check_trajectory
 from collision_sensor.engine.kinematics import (JOINT_FIXED, JOINT_FLOATING, JOINT_PLANAR,
                                                 JOINT_PRISMATIC, KinematicTree,
                                                 build_kinematic_tree)
@@ -1236,6 +1237,39 @@ class CollisionChecker:
         if code == 0:
             return PathResult(None, FREE)
         return PathResult(int(segment), self._motion_result(code, t, pairs))
+
+    def check_spline(self, coefficients: np.ndarray) -> PathResult:
+        """Check polynomial path segments in turn, in one compiled call, until one is not free:
+        segment i is ``q_j(t) = sum_k coefficients[i, j, k] t^k`` for t in [0, 1] (degree at
+        most 5; planar and floating joints constant). ``first_contact`` is a fraction of the
+        segment. The carried state is left as it was.
+
+        :param coefficients: (S, J, 6) float, variables in the order of :attr:`joint_names`.
+        :raises JointStateError: on a wrong shape, or a segment the engine cannot take (not
+            finite, moving a planar or floating joint, or an unusable value at an end).
+        """
+        coef = np.ascontiguousarray(coefficients, dtype=np.float64)
+        if coef.ndim != 3 or coef.shape[1:] != (len(self.joint_names), 6):
+            raise JointStateError(f'expected coefficients of shape (S, {len(self.joint_names)},'
+                                  f' 6), got {coef.shape}')
+        pairs = np.zeros(len(self.checked_pairs), dtype=np.uint8)
+        code, segment, t = self._engine.spline(coef, pairs)
+        if code < 0:
+            raise JointStateError(
+                f'segment {-1 - code}: a coefficient is not finite, a planar or floating joint '
+                'moves, or an end is beyond the engine\'s range; give finite polynomials of '
+                'the 1-DOF joints')
+        if code == 0:
+            return PathResult(None, FREE)
+        return PathResult(int(segment), self._motion_result(code, t, pairs))
+
+    def check_trajectory(self, joint_names, points, start=None,
+                         limit_tolerance: float = 0.0) -> TrajectoryResult:
+        """Check a planned trajectory (``trajectory_msgs/JointTrajectory``'s joint names and
+        points) along the path joint_trajectory_controller will follow, from ``start``
+        (default: the current positions): see :mod:`collision_sensor.engine.trajectory`.
+        A malformed trajectory is invalid with its reason; nothing changes in the checker."""
+        return check_trajectory(self, joint_names, points, start, limit_tolerance)
 
     def _motion_result(self, code: int, t: float, pairs: np.ndarray) -> MotionResult:
         if code == 0:

@@ -1,0 +1,262 @@
+"""Planned trajectories checked before they run, along the path a controller will follow.
+
+A trajectory is what ``trajectory_msgs/JointTrajectory`` carries (joint names, then points
+with ``time_from_start``, positions and optional velocities and accelerations); this module
+takes it as plain values (the ROS source converts the message) and turns it into the path
+``joint_trajectory_controller`` (ros2_controllers, Jazzy) executes with its default spline
+interpolation::
+
+    result = check_trajectory(checker, joint_names, points, start=checker_positions)
+    result.valid, result.first_invalid_segment, result.time_from_start, result.reason
+
+Segment 0 runs from the start state (the current joint state, at rest) to the first point,
+over the first point's ``time_from_start``; segment i (i >= 1) from point i - 1 to point i.
+Between two points each joint follows, as the controller's ``interpolate_between_points``:
+a straight line when the two points carry positions only, a cubic (positions and velocities
+at both ends) when they carry velocities, a quintic when they carry velocities and
+accelerations. Segment 0 starts at rest (velocity and acceleration 0, as the controller takes
+a start state without them) and a continuous joint starts from the value nearest the first
+point (the controller's wrap-around). A first point at ``time_from_start`` 0 is reached by a
+jump: its motion is checked as a straight line. Joints the trajectory does not name keep
+their start values. Splines can leave the straight segment between two points and overshoot
+joint limits: both are checked (the limits at the spline's extremes, the path certified by the
+engine, ``cpp/motion.hpp``: SplinePath).
+"""
+import math
+from typing import NamedTuple, Optional, Sequence, Tuple
+
+import numpy as np
+
+from collision_sensor.engine.compiled import engine
+from collision_sensor.engine.motion import MotionResult
+from collision_sensor.errors import JointStateError
+
+Pair = Tuple[str, str]
+#: At most this many points per trajectory (a trajectory from the ROS graph is untrusted).
+MAX_POINTS = 100_000
+
+
+class TrajectoryPoint(NamedTuple):
+    """One point: ``time_from_start`` (s), positions (one per joint name), and optionally
+    velocities and accelerations (empty, or one per joint name)."""
+
+    time_from_start: float
+    positions: Sequence[float]
+    velocities: Sequence[float] = ()
+    accelerations: Sequence[float] = ()
+
+
+class TrajectoryResult(NamedTuple):
+    """The answer of :func:`check_trajectory`.
+
+    :ivar valid: True iff the trajectory is well formed, within the joint limits all along
+        and free of contact all along.
+    :ivar first_invalid_segment: the first segment not free of contact or leaving the limits
+        (0: start -> point 0; i: point i - 1 -> point i); ``None`` when valid or malformed.
+    :ivar time_from_start: the trajectory time (s) of the first contact or limit violation;
+        ``None`` when there is none.
+    :ivar colliding_pairs: the pairs in contact there (sorted ``(a, b)``), ``()`` if none.
+    :ivar reason: why it is invalid, naming the joint, point or pair and the fix; ``''`` when
+        valid.
+    """
+
+    valid: bool
+    first_invalid_segment: Optional[int]
+    time_from_start: Optional[float]
+    colliding_pairs: Tuple[Pair, ...]
+    reason: str
+
+
+class TrajectoryError(JointStateError):
+    """A trajectory that is malformed: it names the point or joint and the fix."""
+
+
+def _fraction_of(start: float, duration: float, u: float) -> float:
+    return float(start + u * duration)
+
+
+def spline_coefficients(p0, v0, a0, p1, v1, a1, duration: float, kind: str) -> np.ndarray:
+    """Return ``(n, 6)`` coefficients of the controller's spline from (p0, v0, a0) to
+    (p1, v1, a1) over ``duration`` seconds, rescaled to t = time / duration in [0, 1]
+    (``kind``: ``linear``, ``cubic`` or ``quintic``; as ros2_controllers'
+    ``Trajectory::interpolate_between_points``). A zero duration is a straight jump."""
+    p0, v0, a0 = (np.asarray(x, dtype=np.float64) for x in (p0, v0, a0))
+    p1, v1, a1 = (np.asarray(x, dtype=np.float64) for x in (p1, v1, a1))
+    c = np.zeros((len(p0), 6))
+    c[:, 0] = p0
+    T = float(duration)
+    if kind == 'linear' or T == 0.0:
+        c[:, 1] = p1 - p0
+        return c
+    if kind == 'cubic':
+        c[:, 1] = v0 * T
+        c[:, 2] = -3.0 * p0 + 3.0 * p1 - 2.0 * v0 * T - v1 * T
+        c[:, 3] = 2.0 * p0 - 2.0 * p1 + v0 * T + v1 * T
+        return c
+    T2 = T * T
+    c[:, 1] = v0 * T
+    c[:, 2] = 0.5 * a0 * T2
+    c[:, 3] = (-20.0 * p0 + 20.0 * p1 - 3.0 * a0 * T2 + a1 * T2 - 12.0 * v0 * T
+               - 8.0 * v1 * T) / 2.0
+    c[:, 4] = (30.0 * p0 - 30.0 * p1 + 3.0 * a0 * T2 - 2.0 * a1 * T2 + 16.0 * v0 * T
+               + 14.0 * v1 * T) / 2.0
+    c[:, 5] = (-12.0 * p0 + 12.0 * p1 - a0 * T2 + a1 * T2 - 6.0 * v0 * T - 6.0 * v1 * T) / 2.0
+    return c
+
+
+def polynomial_extremes(c: np.ndarray) -> Tuple[float, float, float, float]:
+    """Return ``(lowest, t_lowest, highest, t_highest)`` of sum_k c[k] t^k on [0, 1]."""
+    candidates = [0.0, 1.0]
+    derivative = np.polynomial.polynomial.polyder(c)
+    if np.any(derivative != 0.0):
+        for root in np.polynomial.polynomial.polyroots(np.trim_zeros(derivative, 'b')):
+            if abs(root.imag) < 1e-12 and 0.0 < root.real < 1.0:
+                candidates.append(float(root.real))
+    values = np.polynomial.polynomial.polyval(candidates, c)
+    low, high = int(np.argmin(values)), int(np.argmax(values))
+    return float(values[low]), candidates[low], float(values[high]), candidates[high]
+
+
+def _numbers(values, what: str, count: int) -> np.ndarray:
+    try:
+        array = np.asarray(values, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise TrajectoryError(f'{what}: not numbers') from None
+    if len(array) not in (0, count):
+        raise TrajectoryError(f'{what}: {len(array)} values for {count} joint names; give one '
+                              'per joint name (or none)')
+    if not np.all(np.isfinite(array)):
+        raise TrajectoryError(f'{what}: {array.tolist()} holds NaN or inf; send finite values')
+    return array
+
+
+def build_segments(checker, joint_names: Sequence[str], points: Sequence[TrajectoryPoint],
+                   start: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """Return the controller's path: ``coef (S, J, 6)`` (``J``: the checker's variables; one
+    segment per point, see the module) and ``times (S + 1,)``, the segments' start and end
+    times (s).
+
+    :raises TrajectoryError: on a malformed trajectory, naming the point or joint and the fix.
+    """
+    names = list(joint_names)
+    if not points:
+        raise TrajectoryError('the trajectory has no points; send at least one')
+    if len(points) > MAX_POINTS:
+        raise TrajectoryError(f'the trajectory has {len(points)} points, more than '
+                              f'{MAX_POINTS}; split it')
+    if not names:
+        raise TrajectoryError('the trajectory names no joints')
+    if len(set(names)) != len(names):
+        twice = sorted({n for n in names if names.count(n) > 1})
+        raise TrajectoryError(f'joint name(s) {", ".join(twice)} given twice; name each once')
+    index = checker._joint_index
+    unknown = [n for n in names if n not in index]
+    if unknown:
+        mimic = [n for n in unknown if n in checker._derived_joints]
+        why = (f' ({", ".join(mimic)}: mimic joints follow their source; leave them out)'
+               if mimic else '')
+        raise TrajectoryError(
+            f'unknown joint name(s) {", ".join(map(str, unknown))}{why}; the robot\'s joints '
+            f'are {", ".join(checker.joint_names)}')
+    columns = [index[n] for n in names]
+    J, K = len(checker.joint_names), len(names)
+    times = [0.0]
+    states = []
+    for i, point in enumerate(points):
+        where = f'point {i}'
+        t = float(point.time_from_start)
+        if not math.isfinite(t) or t < 0.0:
+            raise TrajectoryError(f'{where}: time_from_start {t} is not a finite time >= 0')
+        if i > 0 and not t > times[-1]:
+            raise TrajectoryError(
+                f'{where}: time_from_start {t} s does not increase (point {i - 1} is at '
+                f'{times[-1]} s); make time_from_start strictly increasing')
+        positions = _numbers(point.positions, f'{where} positions', K)
+        if len(positions) == 0:
+            raise TrajectoryError(f'{where}: no positions; every point needs positions '
+                                  '(velocity-only points are not checked)')
+        velocities = _numbers(point.velocities, f'{where} velocities', K)
+        accelerations = _numbers(point.accelerations, f'{where} accelerations', K)
+        if len(accelerations) and not len(velocities):
+            raise TrajectoryError(f'{where}: accelerations without velocities (the controller '
+                                  'then has no spline); give velocities too, or neither')
+        times.append(t)
+        states.append((positions, velocities, accelerations))
+    coef = np.zeros((len(points), J, 6))
+    current = np.asarray(start, dtype=np.float64).copy()
+    previous = current[columns]
+    kinds = checker._motion_kinds
+    wrap = np.array([kinds[j] == engine.MOTION_WRAP for j in columns])  # continuous joints
+    first = states[0][0]
+    # The controller's wrap-around: a continuous joint starts from the value nearest the
+    # first point.
+    shortest = np.remainder(first - previous + math.pi, 2.0 * math.pi) - math.pi
+    previous = np.where(wrap, first - shortest, previous)
+    prev_v = np.zeros(K)
+    prev_a = np.zeros(K)
+    prev_has_v = len(states[0][1]) > 0   # the start takes what the first point has, as 0
+    prev_has_a = len(states[0][2]) > 0
+    for i, (positions, velocities, accelerations) in enumerate(states):
+        has_v = prev_has_v and len(velocities) > 0
+        has_a = has_v and prev_has_a and len(accelerations) > 0
+        kind = 'quintic' if has_a else 'cubic' if has_v else 'linear'
+        v1 = velocities if len(velocities) else np.zeros(K)
+        a1 = accelerations if len(accelerations) else np.zeros(K)
+        coef[i, :, 0] = current
+        coef[i, columns] = spline_coefficients(previous, prev_v, prev_a, positions, v1, a1,
+                                               times[i + 1] - times[i], kind)
+        current[columns] = positions
+        previous, prev_v, prev_a = positions, v1, a1
+        prev_has_v, prev_has_a = len(velocities) > 0, len(accelerations) > 0
+    return coef, np.asarray(times)
+
+
+def check_trajectory(checker, joint_names: Sequence[str], points: Sequence[TrajectoryPoint],
+                     start=None, limit_tolerance: float = 0.0) -> TrajectoryResult:
+    """Check a planned trajectory along the path the controller will follow (see the module).
+
+    :param joint_names: the trajectory's joints (a subset of ``checker.joint_names``).
+    :param points: its points, :class:`TrajectoryPoint` (or 4-tuples alike).
+    :param start: the state it starts from, as ``positions`` of ``checker.check`` (default:
+        the checker's current positions); joints not named keep these values.
+    :param limit_tolerance: rad or m beyond a joint limit still accepted.
+    :return: a :class:`TrajectoryResult`; a malformed trajectory is invalid with its reason
+        (no exception). Nothing in the checker changes.
+    """
+    points = [TrajectoryPoint(*p) if not isinstance(p, TrajectoryPoint) else p for p in points]
+    try:
+        q_start = checker._merged(checker.positions if start is None else start)
+        coef, times = build_segments(checker, joint_names, points, q_start)
+    except JointStateError as error:
+        return TrajectoryResult(False, None, None, (), str(error))
+    # The limits along the way: each named joint's extremes on each segment.
+    for i in range(len(points)):
+        for name in joint_names:
+            j = checker._joint_index[name]
+            lower, upper = checker.joint_limits[name]
+            if not (math.isfinite(lower) or math.isfinite(upper)):
+                continue
+            low, t_low, high, t_high = polynomial_extremes(coef[i, j])
+            for value, u, bad in ((low, t_low, low < lower - limit_tolerance),
+                                  (high, t_high, high > upper + limit_tolerance)):
+                if bad:
+                    at = _fraction_of(times[i], times[i + 1] - times[i], u)
+                    where = ('from the start to point 0' if i == 0
+                             else f'between points {i - 1} and {i}')
+                    return TrajectoryResult(
+                        False, i, at, (),
+                        f'joint "{name}" reaches {value:.6g} at time_from_start {at:.6g} s '
+                        f'({where}), beyond its limits [{lower:.6g}, {upper:.6g}] (tolerance '
+                        f'{limit_tolerance:g}); slow the trajectory down or move the point '
+                        'away from the limit')
+    path = checker.check_spline(coef)
+    if path.first_invalid_segment is None:
+        return TrajectoryResult(True, None, None, (), '')
+    i = path.first_invalid_segment
+    motion: MotionResult = path.motion
+    at = _fraction_of(times[i], times[i + 1] - times[i], motion.first_contact)
+    pairs = motion.colliding_pairs
+    names = ', '.join(f'{a} -- {b}' for a, b in pairs)
+    where = 'from the start to point 0' if i == 0 else f'between points {i - 1} and {i}'
+    return TrajectoryResult(False, i, at, pairs,
+                            f'contact at time_from_start {at:.6g} s ({where}): {names}')
