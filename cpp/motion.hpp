@@ -453,8 +453,10 @@ inline WithinResult trees_within(int64_t n_seeds, const double* P, const Forest&
                     double xa[3], yb[3];
                     const double distance =
                         triangle_distance(triangle_at(f.tris, ia), Q, xa, yb) - pad;
+                    // Apart over this half-width by the zeroth-order bound (within when
+                    // nothing moves and the triangles are within extra).
                     double got = rate > 0.0 ? std::min((distance - extra) / rate, motion.h2)
-                                            : motion.h2;
+                                            : (distance > extra ? motion.h2 : -1.0);
                     if (!(distance > r) && distance > extra) {
                         // Along the nearest points' direction the triangles are distance
                         // apart (each lies behind its nearest point's plane).

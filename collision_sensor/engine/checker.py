@@ -1190,8 +1190,13 @@ class CollisionChecker:
         :param q_to: the end, the same way.
         :raises JointStateError: as :meth:`check`, naming the end at fault; nothing changes.
         """
-        q0 = self._merged(q_from)
-        q1 = self._merged(q_to)
+        ends = []
+        for end, positions in (('q_from', q_from), ('q_to', q_to)):
+            try:
+                ends.append(self._merged(positions))
+            except JointStateError as error:
+                raise JointStateError(f'{end}: {error}') from None
+        q0, q1 = ends
         pairs = np.zeros(len(self.checked_pairs), dtype=np.uint8)
         code, t = self._engine.motion(q0, q1, pairs)
         if code < 0:

@@ -1,0 +1,575 @@
+"""Certified motion checks against dense sampling confirmed by python-fcl.
+
+The oracle: states along the motion at steps of at most 1e-3 rad (or m) of any variable,
+interpolated by :func:`collision_sensor.engine.motion.interpolate` (MoveIt's rules) and checked
+with ``check_batch``; the first sampled state in contact is confirmed by python-fcl on the
+same triangles placed by pinocchio (``FclOracle``). A reported first contact is confirmed by
+python-fcl too: some reported pair's distance there is within the touching tolerance.
+"""
+import math
+import textwrap
+
+import numpy as np
+import pytest
+
+from collision_sensor import CollisionChecker
+from collision_sensor.engine.dynamic_scene import AddObject
+from collision_sensor.engine.motion import TOUCH_TOLERANCE, interpolate
+from collision_sensor.engine.sampling import random_configurations
+from collision_sensor.engine.trajectory import TrajectoryPoint, spline_coefficients
+from collision_sensor.errors import JointStateError
+from collision_sensor.model.scene import load_scene
+from engine_oracles import FclOracle, body_triangles
+from small_robot import SMALL_ROBOT, SMALL_SCENE
+
+SAMPLE_STEP = 1e-3   # rad or m, the oracle's resolution
+#: fcl's distances and our contact rule agree to this (the triangle test's own tolerance is
+#: 1e-12 relative; fcl's GJK-free triangle distance is exact to rounding).
+FCL_SLACK = 1e-9
+
+
+def cluttered_scene(rng, n=12, around=(0.3, 0.0, 0.4), spread=0.5):
+    """n boxes, rods and balls around a point, none on the robot's base (within 0.25 m of the
+    vertical axis below 0.4 m): a base in contact would make every state a contact."""
+    objects = []
+    while len(objects) < n:
+        i = len(objects)
+        xyz = [float(c + rng.uniform(-spread, spread)) for c in around]
+        if np.hypot(xyz[0], xyz[1]) < 0.25 and xyz[2] < 0.4:
+            continue
+        pose = {'xyz': xyz, 'rpy': [float(x) for x in rng.uniform(-3, 3, 3)]}
+        kind = i % 3
+        if kind == 0:
+            shape = {'box': {'size': [float(x) for x in rng.uniform(0.002, 0.15, 3)]}}
+        elif kind == 1:
+            shape = {'cylinder': {'radius': float(rng.uniform(0.002, 0.05)),
+                                  'length': float(rng.uniform(0.05, 0.4))}}
+        else:
+            shape = {'sphere': {'radius': float(rng.uniform(0.01, 0.08))}}
+        objects.append({'name': f'o{i}', 'pose': pose, **shape})
+    return {'objects': objects}
+
+
+def _steps(checker, q0, q1):
+    """How many samples keep every variable's step at most SAMPLE_STEP (rotation angles of
+    floating joints count as their angle)."""
+    kinds = checker._motion_kinds
+    Q = interpolate(kinds, q0, q1, np.array([0.0, 1.0]))
+    delta = np.abs(Q[1] - Q[0])
+    for j in np.flatnonzero(kinds == 2):   # a quaternion: its rotation angle
+        a = Q[0, j:j + 4] / np.linalg.norm(Q[0, j:j + 4])
+        b = Q[1, j:j + 4] / np.linalg.norm(Q[1, j:j + 4])
+        delta[j:j + 4] = 2.0 * math.acos(min(abs(float(a @ b)), 1.0))
+    return max(2, int(math.ceil(delta.max() / SAMPLE_STEP)) + 1)
+
+
+def sampled_first_contact(checker, q0, q1):
+    """(t, colliding pairs) of the first sampled state in contact, or (None, ())."""
+    T = np.linspace(0.0, 1.0, _steps(checker, q0, q1))
+    Q = interpolate(checker._motion_kinds, q0, q1, T)
+    statuses = checker.check_batch(Q)
+    hits = np.flatnonzero(statuses.any(axis=1))
+    if not len(hits):
+        return None, (), None
+    i = hits[0]
+    pairs = tuple(checker.checked_pairs[p] for p in np.flatnonzero(statuses[i]))
+    return float(T[i]), pairs, Q[i]
+
+
+def fcl_contacts(checker, oracle, q):
+    """The checked pairs python-fcl finds in contact at q (padded: within the two paddings)."""
+    padding = checker.paddings
+    if not any(padding.values()):
+        return oracle.colliding_pairs(q)
+    poses = oracle.poses(q)
+    return tuple((a, b) for a, b in checker.checked_pairs
+                 if oracle.contains(poses, a, b) or oracle.pair_distance(poses, a, b)
+                 <= padding.get(a, 0.0) + padding.get(b, 0.0) + FCL_SLACK)
+
+
+def assert_motion_against_oracle(checker, oracle, q0, q1, result):
+    """The contract of check_motion, against sampling and python-fcl; returns whether the
+    motion has a contact."""
+    t_sampled, pairs, q_sampled = sampled_first_contact(checker, q0, q1)
+    if t_sampled is not None:
+        assert result.in_collision, ('missed', list(q0), list(q1), t_sampled, pairs)
+        assert result.first_contact <= t_sampled + 1e-12, (result, t_sampled)
+        # python-fcl confirms the sampled contact (poses by pinocchio).
+        assert set(fcl_contacts(checker, oracle, q_sampled)) == set(pairs)
+    if not result.in_collision:
+        assert result.first_contact is None and result.colliding_pairs == ()
+        return False
+    assert 0.0 <= result.first_contact <= 1.0 and result.colliding_pairs
+    assert list(result.colliding_pairs) == sorted(result.colliding_pairs)
+    q = interpolate(checker._motion_kinds, q0, q1, [result.first_contact])[0]
+    poses = oracle.poses(q)
+    padding = checker.paddings
+    nearest = min(oracle.pair_distance(poses, a, b) - padding.get(a, 0.0) - padding.get(b, 0.0)
+                  if not oracle.contains(poses, a, b) else 0.0
+                  for a, b in result.colliding_pairs)
+    assert nearest <= TOUCH_TOLERANCE + FCL_SLACK, (result, nearest)
+    return True
+
+
+@pytest.fixture(scope='module')
+def panda_cell(panda_urdf, panda_srdf, erd_package_paths):
+    rng = np.random.default_rng(7)
+    scene = cluttered_scene(rng)
+    checker = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                         package_paths=erd_package_paths, scene=scene)
+    return checker, FclOracle(checker, panda_urdf)
+
+
+@pytest.fixture(scope='module')
+def ur5_cell(ur5_urdf, ur5_srdf, erd_package_paths):
+    rng = np.random.default_rng(8)
+    scene = cluttered_scene(rng, around=(0.3, 0.0, 0.3))
+    checker = CollisionChecker.from_urdf(ur5_urdf, srdf=ur5_srdf,
+                                         package_paths=erd_package_paths, scene=scene)
+    return checker, FclOracle(checker, ur5_urdf)
+
+
+def random_segments(checker, n, seed, shortest=0.2, longest=2.0):
+    """n motions from clear states, 0.2 to 2 rad long (Euclidean), within the limits."""
+    rng = np.random.default_rng(seed)
+    lower = np.maximum(checker.kinematics.lower, -math.pi)
+    upper = np.minimum(checker.kinematics.upper, math.pi)
+    starts = random_configurations(checker, 20 * n, seed=seed)
+    segments = []
+    for q0 in starts:
+        if len(segments) == n:
+            break
+        if checker.check(q0).in_collision:
+            continue
+        d = rng.normal(size=len(q0))
+        d *= rng.uniform(shortest, longest) / np.linalg.norm(d)
+        segments.append((q0, np.clip(q0 + d, lower, upper)))
+    return segments
+
+
+@pytest.mark.parametrize('cell', ['panda_cell', 'ur5_cell'])
+def test_check_motion_never_misses_a_contact_and_never_reports_one_too_early(cell, request):
+    checker, oracle = request.getfixturevalue(cell)
+    contacts = 0
+    for q0, q1 in random_segments(checker, 40, seed=3):
+        result = checker.check_motion(q0, q1)
+        contacts += assert_motion_against_oracle(checker, oracle, q0, q1, result)
+    assert 5 <= contacts <= 35   # the cell is cluttered, not full: both answers tested
+
+
+def _elbow_sweep(panda_urdf, panda_srdf, erd_package_paths, obstacle):
+    """The issue's motion: joint 4 from -2.6 to -0.8 rad with both ends clear, an obstacle
+    across the hand's path two thirds of the way (its normal along the hand's motion)."""
+    probe = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                       package_paths=erd_package_paths)
+    names = probe.joint_names
+    q0 = np.zeros(len(names))
+    q0[names.index('panda_joint2')] = 0.3
+    q0[names.index('panda_joint4')] = -2.6
+    q1 = q0.copy()
+    q1[names.index('panda_joint4')] = -0.8
+    q_mid, q_next = interpolate(probe._motion_kinds, q0, q1, [2 / 3, 2 / 3 + 1e-3])
+
+    def fingertips(q):  # between the fingertips: nothing else sweeps so far from the elbow
+        probe.check(q)
+        T = probe.link_poses()['panda_hand']
+        return T[:3, 3] + T[:3, :3] @ np.array([0.0, 0.0, 0.1])
+
+    p = fingertips(q_mid)
+    v = fingertips(q_next) - p
+    z = v / np.linalg.norm(v)
+    x = np.cross(z, [0.0, 0.0, 1.0])
+    x /= np.linalg.norm(x)
+    R = np.column_stack([x, np.cross(z, x), z])
+    rpy = [math.atan2(R[2, 1], R[2, 2]), -math.asin(R[2, 0]), math.atan2(R[1, 0], R[0, 0])]
+    scene = {'objects': [dict(obstacle, name='thin', pose={'xyz': p.tolist(), 'rpy': rpy})]}
+    checker = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                         package_paths=erd_package_paths, scene=scene)
+    return checker, q0, q1
+
+
+@pytest.mark.parametrize('obstacle', [
+    {'box': {'size': [0.04, 0.04, 0.001]}},              # a 1 mm plate across the path
+    {'cylinder': {'radius': 0.001, 'length': 0.04}},     # a 2 mm rod, along the plate's normal
+])
+def test_thin_obstacles_crossed_by_a_fast_motion_are_caught(panda_urdf, panda_srdf,
+                                                           erd_package_paths, obstacle):
+    checker, q0, q1 = _elbow_sweep(panda_urdf, panda_srdf, erd_package_paths, obstacle)
+    assert not checker.check(q0).in_collision and not checker.check(q1).in_collision
+    assert not checker.update(q0).in_collision and not checker.update(q1).in_collision
+    result = checker.check_motion(q0, q1)
+    assert result.in_collision and any('thin' in pair for pair in result.colliding_pairs)
+    oracle = FclOracle(checker, panda_urdf)
+    assert_motion_against_oracle(checker, oracle, q0, q1, result)
+    checker.update(q0)
+    assert checker.update_motion(q1).in_collision
+
+
+def test_check_motion_leaves_the_carried_state_as_it_was(panda_cell):
+    checker, _ = panda_cell
+    q0, q1 = random_segments(checker, 1, seed=5)[0]
+    before = checker.update(q0)
+    positions = checker.positions
+    checker.check_motion(q1, q0)
+    checker.check_motion(q0, q1)
+    assert checker.positions == positions
+    assert checker.update(q0) == before._replace(rechecked_pairs=0)
+
+
+@pytest.mark.parametrize('cell', ['panda_cell', 'ur5_cell'])
+def test_update_motion_is_check_motion_then_update(cell, request):
+    """On a walk of small steps and jumps: update_motion answers as check_motion from the
+    last state, and leaves the statuses check gives."""
+    checker, _ = request.getfixturevalue(cell)
+    scratch = CollisionChecker(checker.model, scene=checker.scene_objects,
+                               config={'allowed_collisions': [
+                                   f'{a}:{b}' for a, b in _excluded(checker)]})
+    rng = np.random.default_rng(17)
+    lower = np.maximum(checker.kinematics.lower, -math.pi)
+    upper = np.minimum(checker.kinematics.upper, math.pi)
+    q = random_segments(checker, 1, seed=9)[0][0]
+    checker.check(q)
+    contacts = 0
+    for step in range(400):
+        scale = 0.3 if rng.random() < 0.05 else 0.004
+        q_next = np.clip(q + rng.normal(size=len(q)) * scale, lower, upper)
+        moved = checker.update_motion(q_next)
+        expected = scratch.check_motion(q, q_next)
+        assert moved.in_collision == expected.in_collision, (step, moved, expected)
+        if moved.in_collision:
+            contacts += 1
+            assert abs(moved.first_contact - expected.first_contact) < 1e-6 or (
+                moved.first_contact == 0.0 == expected.first_contact)
+        assert checker.update(q_next).colliding_pairs == scratch.check(q_next).colliding_pairs
+        q = q_next
+    assert contacts > 10
+
+
+def _excluded(checker):
+    """The pairs the checker never checks, for a scratch checker built on the same model."""
+    bodies = list(checker.link_names) + list(checker.scene_object_names)
+    checked = set(checker.checked_pairs)
+    return [(a, b) for i, a in enumerate(bodies) for b in bodies[i + 1:]
+            if tuple(sorted((a, b))) not in checked]
+
+
+def test_before_any_state_update_motion_is_the_instant(panda_cell):
+    checker, _ = panda_cell
+    fresh = CollisionChecker(checker.model, scene=checker.scene_objects,
+                             config={'allowed_collisions': [
+                                 f'{a}:{b}' for a, b in _excluded(checker)]})
+    q = random_segments(checker, 1, seed=11)[0][1]
+    result = fresh.update_motion(q)
+    instant = checker.check(q)
+    assert result.in_collision == instant.in_collision
+    assert result.colliding_pairs == instant.colliding_pairs
+
+
+def _small_on_a_base(kind):
+    srdf = (f'<robot name="small"><virtual_joint name="base_joint" type="{kind}" '
+            'parent_frame="odom" child_link="base"/></robot>')
+    return CollisionChecker.from_urdf(SMALL_ROBOT, srdf=srdf, scene=SMALL_SCENE,
+                                      config={'primitive_sections': 10})
+
+
+@pytest.mark.parametrize('kind', ['floating', 'planar'])
+def test_a_moving_base_interpolates_as_moveit_and_is_certified(kind, tmp_path):
+    """Translation linear, rotation along the shorter arc (slerp; planar theta the shorter
+    way round), the continuous elbow the shorter way: against sampling and python-fcl with
+    pinocchio's own root joint."""
+    checker = _small_on_a_base(kind)
+    urdf = tmp_path / 'small.urdf'
+    urdf.write_text(SMALL_ROBOT)
+    oracle = FclOracle(checker, str(urdf))
+    rng = np.random.default_rng(31)
+    names = checker.joint_names
+    contacts = free = 0
+    for _ in range(30):
+        q0, q1 = checker.kinematics.neutral(), checker.kinematics.neutral()
+        for q in (q0, q1):
+            for j, name in enumerate(names):
+                if name.endswith(('/x', '/y', '/trans_x', '/trans_y')):
+                    q[j] = rng.uniform(-0.4, 0.4)
+                elif name.endswith('/trans_z'):
+                    q[j] = rng.uniform(-0.1, 0.2)
+                elif name.endswith('/theta'):
+                    q[j] = rng.uniform(-4, 4)
+                elif '/rot_' not in name:
+                    low, high = checker.joint_limits[name]
+                    q[j] = rng.uniform(max(low, -3.0), min(high, 3.0))
+            if kind == 'floating':
+                rot = [j for j, n in enumerate(names) if '/rot_' in n]
+                q[rot] = rng.normal(size=4) * [0.2, 0.2, 1.0, 1.0]
+        if checker.check(q0).in_collision:
+            continue
+        result = checker.check_motion(q0, q1)
+        if assert_motion_against_oracle(checker, oracle, q0, q1, result):
+            contacts += 1
+        else:
+            free += 1
+    assert contacts >= 3 and free >= 1
+
+
+#: A turntable (continuous about z) carrying an arm out along x, a post beside it at angle 0.
+TURNTABLE = textwrap.dedent('''\
+    <robot name="turntable">
+      <link name="base"><collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision>
+      </link>
+      <link name="arm"><collision><origin xyz="0.3 0 0.2"/>
+        <geometry><box size="0.5 0.04 0.04"/></geometry></collision></link>
+      <joint name="turn" type="continuous"><parent link="base"/><child link="arm"/>
+        <axis xyz="0 0 1"/></joint>
+    </robot>
+    ''')
+POST = {'objects': [{'name': 'post', 'cylinder': {'radius': 0.02, 'length': 1.0},
+                     'pose': {'xyz': [0.4, 0.0, 0.5]}}]}
+
+
+def test_a_continuous_joint_goes_the_shorter_way_round():
+    """From 2.9 to -2.9 rad the arm turns 0.48 rad through pi, not 5.8 rad through 0, where
+    the post would stop it."""
+    checker = CollisionChecker.from_urdf(TURNTABLE, scene=POST)
+    assert not checker.check({'turn': 2.9}).in_collision
+    assert not checker.check({'turn': -2.9}).in_collision
+    assert checker.check({'turn': 0.0}).in_collision   # the long way hits
+    assert not checker.check_motion({'turn': 2.9}, {'turn': -2.9}).in_collision
+    assert checker.check_motion({'turn': 1.5}, {'turn': -1.5}).in_collision   # through 0
+    # The same pose given a turn apart is no motion at all.
+    assert not checker.check_motion({'turn': 2.9}, {'turn': 2.9 - 4 * math.pi}).in_collision
+
+
+def test_padding_and_attached_objects_count_as_in_check(panda_urdf, panda_srdf,
+                                                        erd_package_paths):
+    config = {'link_padding': {'panda_link4': 0.003, 'panda_hand': 0.004}}
+    checker, q0, q1 = _elbow_sweep(panda_urdf, panda_srdf, erd_package_paths,
+                                   {'box': {'size': [0.04, 0.04, 0.001]}})
+    padded = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                        package_paths=erd_package_paths, config=config)
+    padded.add_object(next(o for o in checker.scene_objects if o.name == 'thin'))
+    assert padded.paddings['panda_hand'] == 0.004
+    assert not padded.check(q0).in_collision
+    oracle = FclOracle(padded, panda_urdf)
+    result = padded.check_motion(q0, q1)
+    assert_motion_against_oracle(padded, oracle, q0, q1, result)
+    unpadded = checker.check_motion(q0, q1)
+    assert result.in_collision and result.first_contact < unpadded.first_contact
+    # An object in the hand sweeps with it (attached: never against its link).
+    carried = load_scene({'objects': [{'name': 'crate', 'box': {'size': [0.04, 0.04, 0.04]},
+                                       'pose': {'xyz': [0.0, 0.0, 0.15]}}]})[0]
+    clear = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                       package_paths=erd_package_paths)
+    clear.add_object(carried, attach_to='panda_hand', touch_links=('panda_leftfinger',
+                                                                    'panda_rightfinger'))
+    names = clear.joint_names
+    a = np.zeros(len(names))
+    a[names.index('panda_joint4')] = -2.0
+    a[names.index('panda_joint6')] = 1.5
+    b = a.copy()
+    b[names.index('panda_joint2')] = 0.9
+    # A ball where the crate (not the hand) passes half way.
+    clear.check(interpolate(clear._motion_kinds, a, b, [0.5])[0])
+    T = clear.link_poses()['crate']
+    ball = load_scene({'objects': [{'name': 'ball', 'sphere': {'radius': 0.01},
+                                    'pose': {'xyz': (T[:3, 3] + T[:3, :3] @ [0.0, 0.0, 0.03])
+                                             .tolist()}}]})[0]
+    clear.add_object(ball)
+    times = np.linspace(0, 1, 2001)
+    statuses = clear.check_batch(interpolate(clear._motion_kinds, a, b, times))
+    first = np.flatnonzero(statuses.any(axis=1))[0]
+    assert [clear.checked_pairs[p] for p in np.flatnonzero(statuses[first])] == [('ball',
+                                                                                   'crate')]
+    motion = clear.check_motion(a, b)
+    assert motion.in_collision and motion.colliding_pairs == (('ball', 'crate'),)
+    assert motion.first_contact <= times[first]
+
+
+def test_check_path_reports_the_first_segment_not_free(panda_cell):
+    checker, _ = panda_cell
+    segments = random_segments(checker, 60, seed=13)
+    free = [s for s in segments if not checker.check_motion(*s).in_collision]
+    hit = next(s for s in segments if checker.check_motion(*s).in_collision)
+    # A path: free motions chained by straight links, then one that is not free.
+    waypoints = [free[0][0], free[0][1], free[1][0], free[1][1], hit[0], hit[1]]
+    result = checker.check_path(np.array(waypoints))
+    expected = next(i for i in range(len(waypoints) - 1)
+                    if checker.check_motion(waypoints[i], waypoints[i + 1]).in_collision)
+    assert result.first_invalid_segment == expected and result.in_collision
+    assert result.motion == checker.check_motion(waypoints[expected], waypoints[expected + 1])
+    assert checker.check_path(np.array(waypoints[:2])).first_invalid_segment is None
+    # A single waypoint: its instant.
+    _, _, in_contact = sampled_first_contact(checker, *hit)
+    assert checker.check_path(in_contact[None]).first_invalid_segment == 0
+    assert checker.check_path(np.array([hit[0]])).first_invalid_segment is None
+
+
+def test_bad_input_names_the_culprit_and_changes_nothing(panda_cell):
+    checker, _ = panda_cell
+    q0, q1 = random_segments(checker, 1, seed=19)[0]
+    checker.update(q0)
+    positions = checker.positions
+    bad = q1.copy()
+    bad[2] = math.nan
+    with pytest.raises(JointStateError, match='q_to: joint "panda_joint3"'):
+        checker.check_motion(q0, bad)
+    with pytest.raises(JointStateError, match='q_from'):
+        checker.check_motion({'panda_joint1': math.inf}, q1)
+    with pytest.raises(JointStateError, match='unknown joint'):
+        checker.check_motion(q0, {'nope': 1.0})
+    with pytest.raises(JointStateError, match='panda_joint3'):
+        checker.update_motion(bad)
+    with pytest.raises(JointStateError, match='configuration 1'):
+        checker.check_path(np.array([q0, bad]))
+    with pytest.raises(JointStateError, match='shape'):
+        checker.check_path(np.zeros((3, 2)))
+    assert checker.positions == positions
+
+
+# ---------------------------------------------------------------- splines and trajectories
+
+def jtc_sample(t, t0, s0, t1, s1):
+    """ros2_controllers' Trajectory::interpolate_between_points at time t, restated: state
+    s = (positions, velocities or None, accelerations or None) at times t0 < t1."""
+    p0, v0, a0 = s0
+    p1, v1, a1 = s1
+    T, x = t1 - t0, t - t0
+    if v0 is None or v1 is None:
+        return p0 + (p1 - p0) / T * x
+    if a0 is None or a1 is None:
+        c2 = (-3 * p0 + 3 * p1 - 2 * v0 * T - v1 * T) / T ** 2
+        c3 = (2 * p0 - 2 * p1 + v0 * T + v1 * T) / T ** 3
+        return p0 + v0 * x + c2 * x ** 2 + c3 * x ** 3
+    c3 = (-20 * p0 + 20 * p1 - 3 * a0 * T ** 2 + a1 * T ** 2 - 12 * v0 * T - 8 * v1 * T) / (
+        2 * T ** 3)
+    c4 = (30 * p0 - 30 * p1 + 3 * a0 * T ** 2 - 2 * a1 * T ** 2 + 16 * v0 * T
+          + 14 * v1 * T) / (2 * T ** 4)
+    c5 = (-12 * p0 + 12 * p1 - a0 * T ** 2 + a1 * T ** 2 - 6 * v0 * T - 6 * v1 * T) / (
+        2 * T ** 5)
+    return (p0 + v0 * x + 0.5 * a0 * x ** 2 + c3 * x ** 3 + c4 * x ** 4 + c5 * x ** 5)
+
+
+@pytest.mark.parametrize('kind', ['linear', 'cubic', 'quintic'])
+def test_spline_coefficients_are_the_controllers(kind):
+    rng = np.random.default_rng(len(kind))
+    p0, v0, a0, p1, v1, a1 = (rng.normal(size=5) for _ in range(6))
+    T = 1.7
+    c = spline_coefficients(p0, v0, a0, p1, v1, a1, T, kind)
+    s0 = (p0, None if kind == 'linear' else v0, a0 if kind == 'quintic' else None)
+    s1 = (p1, None if kind == 'linear' else v1, a1 if kind == 'quintic' else None)
+    for x in np.linspace(0, T, 17):
+        ours = np.polynomial.polynomial.polyval(x / T, c.T)
+        assert np.allclose(ours, jtc_sample(x, 0.0, s0, T, s1), atol=1e-12)
+
+
+def test_check_spline_against_dense_sampling(panda_cell):
+    checker, oracle = panda_cell
+    rng = np.random.default_rng(41)
+    J = len(checker.joint_names)
+    contacts = 0
+    for i, (q0, q1) in enumerate(random_segments(checker, 30, seed=43)):
+        kind = ('linear', 'cubic', 'quintic')[i % 3]
+        coef = spline_coefficients(q0, rng.normal(size=J), rng.normal(size=J), q1,
+                                   rng.normal(size=J), rng.normal(size=J), 1.0, kind)
+        result = checker.check_spline(coef[None])
+        T = np.linspace(0.0, 1.0, 4001)
+        Q = np.polynomial.polynomial.polyval(T, coef.T).T
+        statuses = checker.check_batch(Q)
+        hits = np.flatnonzero(statuses.any(axis=1))
+        if len(hits):
+            assert result.first_invalid_segment == 0
+            assert result.motion.first_contact <= T[hits[0]] + 1e-12
+        if result.in_collision:
+            contacts += 1
+            q = np.polynomial.polynomial.polyval(result.motion.first_contact, coef.T)
+            poses = oracle.poses(q)
+            nearest = min(oracle.pair_distance(poses, a, b) if not oracle.contains(poses, a, b)
+                          else 0.0 for a, b in result.motion.colliding_pairs)
+            assert nearest <= TOUCH_TOLERANCE + FCL_SLACK
+        if kind == 'linear':
+            assert result.motion == checker.check_motion(q0, q1)
+    assert contacts >= 3
+
+
+def test_trajectories_follow_the_controller_and_say_why_they_are_refused(panda_urdf,
+                                                                        panda_srdf,
+                                                                        erd_package_paths):
+    names = [f'panda_joint{i}' for i in range(1, 8)]
+    start = dict(zip(names, [0.0, -0.5, 0.0, -2.2, 0.0, 1.8, 0.8]))
+    stop = dict(start, panda_joint2=0.0)
+    probe = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                       package_paths=erd_package_paths)
+    stopped = [TrajectoryPoint(1.0, [stop[n] for n in names]),
+               TrajectoryPoint(2.0, [stop[n] for n in names])]
+    # The same points with the arm still turning at the first: the controller's cubic from
+    # there to the stop overshoots (joint 1 by 4/27 of the velocity, a third of the way).
+    moving = [stopped[0]._replace(velocities=[2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+              stopped[1]._replace(velocities=[0.0] * 7)]
+    s0 = (np.array([stop[n] for n in names]), np.array(moving[0].velocities), None)
+    s1 = (np.array([stop[n] for n in names]), np.zeros(7), None)
+
+    def front(q):  # how far to the side (+y) the robot's geometry reaches at q
+        probe.check(q)
+        return max(float(np.max(body_triangles(probe, link)[..., 1]))
+                   for link in probe.link_names)
+
+    peak = dict(start, **dict(zip(names, jtc_sample(1.0 + 1 / 3, 1.0, s0, 2.0, s1))))
+    x_stop, x_peak = front(stop), front(peak)
+    assert x_peak > x_stop + 0.03
+    # A wall between the two: clear of the robot at rest, in the way of the overshoot.
+    wall = {'objects': [{'name': 'wall', 'box': {'size': [2.0, 0.004, 2.0]},
+                         'pose': {'xyz': [0.0, 0.5 * (x_stop + x_peak) + 0.002, 0.5]}}]}
+    checker = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                         package_paths=erd_package_paths, scene=wall)
+    checker.update(start)
+    assert checker.check_trajectory(names, stopped).valid
+    result = checker.check_trajectory(names, moving)
+    assert not result.valid and result.first_invalid_segment == 1
+    assert any('wall' in pair for pair in result.colliding_pairs)
+    assert 1.0 < result.time_from_start < 2.0 and 'contact at time_from_start' in result.reason
+    # The oracle: the controller's own interpolation, sampled densely.
+    times = np.linspace(1.0, 2.0, 2001)
+    states = [dict(start, **dict(zip(names, jtc_sample(t, 1.0, s0, 2.0, s1)))) for t in times]
+    hits = [t for t, q in zip(times, states) if checker.check(q).in_collision]
+    assert hits and result.time_from_start <= hits[0] + 1e-9
+    checker.update(start)
+    # Limits along the way: the same overshoot takes joint 4 past its upper limit.
+    low, high = checker.joint_limits['panda_joint4']
+    near = dict(start, panda_joint4=high - 0.05)
+    swing = [TrajectoryPoint(1.0, [near[n] for n in names], [0.0, 0.0, 0.0, 1.5, 0.0, 0.0, 0.0]),
+             TrajectoryPoint(2.0, [near[n] for n in names], [0.0] * 7)]
+    result = checker.check_trajectory(names, swing)
+    assert not result.valid and 'panda_joint4' in result.reason and 'limits' in result.reason
+    assert result.first_invalid_segment == 1 and 1.0 < result.time_from_start < 2.0
+    assert checker.check_trajectory(names, swing, limit_tolerance=0.5).reason.startswith(
+        'contact') or checker.check_trajectory(names, swing, limit_tolerance=0.5).valid
+    # Malformed ones: each says what and how to fix.
+    for points, joints, message in [
+            ([], names, 'no points'),
+            (stopped, names + ['nope'], 'unknown joint name'),
+            (stopped, names[:-1] + [names[0]], 'given twice'),
+            ([TrajectoryPoint(1.0, [0.0] * 7), TrajectoryPoint(1.0, [0.0] * 7)], names,
+             'does not increase'),
+            ([TrajectoryPoint(1.0, [0.0] * 6)], names, '6 values for 7 joint names'),
+            ([TrajectoryPoint(1.0, [math.nan] + [0.0] * 6)], names, 'NaN'),
+            ([TrajectoryPoint(1.0, [0.0] * 7, (), [0.0] * 7)], names,
+             'accelerations without velocities')]:
+        result = checker.check_trajectory(joints, points)
+        assert not result.valid and message in result.reason, (message, result)
+    assert checker.positions == {**checker.positions, **start}
+
+
+def test_a_trajectory_starts_at_rest_and_takes_the_wrap_around():
+    """Segment 0 starts from the current state at rest and a continuous joint from the value
+    nearest the first point, as the controller does."""
+    checker = CollisionChecker.from_urdf(TURNTABLE, scene=POST)
+    checker.update({'turn': 2.9})
+    assert checker.check_trajectory(['turn'], [TrajectoryPoint(1.0, [-2.9])]).valid
+    # From there to 1.0 the controller turns through 0 (4.2 rad the other way round): the post.
+    result = checker.check_trajectory(['turn'], [TrajectoryPoint(1.0, [-2.9]),
+                                                 TrajectoryPoint(2.0, [1.0])])
+    assert not result.valid and result.first_invalid_segment == 1
+    from collision_sensor.engine.trajectory import build_segments
+    coef, times = build_segments(checker, ['turn'], [TrajectoryPoint(1.0, [-2.9])],
+                                 np.array([2.9]))
+    assert coef[0, 0, 0] == pytest.approx(-2.9 - (2 * math.pi - 5.8))
+    assert coef[0, 0, 0] + coef[0, 0, 1] == pytest.approx(-2.9)
+    assert list(times) == [0.0, 1.0]
