@@ -17,7 +17,11 @@ times of scenario 1. Peers are optional: a missing one is reported as missing.
    many pairs (example-robot-data robots of 50k triangles and more, against pinocchio+coal);
    8. proximity (distances and nearest points against python-fcl and pinocchio+coal);
    9. the dynamic scene (one of 50 objects moving per step, ``update`` against ``check``; a
-   100k-triangle mesh added, against python-fcl's BVH build).
+   100k-triangle mesh added, against python-fcl's BVH build); 10. motion between states
+   (``check_motion`` against dense sampling confirmed by python-fcl on 10,000 segments of
+   seven robots in clutter; against pinocchio+coal and ``check_batch`` on the motion
+   discretized at 0.01 rad; against python-fcl's ``continuousCollide``; ``update_motion``
+   against ``update``).
 """
 import argparse
 import datetime
@@ -32,15 +36,16 @@ from typing import List, Optional, Sequence
 from collision_sensor.tools.bench.scenario_report import Section
 from collision_sensor.tools.bench.scenario_settings import Settings
 
-SCENARIOS = (1, 2, 3, 4, 5, 6, 7, 8, 9)
+SCENARIOS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10)
 PEERS = (('pinocchio', 'pin'), ('coal', 'coal'), ('python-fcl', 'python-fcl'))
 
 
 def run_scenarios(numbers: Sequence[int], settings: Settings, log=None) -> List[Section]:
     """Run the scenarios ``numbers`` in order; return their sections."""
     from collision_sensor.tools.bench import (
-        scenario_cells, scenario_contact, scenario_dynamic, scenario_large, scenario_paper,
-        scenario_parts, scenario_proximity, scenario_random, scenario_scale, scenario_streams)
+        scenario_cells, scenario_contact, scenario_dynamic, scenario_large, scenario_motion,
+        scenario_paper, scenario_parts, scenario_proximity, scenario_random, scenario_scale,
+        scenario_streams)
     log = log or (lambda message: None)
     sections = []
     with tempfile.TemporaryDirectory(prefix='collision_sensor_bench_') as workdir:
@@ -68,8 +73,10 @@ def run_scenarios(numbers: Sequence[int], settings: Settings, log=None) -> List[
                 section = scenario_large.run(settings)
             elif number == 8:
                 section = scenario_proximity.run(settings)
-            else:
+            elif number == 9:
                 section = scenario_dynamic.run(settings)
+            else:
+                section = scenario_motion.run(settings, workdir)
             section.plot['seconds'] = time.perf_counter() - start
             log(f'scenario {number} done in {section.plot["seconds"]:.0f} s')
             sections.append(section)
@@ -195,7 +202,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument('--quick', action='store_true',
                         help='small counts and meshes, for a smoke run (figures are rough)')
     parser.add_argument('--scenario', type=int, action='append', choices=SCENARIOS,
-                        metavar='N', help='run scenario N (1-9); repeatable; default: all')
+                        metavar='N', help='run scenario N (1-10); repeatable; default: all')
     parser.add_argument('--seed', type=int, default=Settings.seed,
                         help=f'seed of every random input (default {Settings.seed})')
     parser.add_argument('--markdown', metavar='FILE', help='also write the table here')
