@@ -26,6 +26,7 @@ average is printed with each part).
 """
 import math
 import time
+from collections import Counter
 from dataclasses import dataclass, fields
 from typing import List
 
@@ -279,9 +280,9 @@ def _path_note(checker, path) -> str:
     return (f'The Panda trajectory: {len(path)} waypoints, {steps.sum():.1f} rad in all, '
             f'steps {steps.min():.3f} to {steps.max():.3f} rad (Euclidean); it bends around the '
             'objects it would hit (every motion between waypoints free: sampled every 2e-3 rad '
-            'as it is drawn, and certified); clearance at the waypoints: smallest '
-            f'{min(near) * 1e3:.1f} mm, {sum(d < 0.01 for d in near)} waypoints within 1 cm of '
-            'something.')
+            'as it is drawn, and certified); clearance at the waypoints (`proximity`): '
+            f'smallest {min(near) * 1e3:.3g} mm, {sum(d < 0.01 for d in near)} waypoints '
+            'within 1 cm of something.')
 
 
 def _speed_row(section, settings, cell, label, motions, states, per):
@@ -355,11 +356,14 @@ def _walks(checker, settings):
     return walks
 
 
-def _same_motion(a, b) -> bool:
-    """update_motion's answer equals check_motion's (first_contact to 1e-9 of the motion)."""
-    if a.in_collision != b.in_collision or a.colliding_pairs != b.colliding_pairs:
-        return False
-    return not a.in_collision or abs(a.first_contact - b.first_contact) <= 1e-9
+def motion_difference(a, b) -> str:
+    """How motion answer ``a`` differs from ``b``: ``''`` (the same: first_contact to 1e-9 of
+    the motion), ``'in contact'``, ``'first_contact'`` or ``'pairs'``."""
+    if a.in_collision != b.in_collision:
+        return 'in contact'
+    if a.in_collision and abs(a.first_contact - b.first_contact) > 1e-9:
+        return 'first_contact'
+    return 'pairs' if a.colliding_pairs != b.colliding_pairs else ''
 
 
 def streams(section: Section, settings, cells: List[MotionCell]) -> None:
@@ -374,14 +378,16 @@ def streams(section: Section, settings, cells: List[MotionCell]) -> None:
         'check of the first state (untimed). Before timing, every `update_motion` answer is '
         'compared with `check_motion` from the previous state (in contact, pairs, '
         f'first_contact to 1e-9). {load_note()}.')
-    rows = []
+    rows, differences = [], []
     for cell in cells:
         bare = robot_cell(cell.name).checker()
         for where, checker in (('alone', bare), ('cluttered', cell.checker)):
             worst = None
             for label, frames in _walks(checker, settings):
-                row, r = _stream_row(checker, settings, frames)
+                row, r, first = _stream_row(checker, settings, frames)
                 rows.append([cell.name, where, label] + row)
+                if first:
+                    differences.append(f'{cell.name} {where}, {label}: {first}')
                 if worst is None or r > worst[0]:
                     worst = (r, label, row[1], row[0])
             section.judge(f'S10 {cell.name} {where}: `update_motion` <= {STREAM_RATIO}x '
@@ -392,15 +398,22 @@ def streams(section: Section, settings, cells: List[MotionCell]) -> None:
                    'update_motion / update', 'min / median / max over passes: update; '
                    'update_motion', 'steps with a contact on the way', 'answers equal',
                    'box / triangle tests per step: update; update_motion'], rows)
+    if differences:
+        section.text('', 'Where `update_motion` and `check_motion` differ (the first step of '
+                     'each walk; paste into a test):', '', '```text', *differences, '```')
 
 
 def _stream_row(checker, settings, frames):
     checker.check(frames[0])
-    previous, mismatches, contacts = frames[0], 0, 0
-    for q in frames:
+    previous, contacts, kinds, first = frames[0], 0, Counter(), None
+    for step, q in enumerate(frames):
         expected = checker.check_motion(previous, q)
         got = checker.update_motion(q)
-        mismatches += not _same_motion(got, expected)
+        kind = motion_difference(got, expected)
+        if kind:
+            kinds[kind] += 1
+            first = first or (f'step {step}, q_from={previous.tolist()}, q_to={q.tolist()}: '
+                              f'update_motion {got}, check_motion {expected}')
         contacts += got.in_collision
         previous = q
     candidates = [Candidate('update', checker.update, frames,
@@ -419,6 +432,7 @@ def _stream_row(checker, settings, frames):
     return [us(update), us(motion), ratio(motion, update),
             f'{spread(passes["update"])}; {spread(passes["update_motion"])}',
             f'{contacts} of {len(frames)}',
-            'yes' if mismatches == 0 else f'NO: {mismatches} steps differ',
+            'yes' if not kinds else 'NO: ' + ', '.join(
+                f'{n} step{"s" if n > 1 else ""} differ in {kind}' for kind, n in kinds.items()),
             f'{work_update[0]:.1f} / {work_update[1]:.1f}; {work_motion[0]:.1f} / '
-            f'{work_motion[1]:.1f}'], motion / update
+            f'{work_motion[1]:.1f}'], motion / update, first
