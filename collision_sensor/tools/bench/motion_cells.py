@@ -20,6 +20,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 from collision_sensor.engine.checker import CollisionChecker
+from collision_sensor.engine.compiled import engine
 from collision_sensor.engine.motion import interpolate
 from collision_sensor.engine.sampling import sampling_bounds, uniform_configurations
 from collision_sensor.errors import LoadWarning
@@ -202,7 +203,7 @@ def discretized(checker: CollisionChecker, q_from: np.ndarray, q_to: np.ndarray,
     kinds = checker._motion_kinds
     ends = interpolate(kinds, q_from, q_to, np.array([0.0, 1.0]))
     delta = np.abs(ends[1] - ends[0])
-    for j in np.flatnonzero(kinds == 2):   # MOTION_QUATERNION: the rotation angle
+    for j in np.flatnonzero(kinds == engine.MOTION_QUATERNION):   # the rotation angle
         a = ends[0, j:j + 4] / np.linalg.norm(ends[0, j:j + 4])
         b = ends[1, j:j + 4] / np.linalg.norm(ends[1, j:j + 4])
         delta[j:j + 4] = 2.0 * math.acos(min(abs(float(a @ b)), 1.0))
@@ -243,7 +244,7 @@ def smooth_path(checker: CollisionChecker, lower: np.ndarray, upper: np.ndarray,
     path = [q]
     while len(path) < n:
         spread = turn
-        for attempt in range(200):
+        for _ in range(200):
             w = v + rng.normal(0.0, spread, len(q))
             w /= np.linalg.norm(w)
             q1 = path[-1] + w * rng.uniform(shortest, longest)
