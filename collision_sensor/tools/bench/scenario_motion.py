@@ -71,12 +71,20 @@ def run(settings, workdir: str) -> Section:
     section.text(
         'Figures are development figures measured on a shared machine; the load average '
         '(1 min) is printed with each part. Ratios are ours / peer, measured in the same run.')
+    start = time.perf_counter()
     cells = motion_cells(settings.seed, settings.motion_robots)
-    certified(section, settings, cells)
     arms = [cell for cell in cells if cell.name in ('panda', 'ur5')]
-    speed(section, settings, arms)
-    motion_ccd.run(section, settings, workdir, next(c for c in cells if c.name == 'panda'))
-    streams(section, settings, arms)
+    panda = next(cell for cell in cells if cell.name == 'panda')
+    took = [('robots and scenes', time.perf_counter() - start)]
+    for name, part in (('A', lambda: certified(section, settings, cells)),
+                       ('B', lambda: speed(section, settings, arms)),
+                       ('C', lambda: motion_ccd.run(section, settings, workdir, panda)),
+                       ('D', lambda: streams(section, settings, arms))):
+        start = time.perf_counter()
+        part()
+        took.append((f'part {name}', time.perf_counter() - start))
+    section.text('', 'Wall time: ' + ', '.join(f'{name} {seconds:.0f} s'
+                                               for name, seconds in took) + '.')
     return section
 
 
