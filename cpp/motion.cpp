@@ -17,6 +17,8 @@ void MotionWork::size_for(const Model& m) {
     quat0.assign(J, 0.0);
     q.assign(J, 0.0);
     q_prev.assign(J, 0.0);
+    q_next.assign(J, 0.0);
+    crude.assign(P, -1.0);
     T.assign(16 * L, 0.0);
     stamp.assign(L, 0);
     chain.assign(L, 0);
@@ -69,11 +71,23 @@ class MotionQuery {
     explicit MotionQuery(MotionContext& c)
         : c_(c), m_(c.view.model), w_(c.work), counters_(c.scratch.counters) {
         w_.size_for(m_);
+        w_.evaluated = false;   // the model's joint origins may have changed since
+        std::fill(w_.crude.begin(), w_.crude.end(), -1.0);
     }
 
     // The straight path q0 -> q1 prepared: each link's joint's speed per unit of the
     // parameter (constant along it).
-    void straight_speeds() {
+    void straight_speeds(const double* q0) {
+        // E (planning.hpp: the prismatic joints' |value|, summed) at most its larger end's.
+        double e0 = 0.0, e1 = 0.0;
+        for (int64_t k = 0; k < m_.n_links; ++k) {
+            if (m_.kin.joint_type[k] != JOINT_PRISMATIC) continue;
+            const int64_t j = m_.kin.q_index[k];
+            const double mult = m_.kin.multiplier[k], off = m_.kin.offset[k];
+            e0 += std::fabs(mult * q0[j] + off);
+            e1 += std::fabs(mult * (q0[j] + w_.delta[j]) + off);
+        }
+        w_.extension_max = std::max(e0, e1) * (1.0 + MOTION_BOUND_REL);
         for (int64_t k = 0; k < m_.n_links; ++k) {
             const int64_t kind = m_.kin.joint_type[k];
             const int64_t j = m_.kin.q_index[k];
@@ -119,7 +133,8 @@ class MotionQuery {
     // pairs[p] = 1 for the pairs list[:n] in contact at path(t), or within the touching
     // tolerance: a margin of MOTION_TOUCH_TOLERANCE everywhere; 0 for every other pair.
     template <class Path>
-    void contacts(const int64_t* list, int64_t n, const Path& path, double t, uint8_t* pairs);
+    void contacts(const int64_t* list, int64_t n, const Path& path, double t, double extra,
+                  uint8_t* pairs);
 
     template <class Path>
     int64_t check(const int64_t* list, int64_t n, const Path& path, const double* q0, double* t,
@@ -127,7 +142,9 @@ class MotionQuery {
         double best;
         const int64_t best_pair = march_pairs(list, n, path, q0, &best);
         if (best_pair < 0) return 0;
-        contacts(list, n, path, best, pairs);
+        // In contact at the start: the pairs in contact there, as a check of the start gives
+        // them; else the pairs within the touching tolerance of contact.
+        contacts(list, n, path, best, best == 0.0 ? 0.0 : MOTION_TOUCH_TOLERANCE, pairs);
         pairs[best_pair] = 1;
         *t = best;
         return 1;
@@ -143,6 +160,11 @@ class MotionQuery {
     void margin(int64_t p, double h2);
     WithinResult pair_within(int64_t p, const double* pose, double h, double extra = 0.0);
     double solid_gap(int64_t a, int64_t b, const double* pose) const;
+    bool crude_apart(const StraightPath& path, int64_t p, const double* pose, double h,
+                     double* reach);
+    bool crude_apart(const SplinePath&, int64_t, const double*, double, double*) {
+        return false;
+    }
     void path_speeds(const StraightPath&, double, double) {}  // constant (straight_speeds)
     void path_speeds(const SplinePath& path, double t, double h2);
     template <class Path>
@@ -154,9 +176,13 @@ class MotionQuery {
     int64_t* counters_;
 };
 
-// Evaluate the link poses at q from now on (computed on demand, link_pose).
+// Evaluate the link poses at q from now on (computed on demand, link_pose): unless q is the
+// state evaluated already (the pairs' first intervals share their midpoint), whose poses stay.
 void MotionQuery::evaluate(const double* q) {
-    if (q != w_.q.data()) std::copy(q, q + m_.n_joints, w_.q.begin());
+    const size_t bytes = sizeof(double) * size_t(m_.n_joints);
+    if (w_.evaluated && std::memcmp(q, w_.q.data(), bytes) == 0) return;
+    std::memcpy(w_.q.data(), q, bytes);
+    w_.evaluated = true;
     ++w_.tag;
 }
 
@@ -391,6 +417,36 @@ void MotionQuery::path_speeds(const SplinePath& path, double t, double h2) {
     }
 }
 
+// The cheapest proof first, before the pair's joints are even looked at: the planning's
+// configuration-free bound of how far each variable moves the pair (model.hpp: reach,
+// reach_ext, E at most its largest along the path), against the gap of the spheres around
+// the two bodies. Pairs far apart pass whole motions so. INF reach rows (a floating joint's
+// quaternion) prove nothing here.
+bool MotionQuery::crude_apart(const StraightPath& path, int64_t p, const double* pose, double h,
+                              double* reach) {
+    (void)path;
+    double& rate = w_.crude[p];
+    if (rate < 0.0) {
+        const int64_t J = m_.n_joints;
+        const double* r = m_.reach + J * p;
+        const double* rx = m_.reach_ext + J * p;
+        double sum = 0.0;
+        for (int64_t j = 0; j < J; ++j)
+            if (w_.var[j] > 0.0) sum += w_.var[j] * (r[j] + w_.extension_max * rx[j]);
+        rate = sum * (1.0 + MOTION_BOUND_REL);
+    }
+    if (!(rate < INF)) return false;
+    const double* A = m_.body_box(m_.pair_a[p]);
+    const double* B = m_.body_box(m_.pair_b[p]);
+    double d[3];
+    centre_offset(A, B, pose, d);
+    const double gap = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) -
+                       (A[BOX_RADIUS] + B[BOX_RADIUS]) * (1.0 + SPHERE_EPS_REL);
+    if (!(gap > rate * h)) return false;
+    *reach = rate > 0.0 ? gap / rate : INF;
+    return true;
+}
+
 // One step of pair s.p's march along the path: the pair is proven apart on [0, s.t). The
 // interval [t, t + length] is tested at its midpoint m over its half-width h (pair_within):
 // apart, the pair is proven apart on the whole interval and further, on [m, m + reach], and
@@ -406,13 +462,19 @@ int MotionQuery::march_step(MotionWork::March& s, const Path& path, double t_end
     const double hi = std::min(s.t + s.length, t_end);
     const double m = 0.5 * (s.t + hi);
     const double h = 0.5 * (hi - s.t);
-    path_speeds(path, m, 2.0 * h);
-    sides(s.p);
-    path.at(m, w_.q.data());
-    evaluate(w_.q.data());
+    path.at(m, w_.q_next.data());
+    evaluate(w_.q_next.data());
     pair_pose(a, b, pose);
-    margin(s.p, 2.0 * h);
-    const WithinResult w = pair_within(s.p, pose, h);
+    double crude_reach;
+    WithinResult w;
+    if (crude_apart(path, s.p, pose, h, &crude_reach)) {
+        w = {false, 0.0, crude_reach};
+    } else {
+        path_speeds(path, m, 2.0 * h);
+        sides(s.p);
+        margin(s.p, 2.0 * h);
+        w = pair_within(s.p, pose, h);
+    }
     if (!w.within) {
         if (hi >= t_end) return MARCH_FREE;
         const double next = std::max(hi, m + w.reach * (1.0 - MOTION_BOUND_REL));
@@ -441,21 +503,24 @@ int64_t MotionQuery::march_pairs(const int64_t* list, int64_t n, const Path& pat
     const auto later = [](const MotionWork::March& x, const MotionWork::March& y) {
         return x.t > y.t;
     };
-    path_speeds(path, 0.5, 0.5);
-    for (int64_t i = 0; i < n && *best > 0.0; ++i) {
+    // The start first, as an instant: a pair in contact there is the first contact (marching
+    // would only halve its way down to it), and a pair nothing moves is as it is there all
+    // along.
+    evaluate(q0);
+    w_.side_n[0] = w_.side_n[1] = 0;
+    for (int64_t i = 0; i < n; ++i) {
         const int64_t p = list ? list[i] : i;
-        if (sides(p)) {
-            heap.push_back({p, 0.0, 1.0, 1.0});
-        } else {  // nothing moves the pair: as it is at q0 all the way
-            w_.side_n[0] = w_.side_n[1] = 0;
-            evaluate(q0);
-            pair_pose(m_.pair_a[p], m_.pair_b[p], pose);
-            margin(p, 0.0);
-            if (pair_within(p, pose, 0.0).within) {
-                *best = 0.0;
-                best_pair = p;
-            }
+        pair_pose(m_.pair_a[p], m_.pair_b[p], pose);
+        margin(p, 0.0);
+        if (pair_within(p, pose, 0.0).within) {
+            *best = 0.0;
+            return p;
         }
+    }
+    path_speeds(path, 0.5, 0.5);
+    for (int64_t i = 0; i < n; ++i) {
+        const int64_t p = list ? list[i] : i;
+        if (sides(p)) heap.push_back({p, 0.0, 1.0, 1.0});
     }
     std::make_heap(heap.begin(), heap.end(), later);
     while (!heap.empty() && heap.front().t < *best) {
@@ -477,17 +542,17 @@ int64_t MotionQuery::march_pairs(const int64_t* list, int64_t n, const Path& pat
 
 template <class Path>
 void MotionQuery::contacts(const int64_t* list, int64_t n, const Path& path, double t,
-                           uint8_t* pairs) {
+                           double extra, uint8_t* pairs) {
     double pose[POSE_WIDTH];
     std::fill(pairs, pairs + m_.n_pairs, uint8_t(0));
-    path.at(t, w_.q.data());
-    evaluate(w_.q.data());
+    path.at(t, w_.q_next.data());
+    evaluate(w_.q_next.data());
     w_.side_n[0] = w_.side_n[1] = 0;
     for (int64_t i = 0; i < n; ++i) {
         const int64_t p = list ? list[i] : i;
         pair_pose(m_.pair_a[p], m_.pair_b[p], pose);
         margin(p, 0.0);
-        pairs[p] = pair_within(p, pose, 0.0, MOTION_TOUCH_TOLERANCE).within ? 1 : 0;
+        pairs[p] = pair_within(p, pose, 0.0, extra).within ? 1 : 0;
     }
 }
 
@@ -500,7 +565,7 @@ int64_t check_straight_motion(MotionContext& c, const double* q0, const double* 
     StraightPath path{q0, c.view.model.motion_kind, c.view.model.n_joints, w.delta.data(),
                       w.var.data(), w.quat0.data()};
     path.prepare(q1);
-    query.straight_speeds();
+    query.straight_speeds(q0);
     return query.check(list, list ? n : c.view.model.n_pairs, path, q0, t, pairs);
 }
 

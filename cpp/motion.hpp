@@ -571,7 +571,10 @@ struct MotionWork {
         double t, length, factor;
     };
     std::vector<double> delta, var, quat0;  // (J,) StraightPath's
-    std::vector<double> q, q_prev;          // (J,) the state evaluated; update_motion's start
+    std::vector<double> q, q_prev, q_next;  // (J,) the state evaluated; update_motion's start
+    bool evaluated = false;                 // q holds a state (T follows it where stamped)
+    std::vector<double> crude;              // (P,) each pair's crude rate (-1: not yet)
+    double extension_max = 0.0;             // E's bound along a straight path
     std::vector<double> T;                  // (L, 16)
     std::vector<int64_t> stamp, chain;      // (L,)
     int64_t tag = 0;

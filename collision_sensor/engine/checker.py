@@ -387,6 +387,7 @@ class CollisionChecker:
         self._robot = layout.take_views(self._robot, views)
         self._scene = layout
         self._engine, self._query = new_engine, new_engine.query
+        self._query_motion = new_engine.update_motion
         # The forest is only a view of the engine's tables: nothing is held twice (scenario 4).
         self.forest = forest_view(views['boxes'], views['nodes'], views['volume'],
                                   views['gain'], views['tris'], views['roots'], layout.depths)
@@ -652,16 +653,16 @@ class CollisionChecker:
 
         :raises JointStateError: as :meth:`check`; nothing changes then.
         """
-        code = self._engine.update_motion(positions)
-        if code == _NOT_AN_ARRAY:
-            positions = self._merged(positions)
-            code = self._engine.update_motion(positions)
+        code = self._query_motion(positions)
         if code < 0:
+            if code == _NOT_AN_ARRAY:
+                return self.update_motion(self._merged(positions))
             raise JointStateError(self._unusable_message(-1 - code, positions))
-        query_code = code >> 1   # as update settles it (the commonest answer: no change)
-        if query_code & 1 or query_code >> 1 != self._result.rechecked_pairs:
-            self._settle(query_code, positions, False)
-        return FREE if not code & 1 else self._motion_result(1)
+        # code: 2 * the query's code + the motion's. The query's answer as update settles it
+        # (the commonest: no status changed, as many pairs re-checked as last time).
+        if code & 2 or code >> 2 != self._result.rechecked_pairs:
+            self._settle(code >> 1, positions, False)
+        return self._motion_result(1) if code & 1 else FREE
 
     def check_path(self, configurations: np.ndarray) -> PathResult:
         """Check the straight motions between consecutive waypoints, in one compiled call,

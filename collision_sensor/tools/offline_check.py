@@ -19,6 +19,14 @@ checker setting (``--config`` with ``padding: 0.01`` and ``link_padding: {panda_
 contact then means within the paddings, and distances are the padded ones (negative in
 contact, by how far the surfaces are inside the paddings).
 
+With ``--motion`` the motion from each frame to the next is checked too
+(``CollisionChecker.update_motion``: certified, not sampled; revolute and prismatic joints
+move linearly between frames, continuous ones the shorter way): a contact between two recorded
+states is reported even when both are clear, as sparse recordings (a planner's waypoints, a
+driver at 5 Hz) make happen. The JSON lines gain ``motion`` (the first contact on the way into
+the frame, or null), the summary counts the segments in contact and those between two clear
+frames, the plot marks them, and a motion in contact makes the exit status 1.
+
 Exit status: 0 no frame in collision, 1 at least one frame in collision, 2 error (the error is
 one line on stderr: ``collision_sensor_check: error: ...``).
 
@@ -68,7 +76,8 @@ PROG = 'collision_sensor_check'
 DEFAULT_MAX_DISTANCE = 0.1
 EXIT_CLEAR, EXIT_COLLISION, EXIT_ERROR = 0, 1, 2
 EXIT_INTERRUPTED = 130   # as a shell reports a process stopped by SIGINT
-BUNDLED_SEQUENCES = ('paper_experiment', 'into_drum_clear', 'random', 'moving_part')
+BUNDLED_SEQUENCES = ('paper_experiment', 'into_drum_clear', 'random', 'moving_part',
+                     'guard_rail_5hz')
 
 Pair = Tuple[str, str]
 
@@ -80,6 +89,7 @@ class FrameResult:
     ``min_distance`` is the smallest distance of a checked pair (0 in collision) when some
     pair was nearer than the run's max_distance, else None (also when not measured);
     ``nearest_pair`` is that pair. The distance is measured after ``seconds`` was taken.
+    ``motion`` (with ``--motion``) is the motion from the previous frame into this one.
     """
 
     index: int
@@ -89,6 +99,16 @@ class FrameResult:
     seconds: float
     min_distance: Optional[float] = None
     nearest_pair: Optional[Pair] = None
+    motion: Optional['MotionAnswer'] = None
+
+
+@dataclass(frozen=True)
+class MotionAnswer:
+    """The motion from the previous frame into this one (``--motion``): ``first_contact`` its
+    time (s, on the recording's clock) or None when free, and the pairs in contact there."""
+
+    first_contact: Optional[float]
+    pairs: Tuple[Pair, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -105,7 +125,8 @@ class PairSpan:
 def run_sequence(checker, seq: JointSequence, incremental: bool = True,
                  progress: Optional[ProgressBar] = None,
                  max_distance: float = 0.0,
-                 scene: Optional[SceneTopic] = None) -> List[FrameResult]:
+                 scene: Optional[SceneTopic] = None,
+                 motion: bool = False) -> List[FrameResult]:
     """Check every frame of ``seq`` in order, its scene events applied as they come.
 
     The first frame is checked once from scratch before timing starts, so the per-frame times
@@ -116,6 +137,9 @@ def run_sequence(checker, seq: JointSequence, incremental: bool = True,
     :param max_distance: with a value > 0, each frame's nearest pair closer than this (m) is
         measured too (``checker.proximity``, outside the timed check).
     :param scene: the topic state the events go through (default: a new one, default caps).
+    :param motion: also check the motion from each frame to the next (``update_motion``, or
+        ``check_motion`` with ``incremental`` False), in the timed check; its scene is the
+        frame's (the events due before it applied first).
     :raises MarkerError: a recorded array the node would reject (naming its time).
     """
     check = checker.update if incremental else checker.check
@@ -124,11 +148,20 @@ def run_sequence(checker, seq: JointSequence, incremental: bool = True,
     if len(seq):
         checker.check(seq.positions[0])
     results = []
-    for index, (t, q) in enumerate(zip(seq.times.tolist(), seq.positions)):
+    times = seq.times.tolist()
+    for index, (t, q) in enumerate(zip(times, seq.positions)):
         for event in events[index]:
             apply_recorded(scene, checker, event)
         start = time.perf_counter()
-        result = check(q)
+        answer = None
+        if motion and index > 0:
+            moved = (checker.update_motion(q) if incremental
+                     else checker.check_motion(seq.positions[index - 1], q))
+            answer = MotionAnswer(
+                None if not moved.in_collision else
+                times[index - 1] + moved.first_contact * (t - times[index - 1]),
+                tuple(tuple(pair) for pair in moved.colliding_pairs))
+        result = check(q)   # after update_motion: nothing moved, its answer as it stands
         elapsed = time.perf_counter() - start
         nearest, distance = None, None
         if max_distance > 0:
@@ -137,7 +170,7 @@ def run_sequence(checker, seq: JointSequence, incremental: bool = True,
                 nearest, distance = (records[0].link_a, records[0].link_b), records[0].distance
         results.append(FrameResult(index, t, bool(result.in_collision),
                                    tuple(tuple(pair) for pair in result.colliding_pairs),
-                                   elapsed, distance, nearest))
+                                   elapsed, distance, nearest, answer))
         if progress is not None:
             progress.update(index + 1)
     return results
@@ -158,16 +191,41 @@ def pair_spans(results: Sequence[FrameResult]) -> List[PairSpan]:
     return sorted(spans, key=lambda s: (s.first, s.pair))
 
 
-def json_line(result: FrameResult) -> str:
+def json_line(result: FrameResult, motion: bool = False) -> str:
     """Return the frame's JSON line: ``{"index", "time", "in_collision", "pairs",
     "min_distance", "nearest_pair"}`` (the last two null when no pair was within the
-    max distance)."""
-    return json.dumps({'index': result.index, 'time': result.time,
-                       'in_collision': result.in_collision,
-                       'pairs': [list(pair) for pair in result.pairs],
-                       'min_distance': result.min_distance,
-                       'nearest_pair': (list(result.nearest_pair) if result.nearest_pair
-                                        else None)})
+    max distance), and with ``motion`` ``"motion": {"first_contact", "pairs"}`` (the motion
+    into the frame: its first contact's time and pairs; null for the first frame, and
+    ``first_contact`` null when the motion is free)."""
+    line = {'index': result.index, 'time': result.time, 'in_collision': result.in_collision,
+            'pairs': [list(pair) for pair in result.pairs],
+            'min_distance': result.min_distance,
+            'nearest_pair': list(result.nearest_pair) if result.nearest_pair else None}
+    if motion:
+        line['motion'] = None if result.motion is None else {
+            'first_contact': result.motion.first_contact,
+            'pairs': [list(pair) for pair in result.motion.pairs]}
+    return json.dumps(line)
+
+
+def motion_summary(results: Sequence[FrameResult], t0: float) -> List[str]:
+    """Return the summary's lines on the motion between frames: the segments in contact, those
+    between two clear frames (what checking the recorded states alone misses), the first."""
+    hits = [(previous, r) for previous, r in zip(results, results[1:])
+            if r.motion is not None and r.motion.first_contact is not None]
+    lines = [f'motion between frames: {len(hits)} of {max(len(results) - 1, 0)} segments meet '
+             'contact']
+    missed = [(p, r) for p, r in hits if not p.in_collision and not r.in_collision]
+    if missed:
+        lines.append(f'  {len(missed)} of them between two clear frames (checks of the '
+                     'recorded states alone miss them):')
+        for previous, r in missed[:10]:
+            pairs = ', '.join(f'{a} -- {b}' for a, b in r.motion.pairs)
+            lines.append(f'  frames {previous.index} -> {r.index}: contact at '
+                         f'{r.motion.first_contact - t0:.3f} s ({pairs})')
+        if len(missed) > 10:
+            lines.append(f'  ... and {len(missed) - 10} more')
+    return lines
 
 
 def distance_summary(results: Sequence[FrameResult], t0: float, max_distance: float) -> str:
@@ -211,13 +269,21 @@ def summary(results: Sequence[FrameResult], seq: JointSequence, checker,
                          f'{s.duration:7.3f} s')
     if max_distance > 0:
         lines.append(distance_summary(results, t0, max_distance))
+    motion = any(r.motion is not None for r in results)
+    if motion:
+        lines += motion_summary(results, t0)
     if n:
         ms = np.array([r.seconds for r in results]) * 1e3
         mode = 'incremental update' if incremental else 'full check'
         lines.append(f'check time per frame ({mode}): mean {ms.mean():.3f} ms, '
                      f'median {np.median(ms):.3f} ms, max {ms.max():.3f} ms')
-    lines.append('result: ' + ('COLLISION' if colliding else 'clear'))
+    lines.append('result: ' + ('COLLISION' if colliding or motion_met(results) else 'clear'))
     return '\n'.join(lines)
+
+
+def motion_met(results: Sequence[FrameResult]) -> bool:
+    """True iff some motion between frames met contact (``--motion``)."""
+    return any(r.motion is not None and r.motion.first_contact is not None for r in results)
 
 
 def plot_timeline(results: Sequence[FrameResult], seq: JointSequence, path: str,
@@ -259,6 +325,12 @@ def plot_timeline(results: Sequence[FrameResult], seq: JointSequence, path: str,
             y = len(rows) - 1 - row
             ax.broken_barh(list(stretches(row_flags)), (y - 0.35, 0.7),
                            facecolors='tab:red' if row == 0 else 'tab:orange')
+        met = [r.motion.first_contact - t0 for r in results
+               if r.motion is not None and r.motion.first_contact is not None]
+        if met:   # the motion between frames: its first contacts, on the "any pair" row
+            ax.plot(met, [len(rows) - 1] * len(met), 'kv', markersize=7,
+                    label='contact on the way between frames (--motion)')
+            ax.legend(loc='lower right', fontsize=8)
         ax.set_yticks(range(len(rows)))
         ax.set_yticklabels(rows[::-1])
         end = (times[-1] - t0 + durations[-1]) if len(times) else 1.0
@@ -376,6 +448,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help='measure each frame\'s smallest pair distance below M metres '
                              f'(default {DEFAULT_MAX_DISTANCE} for one recording, 0 for many; '
                              '0: do not measure)')
+    parser.add_argument('--motion', action='store_true',
+                        help='also check the motion from each frame to the next (certified, '
+                             'not sampled): contact between two recorded states')
     parser.add_argument('--full', action='store_true',
                         help='check every frame from scratch instead of incrementally')
     parser.add_argument('--progress', choices=MODES, default='auto',
@@ -436,7 +511,8 @@ def _run(args) -> int:
 
 def _run_batch(args, units, spec, checker, joint_map, max_distance) -> int:
     options = CheckOptions(incremental=not args.full, max_distance=max_distance,
-                           topic=args.topic, scene_topic=args.scene_topic, joint_map=joint_map)
+                           topic=args.topic, scene_topic=args.scene_topic, joint_map=joint_map,
+                           motion=args.motion)
     runner = make_runner(spec, options, args.jobs, args.ray)
     label = (f'Ray ({args.ray})' if args.ray else
              f'{args.jobs or default_jobs()} local worker processes'
@@ -466,14 +542,15 @@ def _run_one(args, unit, spec, checker, max_distance) -> int:
     with ProgressBar(len(seq), label=label, mode=args.progress) as progress:
         results = run_sequence(checker, seq, incremental=not args.full, progress=progress,
                                max_distance=max_distance,
-                               scene=SceneTopic(package_paths=dict(spec.package_paths) or None))
+                               scene=SceneTopic(package_paths=dict(spec.package_paths) or None),
+                               motion=args.motion)
 
     to_stdout = args.json == '-'
     if args.json:
         stream: TextIO = sys.stdout if to_stdout else open(args.json, 'w', encoding='utf-8')
         try:
             for result in results:
-                stream.write(json_line(result) + '\n')
+                stream.write(json_line(result, args.motion) + '\n')
         finally:
             if not to_stdout:
                 stream.close()
@@ -482,7 +559,8 @@ def _run_one(args, unit, spec, checker, max_distance) -> int:
     print(summary(results, seq, checker, incremental=not args.full,
                   max_distance=max_distance),
           file=sys.stderr if to_stdout else sys.stdout)
-    return EXIT_COLLISION if any(r.in_collision for r in results) else EXIT_CLEAR
+    met = any(r.in_collision for r in results) or motion_met(results)
+    return EXIT_COLLISION if met else EXIT_CLEAR
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

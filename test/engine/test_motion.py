@@ -484,8 +484,11 @@ def test_check_spline_against_dense_sampling(panda_cell):
             nearest = min(oracle.pair_distance(poses, a, b) if not oracle.contains(poses, a, b)
                           else 0.0 for a, b in result.motion.colliding_pairs)
             assert nearest <= TOUCH_TOLERANCE + FCL_SLACK
-        if kind == 'linear':
-            assert result.motion == checker.check_motion(q0, q1)
+        if kind == 'linear':   # the straight motion: the same answer, up to the tolerance
+            straight = checker.check_motion(q0, q1)
+            assert result.in_collision == straight.in_collision
+            if straight.in_collision:
+                assert abs(result.motion.first_contact - straight.first_contact) < 1e-5
     assert contacts >= 3
 
 

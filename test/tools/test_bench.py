@@ -11,7 +11,8 @@ from collision_sensor.tools.bench.scenario_scale import growth_fits
 
 HEADERS = ('### Scenario 1: random configurations', '### Scenario 2: coherent streams',
            "### Scenario 3: the paper's experiment", '### Scenario 4: scale',
-           '### Scenario 5: the parts', '### Scenario 9: the dynamic scene')
+           '### Scenario 5: the parts', '### Scenario 9: the dynamic scene',
+           '### Scenario 10: motion between states')
 
 
 def _installed(module):
@@ -115,6 +116,57 @@ def test_dynamic_scene_scenario_judges_both_targets():
         "S9 adding a 10,000-triangle mesh <= python-fcl's BVH build"]
     assert all(v.passed is not None for v in section.verdicts)
     assert any('`update` and `check` agreed at every step' in line for line in section.lines)
+
+
+def test_motion_scenario_judges_every_target_and_its_oracle_finds_no_miss(tmp_path):
+    """Scenario 10 in its quick form: every target judged; the correctness ones (nothing
+    missed or false against sampling and python-fcl, continuousCollide's right answers, the
+    mesh cases fcl misses) hold; update_motion answered as check_motion at every step."""
+    pytest.importorskip('fcl')
+    pytest.importorskip('pinocchio')
+    from collision_sensor.tools.bench import scenario_motion
+    from collision_sensor.tools.bench.scenario_settings import Settings
+    section = scenario_motion.run(Settings.for_run(quick=True, seed=3), str(tmp_path))
+    names = [v.target.split(':')[0] for v in section.verdicts]
+    assert names == ['S10 certified'] * 2 + ['S10 panda segments'] * 2 + [
+        'S10 panda trajectory'] * 2 + ['S10 ur5 segments'] * 2 + ['S10 primitives'] * 2 + [
+        'S10 panda alone', 'S10 panda cluttered', 'S10 ur5 alone', 'S10 ur5 cluttered']
+    assert all(v.passed is not None for v in section.verdicts)
+    missed, false, primitives = section.verdicts[0], section.verdicts[1], section.verdicts[8]
+    assert missed.passed and false.passed and primitives.passed, (missed, false, primitives)
+    text = '\n'.join(section.lines)
+    mesh_rows = [line for line in text.splitlines() if line.startswith('| BVH box')
+                 or line.startswith('| Panda hand')]
+    assert len(mesh_rows) == 4 and all(row.split(' | ')[-1].startswith('contact at')
+                                       for row in mesh_rows), mesh_rows
+    walk_rows = [line for line in text.splitlines() if '| S8 walk' in line or '| S2 stream' in
+                 line]
+    assert len(walk_rows) == 16 and all('| yes |' in row for row in walk_rows), walk_rows
+
+
+def test_motion_cells_segments_and_path_are_as_drawn():
+    """The inputs of scenario 10: segments from clear starts, of the drawn length, within
+    the bounds; discretized motions with steps of at most the step; the trajectory's steps
+    0.01 to 0.03 rad, within the bounds, every motion free."""
+    from collision_sensor.tools.bench.motion_cells import (
+        discretized, discretized_path, motion_cells, random_segments, smooth_path)
+    cell = motion_cells(seed=5, names=['panda'])[0]
+    checker = cell.checker
+    assert len(checker.scene_objects) == 14
+    rng = np.random.default_rng(0)
+    for q0, q1 in random_segments(checker, cell.lower, cell.upper, 20, rng, 0.2, 2.0):
+        assert not checker.check(q0).in_collision
+        assert 0.2 <= np.linalg.norm(q1 - q0) <= 2.0
+        assert np.all((cell.lower <= q1) & (q1 <= cell.upper))
+        states = discretized(checker, q0, q1, 0.01)
+        assert np.abs(np.diff(states, axis=0)).max() <= 0.01 + 1e-12
+        np.testing.assert_allclose(states[[0, -1]], [q0, q1], atol=1e-12)
+    path = smooth_path(checker, cell.lower, cell.upper, 40, rng)
+    steps = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    assert steps.min() >= 0.01 - 1e-12 and steps.max() <= 0.03 + 1e-12
+    assert np.all((cell.lower <= path) & (path <= cell.upper))
+    assert checker.check_path(path).first_invalid_segment is None
+    assert not checker.check_batch(discretized_path(checker, path, 1e-3)).any()
 
 
 @pytest.mark.parametrize('args, line', [

@@ -309,3 +309,72 @@ def test_a_recorded_array_the_node_would_reject_stops_the_run(capsys, tmp_path):
     assert status == 2
     assert 'marker 0 (ns "crate", id 0): ' in err and 'type 99' in err, err
     assert f'(in the scene array recorded at {seq.scene[5].time:.3f} s)' in err, err
+
+
+# --- the motion between frames (--motion, issue 25) --------------------------------------------
+
+def _guard_rail_oracle(oracle, seq):
+    """python-fcl on the demo cell with the guard rail (the bag's scene array, placed here from
+    the generator's constants) at each of ``states``: colliding pairs per state."""
+    from collision_sensor.tools.demo_cell import GUARD_RAIL, GUARD_RAIL_AT
+    import math
+    distance, bearing, height = GUARD_RAIL_AT
+    T = np.eye(4)
+    T[:3, 3] = (distance * math.cos(bearing), distance * math.sin(bearing), height)
+    rail = {'guard_rail': (fcl.Cylinder(GUARD_RAIL[0], GUARD_RAIL[1]), None, (), T)}
+    return lambda q: _fcl_scene_pairs(oracle, q, rail)
+
+
+def test_the_5hz_guard_rail_sweep_is_clear_at_every_frame_and_not_between_them(capsys, tmp_path,
+                                                                                 oracle):
+    """The bundled sparse recording: every recorded state is clear (so the check without
+    --motion says clear), the swing between two of them goes through the 1 cm rail; --motion
+    finds it, at the time dense sampling of the same straight motion (confirmed by python-fcl)
+    finds it first."""
+    bag = os.path.join(SEQUENCES, 'guard_rail_5hz')
+    status, out, _ = _run(capsys, [bag, '--progress', 'never', '--max-distance', '0'])
+    assert status == 0 and 'result: clear' in out
+    json_path = tmp_path / 'frames.jsonl'
+    plot = tmp_path / 'timeline.png'
+    status, out, _ = _run(capsys, [bag, '--motion', '--progress', 'never', '--max-distance', '0',
+                                   '--json', str(json_path), '--plot', str(plot)])
+    assert status == 1 and 'result: COLLISION' in out
+    assert 'between two clear frames (checks of the recorded states alone miss them)' in out
+    lines = [json.loads(line) for line in json_path.read_text().splitlines()]
+    assert lines[0]['motion'] is None and not any(line['in_collision'] for line in lines)
+    met = [line for line in lines if line['motion'] and line['motion']['first_contact'] is not None]
+    assert len(met) == 1 and ['guard_rail', 'tool_link'] in met[0]['motion']['pairs']
+    assert plot.stat().st_size > 0
+    # The oracle: the straight motion between the two frames, sampled at 1e-4 of it.
+    seq = read_sequence(bag)
+    fcl_pairs = _guard_rail_oracle(oracle, seq)
+    i = met[0]['index']
+    a, b = seq.positions[i - 1], seq.positions[i]
+    fractions = np.linspace(0.0, 1.0, 10001)
+    first = next(f for f in fractions if fcl_pairs(a + f * (b - a)))
+    t_first = seq.times[i - 1] + first * (seq.times[i] - seq.times[i - 1])
+    t_reported = met[0]['motion']['first_contact']
+    assert t_reported <= t_first + 1e-12
+    assert t_reported >= seq.times[i - 1] + (first - 1e-4) * (seq.times[i] - seq.times[i - 1])
+    assert not fcl_pairs(a) and not fcl_pairs(b)
+    assert 'frames 8 -> 9: contact at' in out or f'frames {i - 1} -> {i}: contact at' in out
+
+
+def test_motion_in_a_batch_report(capsys, tmp_path):
+    """--motion in the many-recordings mode: the report's ``motion`` key per unit, the
+    summary's count of motions that checks of the recorded states miss, exit status 1."""
+    report = tmp_path / 'report.jsonl'
+    bags = [os.path.join(SEQUENCES, 'guard_rail_5hz'), os.path.join(SEQUENCES, 'into_drum_clear.csv')]
+    status, out, _ = _run(capsys, bags + ['--motion', '--report', str(report), '--jobs', '1',
+                                          '--progress', 'never'])
+    assert status == 1
+    records = {os.path.basename(r['source'].rstrip('/')): r
+               for r in map(json.loads, report.read_text().splitlines())}
+    rail = records['guard_rail_5hz']['motion']
+    assert rail['segments'] == records['guard_rail_5hz']['frames'] - 1
+    assert rail['segments_in_contact'] == 1 and rail['missed_by_states'] == 1
+    assert ['guard_rail', 'tool_link'] in rail['first_contact']['pairs']
+    assert records['guard_rail_5hz']['frames_in_collision'] == 0
+    clear = records['into_drum_clear.csv']['motion']
+    assert clear['segments_in_contact'] == 0 and clear['first_contact'] is None
+    assert 'checks of the recorded states alone miss them' in out

@@ -46,8 +46,14 @@ class BatchResult:
     def status(self) -> int:
         if any(r['error'] is not None for r in self.records):
             return EXIT_FAILED
-        return EXIT_COLLISION if any(r['frames_in_collision'] for r in self.records) \
-            else EXIT_CLEAR
+        return EXIT_COLLISION if any(in_collision(r) for r in self.records) else EXIT_CLEAR
+
+
+def in_collision(record: dict) -> bool:
+    """True iff a unit's line has a frame in collision, or (``--motion``) a motion between
+    frames that meets contact."""
+    return bool(record['frames_in_collision']) or bool(
+        record.get('motion') and record['motion']['segments_in_contact'])
 
 
 class SerialRunner:
@@ -151,7 +157,7 @@ def print_summary(result: BatchResult, spec: RobotSpec, checker, options: CheckO
                      '(largest worker)')
     status = result.status
     verdict = {0: 'clear', 1: 'COLLISION',
-               3: 'COLLISION and FAILED UNITS' if any(r['frames_in_collision']
+               3: 'COLLISION and FAILED UNITS' if any(in_collision(r)
                                                      for r in result.records
                                                      if r['error'] is None)
                else 'FAILED UNITS'}[status]

@@ -10,12 +10,9 @@ What each unit is checked for is a list of :class:`UnitCheck` classes, by name i
 :data:`UNIT_CHECKS`; :func:`checks_for` picks them from the options. Each sees the recording in
 stretches of frames under one scene (a bag's scene arrays are applied between them, by the
 node's rules) and gives the keys it adds to the report line. **The seam for motion checks**
-(``CollisionChecker.check_motion``, issue 25): a ``MotionCheck(UnitCheck)`` whose ``segment``
-calls ``check_motion`` on consecutive frames, whose ``result`` gives ``{"motion": {...}}`` (and
-``EMPTY`` the same key for a failed unit) and whose ``summary_lines`` sums it across the batch,
-registered as ``UNIT_CHECKS['motion']`` and chosen in :func:`checks_for` when a
-``CheckOptions.motion`` flag is set (``--motion`` in ``offline_check.build_parser``); the
-report, resume, pools and Ray carry the new key as they are.
+(``CollisionChecker.check_motion``, issue 25) is :class:`MotionCheck`, chosen with
+``CheckOptions.motion`` (``--motion``): it adds the key ``motion``; the report, resume, pools
+and Ray carry it as they carry the others.
 """
 import hashlib
 import os
@@ -113,6 +110,7 @@ class CheckOptions:
     :ivar topic: the JointState topic of bags.
     :ivar scene_topic: the MarkerArray topic of a bag's scene changes.
     :ivar joint_map: how dataset state entries become joints (None: named as the joints).
+    :ivar motion: also check the motion between consecutive frames (:class:`MotionCheck`).
     """
 
     incremental: bool = True
@@ -120,10 +118,11 @@ class CheckOptions:
     topic: str = DEFAULT_TOPIC
     scene_topic: str = SCENE_TOPIC
     joint_map: Optional[JointMap] = None
+    motion: bool = False
 
     def digest_fields(self) -> tuple:
         return (self.incremental, self.max_distance, self.topic, self.scene_topic,
-                self.joint_map)
+                self.joint_map, self.motion)
 
 
 class UnitCheck:
@@ -251,9 +250,79 @@ class ClosestApproach(UnitCheck):
                                      'time': float(self.seq.times[index] - self.seq.times[0])}}
 
 
-#: Every kind of check by name (see the module docstring for adding ``motion``).
+def motion_contacts(checker, rows: np.ndarray) -> List[Tuple[int, float, Tuple]]:
+    """Return ``(i, fraction, pairs)`` for every straight motion ``rows[i] -> rows[i + 1]``
+    that meets contact (``CollisionChecker.check_path``, run again after each such segment):
+    its first contact's fraction of the segment and the pairs in contact there."""
+    found = []
+    start = 0
+    while start < len(rows) - 1:
+        path = checker.check_path(rows[start:])
+        if path.first_invalid_segment is None:
+            break
+        i = start + path.first_invalid_segment
+        found.append((i, path.motion.first_contact, path.motion.colliding_pairs))
+        start = i + 1
+    return found
+
+
+class MotionCheck(UnitCheck):
+    """The motion between consecutive frames (``--motion``, issue 25): each straight motion
+    from one frame to the next, certified (``CollisionChecker.check_path``), so a contact
+    between two recorded states is found even when both are clear. The frames' scene holds:
+    a recorded scene array applies from the motion into the frame it precedes.
+
+    Key ``motion``: ``{"segments", "segments_in_contact", "missed_by_states" (segments in
+    contact between two clear frames: what checking the recorded states alone misses),
+    "first_contact": {"time", "segment", "pairs"} or null}``, times in s from the first frame.
+    """
+
+    EMPTY = {'motion': None}
+
+    def __init__(self, options: CheckOptions, seq: JointSequence):
+        super().__init__(options, seq)
+        self.segments: List[Tuple[int, float, Tuple]] = []
+        self.clear = np.ones(len(seq), dtype=bool)
+
+    def segment(self, checker, start: int, stop: int) -> None:
+        first = max(start - 1, 0)
+        rows = self.seq.positions[first:stop]
+        self.clear[start:stop] = ~checker.check_batch(self.seq.positions[start:stop]).any(
+            axis=1)
+        self.segments += [(first + i, fraction, pairs)
+                          for i, fraction, pairs in motion_contacts(checker, rows)]
+
+    def result(self) -> Dict[str, object]:
+        times = self.seq.times
+        t0 = float(times[0])
+        missed = sum(1 for i, _, _ in self.segments if self.clear[i] and self.clear[i + 1])
+        first = None
+        if self.segments:
+            i, fraction, pairs = min(self.segments)
+            first = {'time': float(times[i] + fraction * (times[i + 1] - times[i]) - t0),
+                     'segment': i, 'pairs': [list(pair) for pair in pairs]}
+        return {'motion': {'segments': max(len(self.seq) - 1, 0),
+                           'segments_in_contact': len(self.segments),
+                           'missed_by_states': missed, 'first_contact': first}}
+
+    @staticmethod
+    def summary_lines(records) -> List[str]:
+        checked = [r for r in records if r.get('motion')]
+        hit = [r for r in checked if r['motion']['segments_in_contact']]
+        missed = [r for r in hit if r['motion']['missed_by_states']]
+        lines = ['', f'motion between frames: {sum(r["motion"]["segments_in_contact"] for r in hit)}'
+                 f' segments meet contact in {len(hit)} of {len(checked)} units']
+        if missed:
+            lines.append(f'  {sum(r["motion"]["missed_by_states"] for r in missed)} of them '
+                         f'between two clear frames, in {len(missed)} units (checks of the '
+                         'recorded states alone miss them)')
+        return lines
+
+
+#: Every kind of check by name.
 UNIT_CHECKS: Dict[str, Type[UnitCheck]] = {'contacts': ContactCheck,
-                                           'closest': ClosestApproach}
+                                           'closest': ClosestApproach,
+                                           'motion': MotionCheck}
 
 
 def checks_for(options: CheckOptions) -> List[Type[UnitCheck]]:
@@ -261,6 +330,8 @@ def checks_for(options: CheckOptions) -> List[Type[UnitCheck]]:
     chosen = [UNIT_CHECKS['contacts']]
     if options.max_distance > 0:
         chosen.append(UNIT_CHECKS['closest'])
+    if options.motion:
+        chosen.append(UNIT_CHECKS['motion'])
     return chosen
 
 

@@ -29,11 +29,12 @@ def per_call_us(function, items, repeats=3):
     return best * 1e6
 
 
-def stream(checker, n, moving, seed=0, step=0.02, bounds=None):
+def stream(checker, n, moving, seed=0, step=0.02, bounds=None, start=None):
     """A coherent stream: ``moving`` joints (random ones each step) move by N(0, ``step``);
-    with ``bounds`` ``(lower, upper)`` every state is clipped to them."""
+    with ``bounds`` ``(lower, upper)`` every state is clipped to them. It starts from
+    ``start`` (J,), or from a random configuration within the limits."""
     rng = np.random.default_rng(seed)
-    q = random_configurations(checker, 1, seed)[0]
+    q = random_configurations(checker, 1, seed)[0] if start is None else np.array(start, float)
     frames = []
     for _ in range(n):
         q = q.copy()

@@ -52,12 +52,13 @@ def clutter_mesh(seed: int, objects: int = 70):
     return merged.vertices, merged.faces
 
 
+#: A tool on three sliders (x, y, z within the given limits) and three revolute joints (yaw,
+#: pitch, roll): any pose in the region.
 URDF = '''<robot name="contact_tool">
   <link name="base"/>
   <link name="slide_x"/><link name="slide_y"/><link name="slide_z"/>
   <link name="turn_z"/><link name="turn_y"/>
-  <link name="tool"><collision><geometry><mesh filename="file://{mesh}"/></geometry>
-  </collision></link>
+  <link name="tool"><collision><geometry>{geometry}</geometry></collision></link>
   <joint name="x" type="prismatic"><parent link="base"/><child link="slide_x"/>
     <axis xyz="1 0 0"/><limit lower="{x0}" upper="{x1}" effort="1" velocity="1"/></joint>
   <joint name="y" type="prismatic"><parent link="slide_x"/><child link="slide_y"/>
@@ -85,7 +86,8 @@ def contact_checker(workdir: str, seed: int):
     clutter_path = os.path.join(workdir, 'contact_clutter.stl')
     trimesh.Trimesh(clutter_v, clutter_f, process=False).export(clutter_path)
     (x0, x1), (y0, y1), (z0, z1) = REGION
-    urdf = URDF.format(mesh=path, x0=x0, x1=x1, y0=y0, y1=y1, z0=z0, z1=z1)
+    urdf = URDF.format(geometry=f'<mesh filename="file://{path}"/>', x0=x0, x1=x1, y0=y0,
+                       y1=y1, z0=z0, z1=z1)
     scene = {'objects': [{'name': 'clutter', 'mesh': {'filename': clutter_path}}]}
     checker = CollisionChecker.from_urdf(urdf, scene=scene)
     return checker, tool_v, tool_f, clutter_v, clutter_f

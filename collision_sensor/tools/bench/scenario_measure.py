@@ -15,11 +15,10 @@ temporaries, blur it.
 import ctypes
 import ctypes.util
 import gc
-import math
 import os
 import time
 from dataclasses import dataclass
-from typing import Callable, Dict, Optional, Sequence
+from typing import Callable, Dict, List, Optional, Sequence
 
 M_MMAP_THRESHOLD = -3          # glibc mallopt parameter
 MMAP_THRESHOLD_BYTES = 128 * 1024
@@ -48,7 +47,15 @@ def interleaved_us(candidates: Sequence[Candidate], rounds: int = 3,
         well under a millisecond (a whole path in one compiled call), whose first steps
         would otherwise be refilling the caches.
     """
-    best = {c.label: math.inf for c in candidates}
+    passes = interleaved_rounds_us(candidates, rounds, warm_items)
+    return {label: min(values) for label, values in passes.items()}
+
+
+def interleaved_rounds_us(candidates: Sequence[Candidate], rounds: int = 3,
+                          warm_items: int = 0) -> Dict[str, List[float]]:
+    """Return ``{label: [mean time per call of each pass, us]}``, passes interleaved as
+    :func:`interleaved_us` runs them (which keeps the best): the spread over rounds."""
+    passes: Dict[str, List[float]] = {c.label: [] for c in candidates}
     enabled = gc.isenabled()
     gc.disable()
     try:
@@ -63,11 +70,11 @@ def interleaved_us(candidates: Sequence[Candidate], rounds: int = 3,
                 for item in items:
                     call(item)
                 elapsed = time.perf_counter() - start
-                best[c.label] = min(best[c.label], elapsed / max(1, len(items)))
+                passes[c.label].append(elapsed / max(1, len(items)) * 1e6)
     finally:
         if enabled:
             gc.enable()
-    return {label: value * 1e6 for label, value in best.items()}
+    return passes
 
 
 def work_per_check(checker, configurations) -> dict:

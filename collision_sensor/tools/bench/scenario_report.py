@@ -1,5 +1,6 @@
 """The benchmark's output: sections of markdown, targets with a PASS/MISS verdict each."""
 import math
+import os
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Sequence
 
@@ -70,3 +71,20 @@ def ratio(ours: Optional[float], theirs: Optional[float]) -> str:
     if ours is None or theirs is None or not theirs > 0:
         return '-'
     return f'{ours / theirs:.2f}x'
+
+
+def spread(values: Sequence[float]) -> str:
+    """Format ``min / median / max`` of per-pass times (us)."""
+    ordered = sorted(values)
+    n = len(ordered)
+    median = ordered[n // 2] if n % 2 else 0.5 * (ordered[n // 2 - 1] + ordered[n // 2])
+    return f'{us(ordered[0])} / {us(median)} / {us(ordered[-1])}'
+
+
+def load_note() -> str:
+    """The machine's load average now, for figures measured on a shared machine."""
+    try:
+        one, five, _ = os.getloadavg()
+    except OSError:
+        return 'load average unknown'
+    return f'load average {one:.1f} (1 min), {five:.1f} (5 min), {os.cpu_count()} CPUs'

@@ -1,6 +1,6 @@
 """How much the benchmark measures: the default run, and ``--quick`` for a smoke run."""
 from dataclasses import dataclass
-from typing import Tuple
+from typing import Optional, Tuple
 
 
 @dataclass(frozen=True)
@@ -14,6 +14,15 @@ class Settings:
     :ivar rounds: interleaved timing passes; each figure is the best of them.
     :ivar box_pairs, box_repeat: box-test pairs per set and loops over them (scenario 5).
     :ivar fits: the bounding-volume fits compared in scenario 5.
+    :ivar motion_segments: random segments of scenario 10's certification part, over all its
+        robots.
+    :ivar motion_speed_segments: random segments per robot of scenario 10's speed part.
+    :ivar motion_waypoints: waypoints of scenario 10's Panda trajectory.
+    :ivar motion_walk_steps: steps of scenario 10's 1 kHz walk (scenario 8's walk).
+    :ivar ccd_cases: random translations per pair of primitives (scenario 10, python-fcl's
+        continuousCollide).
+    :ivar motion_robots: scenario 10's certification robots (labels of
+        ``motion_cells.ROBOTS``; None: all).
     """
 
     seed: int = 1998
@@ -26,6 +35,12 @@ class Settings:
     box_pairs: int = 100_000
     box_repeat: int = 10
     fits: Tuple[str, ...] = ('pca', 'hull_pca', 'min_volume')
+    motion_segments: int = 10_200
+    motion_speed_segments: int = 200
+    motion_waypoints: int = 1000
+    motion_walk_steps: int = 3000
+    ccd_cases: int = 40
+    motion_robots: Optional[Tuple[str, ...]] = None
 
     @classmethod
     def for_run(cls, quick: bool, seed: int) -> 'Settings':
@@ -35,4 +50,6 @@ class Settings:
         # min_volume is left out of the smoke run: its Panda build alone takes ~15 s.
         return cls(seed=seed, quick=True, configurations=60, stream_steps=60,
                    scale_configurations=20, terrain_triangles=(1_000, 3_000, 10_000), rounds=2,
-                   box_pairs=2_000, box_repeat=2, fits=('pca', 'hull_pca'))
+                   box_pairs=2_000, box_repeat=2, fits=('pca', 'hull_pca'),
+                   motion_segments=30, motion_speed_segments=10, motion_waypoints=100,
+                   motion_walk_steps=300, ccd_cases=3, motion_robots=('panda', 'ur5', 'z1'))
