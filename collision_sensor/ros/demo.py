@@ -98,13 +98,15 @@ def node_command() -> List[str]:
     return console_command('collision_sensor_node')
 
 
-def demo_cell_parameters() -> Dict[str, str]:
-    """Return the node parameters that load the bundled demo cell, with reliable input."""
+def demo_cell_parameters() -> Dict[str, object]:
+    """Return the node parameters that load the bundled demo cell, with reliable input and
+    instant verdicts (``check_motion`` off: the demo's summary is compared with the offline
+    check's, which checks each frame's instant)."""
     from collision_sensor.model.share import config_path
     return {'urdf_path': config_path('demo_arm.urdf'),
             'srdf_path': config_path('demo_arm.srdf'),
             'scene_path': config_path('demo_scene.yaml'),
-            'joint_states_qos': 'reliable'}
+            'joint_states_qos': 'reliable', 'check_motion': False}
 
 
 # -- the node process -------------------------------------------------------------------------

@@ -1,6 +1,11 @@
 """``/diagnostics``: the node's ``collision sensor`` status, once a second (as
 diagnostic_updater), and each source's own status (``scene``).
 
+With ``check_motion``: ``motion`` (``off``, ``sweeping``: the next verdict covers the motion
+from the last state checked, or ``new_motion: <reason>``: the next state is checked as an
+instant), ``motions_swept_total``, ``motion_contacts_on_the_way_total`` (verdicts whose contact
+was only on the way) and ``new_motions_<reason>`` (:mod:`.motion_stream`).
+
 Levels: OK; WARN while waiting for the robot's first joint states or missing joints, with joints
 beyond their limits, after a rejected joint state in the period, or while ``allowed_collisions``
 or ``warning_ignore`` names something that is no link or scene object (yet); ERROR without a
@@ -14,6 +19,7 @@ import time
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
 from collision_sensor.ros.joint_state_merger import Problem
+from collision_sensor.ros.motion_stream import NEW_MOTION_REASONS
 from collision_sensor.untrusted_text import listing, printable
 
 DIAGNOSTICS_PERIOD = 1.0    # s, as diagnostic_updater
@@ -51,8 +57,12 @@ def sensor_status(node, joints, period: PeriodStats, now: float) -> DiagnosticSt
     in_collision = bool(held and held[0])
     level, message = DiagnosticStatus.OK, 'no collision'
     if in_collision:
+        met = held[2].met
         message = 'in collision: ' + listing((f'{a}:{b}' for a, b in held[1]),
                                              total=len(held[1]))
+        if met:
+            message += '; met on the way: ' + listing((f'{a}:{b}' for a, b in met),
+                                                      total=len(met))
     problems = []
     last_accepted = joints.last_accepted
     if node.checker is None:
@@ -146,6 +156,13 @@ def sensor_status(node, joints, period: PeriodStats, now: float) -> DiagnosticSt
         'parameter_changes_applied_total': str(totals['parameter_changes']),
         'parameters_pending': str(node.rebuilding).lower(),
         'names_pending': listing(pending, total=len(pending)),
+        'check_motion': str(settings.check_motion).lower(),
+        'motion': node.motion.state(settings.check_motion),
+        'motions_swept_total': str(node.motion.counts['swept']),
+        'motion_contacts_on_the_way_total': str(node.motion.counts['met_on_the_way']),
+        'new_motions_total': str(sum(node.motion.counts[r] for r in NEW_MOTION_REASONS)),
+        **{f'new_motions_{reason}': str(node.motion.counts[reason])
+           for reason in NEW_MOTION_REASONS},
     }
     return DiagnosticStatus(
         level=level, name=f'{node.get_fully_qualified_name().lstrip("/")}: collision sensor',

@@ -16,7 +16,9 @@ Each message carries a unique header stamp, which the node copies into its answe
 message is answered. This process keeps its own
 :class:`~collision_sensor.ros.joint_state_merger.JointStateMerger` with the node's settings to
 know what the node must answer: for an accepted message that completes the state, the node's
-colliding pairs are compared with a fresh ``CollisionChecker.check`` here, on the merged state;
+colliding pairs are compared with a fresh ``CollisionChecker.check`` here, on the merged state,
+followed by the pairs met on the way that ``CollisionChecker.check_motion`` finds from the state
+checked before (the node's default ``check_motion``);
 a rejected one (or one the engine refuses) must be answered by a ``joint_state_rejected`` entry,
 one that cannot be checked yet by ``waiting_for_joints``, and one that changes nothing (no
 position, no joint of the robot) by the verdict of the state held. It reports, per message
@@ -297,7 +299,9 @@ def run_fuzz(messages: int, seed: int = 1, rate: float = 500.0, policy: str = 'r
 
     from collision_sensor import CollisionChecker, JointStateError
     from collision_sensor.model.example_robots import example_robot
-    from collision_sensor.ros.joint_state_merger import JointStateMerger
+    from collision_sensor.ros.joint_state_merger import (
+        DEFAULT_LIMIT_TOLERANCE, JointStateMerger)
+    from collision_sensor.ros.motion_stream import joint_spans, jumped
 
     def say(text=''):
         print(text, file=out, flush=True)
@@ -379,6 +383,9 @@ def run_fuzz(messages: int, seed: int = 1, rate: float = 500.0, policy: str = 'r
 
         expected: Dict[int, Tuple[str, Tuple[Tuple[str, ...], ...]]] = {}
         held = None     # the verdict of the last state checked, which an ignored one gets
+        last_checked = None     # that state
+        # A jump farther than a joint's range is no motion: the node checks the instant.
+        spans = joint_spans(reference, DEFAULT_LIMIT_TOLERANCE)
         period = 1.0 / rate
         t0 = time.monotonic()
         for index, (kind, names, values, velocities) in enumerate(maker.stream(messages)):
@@ -398,13 +405,22 @@ def run_fuzz(messages: int, seed: int = 1, rate: float = 500.0, policy: str = 'r
             elif not mirror.complete:
                 answer = WAITING
             else:
+                positions = dict(mirror.positions)
                 try:
-                    result = reference.check(dict(mirror.positions))
+                    result = reference.check(positions)
                 except JointStateError:  # the node's engine refuses it too
                     mirror.undo(outcome)
                     answer = REJECTED
                 else:
-                    answer = held = tuple(result.colliding_pairs)
+                    # check_motion (the node's default): the pairs in contact, then those met
+                    # on the way from the state checked before.
+                    now, met = tuple(result.colliding_pairs), ()
+                    q = np.array([positions[name] for name in reference.joint_names])
+                    if last_checked is not None and not jumped(spans, last_checked, q):
+                        found = reference.check_motion(last_checked, q)
+                        met = tuple(pair for pair in found.colliding_pairs if pair not in now)
+                    answer = held = now + met
+                    last_checked = q
                     stats.checked += 1
             stats.expected += 1
             expected[key] = (kind, answer)

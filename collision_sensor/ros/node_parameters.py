@@ -138,6 +138,12 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
                   'current; "every" checks every one in order however far behind (a recorded '
                   'path replayed as fast as possible, one verdict per frame)',
                   'newest | every'),
+    ParameterSpec('check_motion', True,
+                  'each verdict covers the motion from the previous state checked to this one '
+                  '(certified, not sampled): contact is true if any contact happens on the way, '
+                  'and colliding_pairs lists the pairs met on the way (key first_contact); a '
+                  'gap longer than stale_timeout starts a new motion. false: the instant only',
+                  dynamic=True),
     ParameterSpec('on_rejected_input', 'contact',
                   'a joint state the node refuses (malformed, beyond its limits, too large) or '
                   'cannot check yet (joints missing) is answered by a colliding_pairs entry '
@@ -206,6 +212,7 @@ class NodeSettings:
     :ivar joint_limit_tolerance: rad or m beyond a limit still taken as given.
     :ivar max_unknown_joints: unknown joint names remembered.
     :ivar max_joint_state_bytes: largest serialized joint_states message taken.
+    :ivar check_motion: verdicts cover the motion from the previous state checked.
     :ivar xacro_args: ``{name: value}`` for a ``.xacro`` urdf_path.
     :ivar warning_distance: metres; 0: no proximity outputs.
     :ivar warning_ignore: pairs left out of the warning zone, each sorted.
@@ -229,6 +236,7 @@ class NodeSettings:
     joint_limit_tolerance: float = DEFAULT_LIMIT_TOLERANCE
     max_unknown_joints: int = MAX_UNKNOWN_NAMES
     max_joint_state_bytes: int = MAX_JOINT_STATE_BYTES
+    check_motion: bool = True
     xacro_args: Dict[str, str] = field(default_factory=dict)
     overload_policy: str = 'newest'
     warning_distance: float = 0.0
@@ -388,6 +396,7 @@ def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
         joint_limit_tolerance=_non_negative(merged, 'joint_limit_tolerance'),
         max_unknown_joints=_non_negative_int(merged, 'max_unknown_joints'),
         max_joint_state_bytes=_at_least(merged, 'max_joint_state_bytes', 1024),
+        check_motion=bool(merged['check_motion']),
         warning_distance=_non_negative(merged, 'warning_distance'),
         warning_ignore=frozenset(sorted_pair(*entry.split(':'))
                                  for entry in _parse_pairs(merged['warning_ignore'],

@@ -113,6 +113,8 @@ from collision_sensor.ros.markers import (  # noqa: F401
 from collision_sensor.ros.model_loading import (
     MAX_ROBOT_DESCRIPTION_BYTES, MODEL_POLL_PERIOD, ModelLoader, build_checker,
     default_checker_factory, root_link)
+from collision_sensor.ros.motion_stream import ENGINE_ERROR as MOTION_ENGINE_ERROR
+from collision_sensor.ros.motion_stream import MotionStream
 from collision_sensor.ros.node_log import WARNING_PERIOD, NodeLog  # noqa: F401
 from collision_sensor.ros.node_parameters import (
     CONTACT, NodeSettings, declare_node_parameters)
@@ -166,6 +168,7 @@ class CollisionSensorNode(Node):
         self.period = PeriodStats()
         self.engine_error = ''
         self._resync = False     # check the next state from scratch (after an engine error)
+        self.motion = MotionStream()     # check_motion: the motion's start
         self.rebuilding = False  # a parameter change waits for its new checker
         self.sources: List[InputSource] = []
         self.joints: Optional[JointStateSource] = None
@@ -236,6 +239,7 @@ class CollisionSensorNode(Node):
             commits = prepare_all(self.sources, checker, stack)
             loaded = []
             with self.lock:
+                self.motion.replace_checker(self.checker, checker)
                 self.checker, self._robot_input = checker, robot
                 self._built_values = {name: settings.values.get(name)
                                       for name in CHECKER_PARAMETERS}
@@ -399,7 +403,8 @@ class CollisionSensorNode(Node):
         what the engine raised, with nothing published."""
         checker = self.checker
         started = time.perf_counter()
-        result = checker.check(positions) if self._resync else checker.update(positions)
+        result, motion = self.motion.check(checker, positions, self.joints.last_accepted,
+                                           self.settings, self._resync)
         elapsed = time.perf_counter() - started
         zone = self.zone
         # Every engine call before anything is published: a failure publishes nothing.
@@ -412,7 +417,7 @@ class CollisionSensorNode(Node):
         period.check_time_sum += elapsed
         if elapsed > period.check_time_max:
             period.check_time_max = elapsed
-        self.verdicts.publish(header, result)
+        self.verdicts.publish(header, result, motion)
         if records is not None:
             zone.publish(header, records)
         if self.markers is not None:
@@ -429,6 +434,7 @@ class CollisionSensorNode(Node):
         self.totals['engine_errors'] += 1
         text = printable(error if isinstance(error, CollisionSensorError) else repr(error), 500)
         self.engine_error, self._resync = text, True
+        self.motion.restart(MOTION_ENGINE_ERROR)
         policy = self.settings.on_engine_error
         kind = 'engine' if isinstance(error, CollisionSensorError) else 'internal'
         notes.append(('error', kind, f'collision check failed: {text}; the state stays the '

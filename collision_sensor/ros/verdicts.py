@@ -4,6 +4,15 @@ A verdict is one ``contact`` (``std_msgs/Bool``) and then one ``colliding_pairs`
 (``diagnostic_msgs/DiagnosticArray``, the answered input's header; one status per colliding
 pair, level ERROR, name ``link_a:link_b``, values ``link_a``, ``link_b``).
 
+With ``check_motion`` (:mod:`.motion_stream`) the verdict covers the motion from the previous
+state: ``contact`` is true if any state on the way is in contact. The pairs in contact at the
+state itself come first, as above (in contact now); then one status per pair met on the way
+and not in contact now (the pairs in contact at the motion's first contact), level ERROR, name
+``link_a:link_b``, message ``link_a met link_b on the way, at 0.42 of the motion``, values
+``link_a``, ``link_b`` and ``first_contact`` (the fraction of the motion from the previous
+state, in [0, 1]). A subscriber tells the two apart by the ``first_contact`` key: only pairs met
+on the way have it.
+
 When the node cannot say where the robot is, or cannot check it, it answers with a failure entry
 instead: a ``colliding_pairs`` status whose name has no ``:`` (one of :data:`FAILURE_KINDS`),
 level ERROR, the reason as its message, values ``kind``, ``reason`` and ``policy``. What
@@ -17,6 +26,8 @@ level ERROR, the reason as its message, values ``kind``, ``reason`` and ``policy
   verdict's pairs. With no state checked yet there is nothing to hold: as ``contact``.
 """
 from typing import Optional, Tuple
+
+from collision_sensor.ros.motion_stream import NO_MOTION, MotionVerdict
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -70,8 +81,8 @@ class VerdictPublisher:
     """Publish ``contact`` and ``colliding_pairs`` (call with the node's lock held).
 
     :param node: the node that owns the publishers.
-    :ivar held: the verdict of the last state checked, ``(in_collision, colliding pairs)``, or
-        None before one (or since a new model).
+    :ivar held: the verdict of the last state checked, ``(in_collision, colliding pairs,
+        MotionVerdict)``, or None before one (or since a new model).
     """
 
     def __init__(self, node):
@@ -83,7 +94,7 @@ class VerdictPublisher:
         self._pairs_msg = DiagnosticArray()
         self._last_pairs = None
         self.root_frame = ''
-        self.held: Optional[Tuple[bool, tuple]] = None
+        self.held: Optional[Tuple[bool, tuple, MotionVerdict]] = None
 
     def forget(self, root_frame: str) -> None:
         """A new model: no state of it checked yet."""
@@ -91,16 +102,18 @@ class VerdictPublisher:
         self._last_pairs = None
         self.held = None
 
-    def publish(self, header, result) -> None:
-        """Publish the verdict ``result`` (a ``CheckResult``) answering ``header``."""
+    def publish(self, header, result, motion: MotionVerdict = NO_MOTION) -> None:
+        """Publish the verdict ``result`` (a ``CheckResult``) answering ``header``; ``motion``:
+        what the motion to it met on the way (see the module docstring)."""
         pairs = result.colliding_pairs
-        in_collision = bool(result.in_collision)
+        in_collision = bool(result.in_collision) or motion.in_collision
         self._contact_pub.publish(self._contact_msgs[in_collision])
         verdict = self._pairs_msg
-        if pairs != self._last_pairs:
-            self._last_pairs = pairs
-            verdict.status = self._pair_statuses(pairs)
-            self.held = (in_collision, pairs)   # in_collision is bool(pairs)
+        key = (pairs, motion.met and motion)
+        if key != self._last_pairs:
+            self._last_pairs = key
+            verdict.status = self._pair_statuses(pairs, motion)
+            self.held = (in_collision, pairs, motion)
         verdict.header = header
         self._pairs_pub.publish(verdict)
 
@@ -109,7 +122,7 @@ class VerdictPublisher:
         published) when there is none."""
         if self.held is None:
             return False
-        in_collision, pairs = self.held
+        in_collision = self.held[0]
         self._contact_pub.publish(self._contact_msgs[in_collision])
         self._pairs_msg.header = header
         self._pairs_pub.publish(self._pairs_msg)
@@ -119,18 +132,29 @@ class VerdictPublisher:
         """Answer ``header`` with the failure ``entry`` by ``policy``; return the ``contact``
         published."""
         if policy == HOLD and self.held is not None:
-            in_collision, pairs = self.held
-            statuses = [entry] + self._pair_statuses(pairs)
+            in_collision, pairs, motion = self.held
+            statuses = [entry] + self._pair_statuses(pairs, motion)
         else:
             in_collision, statuses = True, [entry]
         self._contact_pub.publish(self._contact_msgs[in_collision])
         self._pairs_pub.publish(DiagnosticArray(header=header, status=statuses))
         return in_collision
 
-    def _pair_statuses(self, pairs) -> list:
+    def _pair_statuses(self, pairs, motion: MotionVerdict = NO_MOTION) -> list:
         root = self.root_frame
-        return [DiagnosticStatus(level=DiagnosticStatus.ERROR, name=f'{a}:{b}',
-                                 message=f'{a} collides with {b}', hardware_id=root,
+        statuses = [DiagnosticStatus(level=DiagnosticStatus.ERROR, name=f'{a}:{b}',
+                                     message=f'{a} collides with {b}', hardware_id=root,
+                                     values=[KeyValue(key='link_a', value=a),
+                                             KeyValue(key='link_b', value=b)])
+                    for a, b in pairs]
+        if motion.met:
+            at = f'{motion.first_contact:.6g}'
+            statuses.extend(
+                DiagnosticStatus(level=DiagnosticStatus.ERROR, name=f'{a}:{b}',
+                                 message=f'{a} met {b} on the way, at {at} of the motion',
+                                 hardware_id=root,
                                  values=[KeyValue(key='link_a', value=a),
-                                         KeyValue(key='link_b', value=b)])
-                for a, b in pairs]
+                                         KeyValue(key='link_b', value=b),
+                                         KeyValue(key='first_contact', value=at)])
+                for a, b in motion.met)
+        return statuses

@@ -291,24 +291,61 @@ def test_bad_configuration_exits_non_zero_from_the_console_script(tmp_path):
 
 # -- verdicts -----------------------------------------------------------------------------------
 
-def test_recorded_sequence_matches_the_checker(ros, panda_urdf, panda_srdf, erd_share, frames,
-                                               expected):
-    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share))
+def motion_expected(panda, frames, expected):
+    """What the node answers each frame with check_motion: (contact, pairs in contact at the
+    frame, then (pair, first_contact) met on the way from the frame before), from a fresh
+    ``check`` and ``check_motion``."""
+    answers = []
+    for k, (hit, pairs) in enumerate(expected):
+        met, contact = (), hit
+        if k > 0:
+            found = panda.check_motion(frames[k - 1], frames[k])
+            met = tuple((pair, found.first_contact) for pair in found.colliding_pairs
+                        if pair not in pairs)
+            contact = hit or found.in_collision
+        answers.append((contact, pairs, met))
+    return answers
+
+
+@pytest.mark.parametrize('check_motion', [False, True], ids=['instants', 'motions'])
+def test_recorded_sequence_matches_the_checker(ros, panda, panda_urdf, panda_srdf, erd_share,
+                                               frames, expected, check_motion):
+    """Off: each verdict is a fresh check() of the frame. On: the pairs in contact at the
+    frame, then those met on the way from the frame before (check_motion), with first_contact;
+    the random walk's jumps cross the robot's own links often."""
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
+                                     check_motion=check_motion))
     probe = Probe(ros)
     names = ARM + GRIPPER
     for k, q in enumerate(frames):
         msg = joint_state(q, stamp=stamp_of(k), names=names)
         msg.header.frame_id = 'recording'
         probe.send(msg)
-    assert [msg.data for msg in probe.contact.messages] == [hit for hit, _ in expected]
-    assert [pairs_of(msg) for msg in probe.pairs.messages] == [pairs for _, pairs in expected]
+    want = (motion_expected(panda, frames, expected) if check_motion
+            else [(hit, pairs, ()) for hit, pairs in expected])
+    assert [msg.data for msg in probe.contact.messages] == [hit for hit, _, _ in want]
+    met_total = 0
     for k, msg in enumerate(probe.pairs.messages):
-        assert msg.header.stamp == stamp_of(k) and msg.header.frame_id == 'recording'
+        now, met = [], []
         for status in msg.status:
             values = {kv.key: kv.value for kv in status.values}
             assert status.level == DiagnosticStatus.ERROR
             assert status.name == f'{values["link_a"]}:{values["link_b"]}'
             assert values['link_a'] < values['link_b']
+            pair = (values['link_a'], values['link_b'])
+            if 'first_contact' in values:   # met on the way, after those in contact now
+                assert ' met ' in status.message and 'on the way' in status.message
+                met.append((pair, float(values['first_contact'])))
+            else:
+                assert not met, 'pairs in contact now come first'
+                now.append(pair)
+        assert tuple(now) == want[k][1], k
+        assert [pair for pair, _ in met] == [pair for pair, _ in want[k][2]], k
+        for (_, got), (_, first) in zip(met, want[k][2]):
+            assert got == pytest.approx(first, abs=1e-4), k
+        met_total += len(met)
+        assert msg.header.stamp == stamp_of(k) and msg.header.frame_id == 'recording'
+    assert (met_total > 5) == check_motion     # the motions do meet pairs the frames miss
     # A late subscriber gets the latest verdict at once (transient local). The node keeps the
     # last VERDICT_DEPTH verdicts for reliable readers; a depth-1 reader may be handed one or
     # two of the older ones on its way, and ends at the latest.
@@ -317,13 +354,14 @@ def test_recorded_sequence_matches_the_checker(ros, panda_urdf, panda_srdf, erd_
     assert ros.spin_until(lambda: len(late_contact) and len(late_pairs))
     assert ros.spin_until(lambda: late_pairs.last.header.stamp == stamp_of(N_FRAMES - 1))
     ros.spin_for(0.2)
-    assert late_contact.last.data == expected[-1][0]
+    assert late_contact.last.data == want[-1][0]
     assert late_pairs.last.header.stamp == stamp_of(N_FRAMES - 1)
 
 
 def test_partial_states_from_two_publishers_merge(ros, panda, panda_urdf, panda_srdf, erd_share,
                                                   poses):
-    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share))
+    # Instants (check_motion off): the poses jump; test_node_motion.py checks the motions.
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share, check_motion=False))
     probe = Probe(ros)
     gripper = ros.publisher(JointState, 'joint_states', reliable(10))
     hit, free = poses['hit'], poses['free']
@@ -446,7 +484,7 @@ def test_node_uses_only_public_rclpy():
 def test_require_all_joints_off_checks_partial_states(ros, panda, panda_urdf, panda_srdf,
                                                       erd_share, poses):
     start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
-                                     require_all_joints=False))
+                                     require_all_joints=False, check_motion=False))
     probe = Probe(ros)
     for pose in ('hit', 'free'):
         arm = {name: poses[pose][name] for name in ARM}
@@ -744,9 +782,11 @@ def test_quaternion_from_matrix_against_random_rotations():
 
 def test_robot_from_topic_and_bad_description_rejected(ros, panda_urdf, erd_share, poses,
                                                        capfd):
-    # No SRDF here: it would name Panda links that the second robot does not have.
+    # No SRDF here: it would name Panda links that the second robot does not have. Instants
+    # (check_motion off): the poses jump.
     start_node(ros, [Parameter('package_paths', value=[f'example-robot-data={erd_share}']),
-                     Parameter('joint_states_qos', value='reliable')])
+                     Parameter('joint_states_qos', value='reliable'),
+                     Parameter('check_motion', value=False)])
     description = ros.publisher(String, 'robot_description', LATCHED_QOS)
     with open(panda_urdf) as stream:
         urdf_text = stream.read()
@@ -799,7 +839,7 @@ def test_console_script_with_params_file(ros, tmp_path, panda_urdf, panda_srdf, 
         document = yaml.safe_load(stream)
     document['/**']['ros__parameters'].update(
         urdf_path=panda_urdf, srdf_path=panda_srdf, joint_states_qos='reliable',
-        package_paths=[f'example-robot-data={erd_share}'])
+        package_paths=[f'example-robot-data={erd_share}'], check_motion=False)  # poses jump
     params = tmp_path / 'panda.yaml'
     params.write_text(yaml.safe_dump(document))
     process = subprocess.Popen(
@@ -977,7 +1017,8 @@ def test_floating_base_robot_from_the_topic_needs_no_base_variables(ros, erd_sha
     urdf, srdf = os.path.join(robots, 'urdf', 'a1.urdf'), os.path.join(robots, 'srdf', 'a1.srdf')
     start_node(ros, [Parameter('package_paths', value=[f'example-robot-data={erd_share}']),
                      Parameter('srdf_path', value=srdf),
-                     Parameter('joint_states_qos', value='reliable')])
+                     Parameter('joint_states_qos', value='reliable'),
+                     Parameter('check_motion', value=False)])    # instants: the poses jump
     description = ros.publisher(String, 'robot_description', LATCHED_QOS)
     with open(urdf) as stream:
         description.publish(String(data=stream.read()))
@@ -1126,7 +1167,7 @@ def test_warning_zone_outputs_match_fcl_with_padding(ros, panda_urdf, panda_srdf
                                                      erd_package_paths, frames):
     """Every verdict is followed by near, min_distance and near_pairs for the same joint state;
     all three agree with python-fcl distances (minus the paddings) on pinocchio's poses."""
-    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share, check_motion=False,
                                      warning_distance=WARNING_DISTANCE, **NODE_PADDING))
     probe = Probe(ros)
     near = ros.record(Bool, 'near', reliable(1000, latched=True))

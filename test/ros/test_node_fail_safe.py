@@ -87,16 +87,20 @@ def test_engine_fault_answers_contact_and_the_next_state_is_checked_from_scratch
     reference = panda.check(dict(free, **gripper))
     assert probe.send(joint_state(gripper, stamp=stamp_of(3))) == (
         reference.in_collision, tuple(reference.colliding_pairs))
-    # Checked again: /diagnostics is back to OK.
+    # Checked again: /diagnostics is back to OK. With check_motion (the default) that state
+    # was an instant, a new motion: the carried state was not trusted to sweep from.
     status, values = probe.next_diagnostics(lambda v: v['engine_error'] == '')
     assert status.level == DiagnosticStatus.OK
+    assert values['new_motions_engine_error'] == '1' and values['motion'] == 'sweeping'
     assert 'collision check failed: RuntimeError(\'engine fault injected by the test\')' in \
         logged(ros, capfd, 'collision check failed')
 
 
 def test_engine_fault_with_hold_repeats_the_last_verdict_and_reports_error(
         ros, panda_urdf, panda_srdf, erd_share, poses, marked):
-    start_faulty(ros, panda_urdf, panda_srdf, erd_share, on_engine_error='hold')
+    # Instants (check_motion off): the poses jump.
+    start_faulty(ros, panda_urdf, panda_srdf, erd_share, on_engine_error='hold',
+                 check_motion=False)
     probe = Probe(ros)
     hit_elsewhere = dict(marked, panda_joint1=marked['panda_joint1'] + 1e-9)
     reference = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
@@ -168,7 +172,7 @@ def test_stale_input_with_hold_publishes_nothing_but_says_error(ros, panda_urdf,
 def test_rejected_input_with_hold_repeats_the_state_held(ros, panda_urdf, panda_srdf, erd_share,
                                                          poses):
     start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
-                                     on_rejected_input='hold'))
+                                     on_rejected_input='hold', check_motion=False))
     probe = Probe(ros)
     # Nothing checked yet: nothing to hold, answered as contact.
     assert probe.send(joint_state({name: poses['free'][name] for name in ARM})) == \

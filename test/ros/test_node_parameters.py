@@ -111,8 +111,10 @@ def test_dynamic_parameters_set_from_another_node_reach_the_next_verdict(
         ros, panda_urdf, panda_srdf, erd_share, frames, expected):
     """Each dynamic parameter in turn on a node process: the verdicts that follow equal a fresh
     checker's built with the new value, on configurations near contact."""
-    process = node_process(ros.namespace, '-p', 'stale_timeout:=0.0', urdf=panda_urdf,
-                           srdf=panda_srdf, erd_share=erd_share)
+    # Instants (check_motion off): the frames jump; test_node_motion.py sets check_motion.
+    process = node_process(ros.namespace, '-p', 'stale_timeout:=0.0', '-p',
+                           'check_motion:=false', urdf=panda_urdf, srdf=panda_srdf,
+                           erd_share=erd_share)
     try:
         probe = Probe(ros, markers=True, timeout=60.0)
         parameters = Parameters(ros)
@@ -228,12 +230,14 @@ def test_bad_values_set_at_run_time_are_refused_with_the_reason(ros, panda_urdf,
     _, values = probe.next_diagnostics(lambda v: True)
     assert values['parameter_changes_applied_total'] == '0'
     assert DYNAMIC == {'warning_distance', 'padding', 'link_padding', 'allowed_collisions',
-                       'warning_ignore', 'publish_markers', 'joint_limit_policy'}
+                       'warning_ignore', 'publish_markers', 'joint_limit_policy',
+                       'check_motion'}
 
 
 def test_markers_off_and_on_withdraws_nothing_else(ros, panda_urdf, panda_srdf, erd_share,
                                                    poses):
-    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share, publish_markers=True))
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share, publish_markers=True,
+                                     check_motion=False))     # instants: the poses jump
     probe = Probe(ros, markers=True)
     parameters = Parameters(ros)
     assert probe.send(joint_state(poses['hit']))[0]

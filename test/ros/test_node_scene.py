@@ -46,8 +46,11 @@ def robot_file(tmp_path_factory):
 
 
 def start(ros, robot_file, **overrides):
+    # Instants (check_motion off): the states jump, and the oracle is python-fcl at each state;
+    # test_node_motion.py checks motions against scene objects.
     values = {'urdf_path': robot_file, 'joint_states_qos': 'reliable',
-              'overload_policy': 'every', 'joint_limit_policy': 'accept'}
+              'overload_policy': 'every', 'joint_limit_policy': 'accept',
+              'check_motion': False}
     values.update(overrides)
     node = CollisionSensorNode(namespace=ros.namespace, context=ros.context,
                                parameter_overrides=[Parameter(k, value=v)
