@@ -98,6 +98,29 @@ class RosHarness:
         rclpy.try_shutdown(context=self.context)
 
 
+def node_status(ros: RosHarness, diagnostics: Recorder, which: str, condition,
+                timeout: float = 10.0):
+    """Spin until the node ``collision_sensor``'s /diagnostics status ``which`` (``collision
+    sensor``, ``scene``, ``trajectory``) satisfies ``condition(status, values)``; return the
+    newest that does, as ``(status, {key: value})``.
+
+    :param diagnostics: the probe's recorder of /diagnostics.
+    """
+    name = f'{ros.namespace.strip("/")}/collision_sensor: {which}'
+    found = []
+
+    def ready():
+        for msg in diagnostics.messages:
+            for status in msg.status:
+                values = {kv.key: kv.value for kv in status.values}
+                if status.name == name and condition(status, values):
+                    found.append((status, values))
+        return bool(found)
+
+    assert ros.spin_until(ready, timeout), f'no matching {which} status'
+    return found[-1]
+
+
 def reliable(depth: int = 10, latched: bool = False) -> QoSProfile:
     """Return a reliable profile; ``latched`` adds transient-local durability."""
     from rclpy.qos import DurabilityPolicy, ReliabilityPolicy

@@ -13,7 +13,8 @@ import collision_sensor
 PACKAGE_DIR = pathlib.Path(collision_sensor.__file__).parent
 ORDER = ('model', 'engine', 'tools', 'ros')
 ROS_ONLY = ('rclpy', 'sensor_msgs', 'std_msgs', 'visualization_msgs', 'diagnostic_msgs',
-            'geometry_msgs', 'builtin_interfaces', 'std_srvs', 'rosidl_runtime_py')
+            'geometry_msgs', 'builtin_interfaces', 'std_srvs', 'rosidl_runtime_py',
+            'trajectory_msgs')
 
 
 def layer_of(path: pathlib.Path) -> str:

@@ -3,10 +3,12 @@
 Each source owns its subscription(s), the validation of its messages, its timeout and the data
 it hands over; the node (:class:`~collision_sensor.ros.sensor_node.CollisionSensorNode`)
 composes them. Today: :class:`~collision_sensor.ros.joint_state_source.JointStateSource` (the
-robot's state: every joint state is answered by a verdict) and
-:class:`~collision_sensor.ros.scene_source.SceneSource` (objects from the ``scene`` topic).
+robot's state: every joint state is answered by a verdict),
+:class:`~collision_sensor.ros.scene_source.SceneSource` (objects from the ``scene`` topic) and
+:class:`~collision_sensor.ros.trajectory_source.TrajectorySource` (planned trajectories, checked
+before they run and relayed when valid).
 
-Adding a kind of input (a planned trajectory, point clouds) is a module with a subclass of
+Adding a kind of input (point clouds) is a module with a subclass of
 :class:`InputSource` and one line in ``CollisionSensorNode._make_sources``. A source gets the
 node's :class:`SourceHost`, and:
 
@@ -61,6 +63,11 @@ class SourceHost:
     """What the node offers its sources (documentation of the interface; the node is one).
 
     :ivar lock: held while a source hands data over and while anything is checked.
+    :ivar checker_changes: held from preparing a change of the checker's scene, or a new
+        checker, until it is committed; and by a reader that must see one scene throughout
+        without the lock (a trajectory check). Taken before ``lock``, never while holding it.
+    :ivar joints: the :class:`~collision_sensor.ros.joint_state_source.JointStateSource`
+        (``start_state``: where the robot is, for a planned trajectory).
     :ivar log: the node's :class:`~collision_sensor.ros.node_log.NodeLog`.
     :ivar settings: the node's :class:`~collision_sensor.ros.node_parameters.NodeSettings`.
     :ivar checker: the :class:`CollisionChecker` in use (None before the first robot).

@@ -60,7 +60,8 @@ STALE_REPORT_PERIOD = 30.0
 
 
 class Oversized:
-    """A joint_states message above ``max_joint_state_bytes``, left undecoded.
+    """A message above its size limit (``max_joint_state_bytes``, ``max_trajectory_bytes``),
+    left undecoded; any message type that starts with a ``std_msgs/Header``.
 
     :ivar size: its serialized size in bytes.
     :ivar header: its header, read from the first bytes (stamp, and frame up to 256 bytes), so
@@ -71,10 +72,10 @@ class Oversized:
 
     def __init__(self, data: bytes):
         self.size = len(data)
-        self.header = _header_of(data)
+        self.header = header_of(data)
 
 
-def _header_of(data: bytes) -> Header:
+def header_of(data: bytes) -> Header:
     """Read ``header`` from a serialized message (CDR: 4 bytes of encapsulation, then stamp
     sec int32, nanosec uint32, frame_id as uint32 length + bytes + NUL)."""
     header = Header()
@@ -192,6 +193,27 @@ class JointStateSource(InputSource):
         if merger.complete:
             return merger.array
         return None if self.host.settings.require_all_joints else merger.positions
+
+    def start_state(self, checker, now: float):
+        """Return where a planned trajectory starts: ``(positions, '')``, the state accepted
+        last as ``{joint: value}`` for every joint of ``checker`` (joints not heard yet at the
+        checker's values, when ``require_all_joints`` is off); or ``(None, reason)`` when the
+        state is not known: no joint state accepted yet, joints still missing, or stale (lock
+        held)."""
+        merger, settings = self.merger, self.host.settings
+        if merger is None or self.last_accepted is None:
+            return None, 'no joint state accepted yet: where the robot starts is unknown'
+        timeout = settings.stale_timeout
+        if timeout > 0 and now - self.last_accepted > timeout:
+            return None, (f'joint states stale: none accepted for {now - self.last_accepted:.1f}'
+                          f' s (stale_timeout {timeout:g} s): where the robot starts is unknown')
+        if settings.require_all_joints and not merger.complete:
+            return None, (f'waiting for joints {listing(merger.missing(), max_items=20)} '
+                          '(require_all_joints): where the robot starts is unknown')
+        positions = checker.positions
+        positions.update((name, value) for name, value in merger.positions.items()
+                         if name in positions)
+        return positions, ''
 
     # -- events -------------------------------------------------------------------------------
 

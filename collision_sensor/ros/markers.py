@@ -1,5 +1,7 @@
 """``~/markers`` (``publish_markers``): the boxes of colliding bodies, the scene objects and the
-near pairs' nearest points, as ``visualization_msgs/MarkerArray`` in the robot's root link frame.
+near pairs' nearest points, as ``visualization_msgs/MarkerArray`` in the robot's root link frame;
+and the boxes of the links in contact at the last planned trajectory's first contact
+(namespace ``trajectory_contact``, :mod:`.trajectory_source`) until the next trajectory.
 """
 import math
 import time
@@ -23,6 +25,9 @@ TEXT_HEIGHT = 0.02          # m
 WORLD_OBJECT_COLOR = ColorRGBA(r=0.6, g=0.6, b=0.65, a=0.8)
 ATTACHED_OBJECT_COLOR = ColorRGBA(r=0.2, g=0.8, b=0.3, a=0.8)
 COLLIDING_OBJECT_COLOR = ColorRGBA(r=1.0, g=0.1, b=0.1, a=0.9)
+#: A planned trajectory's first contact.
+TRAJECTORY_COLOR = ColorRGBA(r=1.0, g=0.0, b=1.0, a=0.6)
+TRAJECTORY_NS = 'trajectory_contact'
 #: A mesh object with more triangles is drawn as its box on ~/markers.
 MARKER_MAX_TRIANGLES = 20_000
 
@@ -68,10 +73,11 @@ class MarkerPublisher:
         self._time = 0.0
         self._shapes: Dict[str, tuple] = {}   # object: (its vertices, its marker's shape)
         self.scene_changed = True       # the scene file's objects, on the first verdict
+        self._trajectory = []   # the last trajectory's first-contact markers
 
     def close(self, node) -> None:
         """Clear the markers and destroy the publisher (``publish_markers`` turned off)."""
-        self.clear()
+        self.clear(self.root_frame)
         node.destroy_publisher(self._publisher)
 
     def publish(self, checker, stamp, pairs, records=()) -> None:
@@ -110,7 +116,36 @@ class MarkerPublisher:
                      ATTACHED_OBJECT_COLOR if obj.name in attached else WORLD_OBJECT_COLOR)
             markers.append(self._object_marker(checker, obj, index, stamp, color))
         markers.extend(self._proximity_markers(checker, stamp, records))
+        markers.extend(self._trajectory)   # DELETEALL took them too
         self._publisher.publish(MarkerArray(markers=markers))
+
+    def trajectory_contact(self, boxes, stamp, text: str) -> None:
+        """Show ``boxes`` (``(name, T_world_box, half)``: the links at a planned trajectory's
+        first contact) with ``text`` above the first, instead of the last trajectory's; no
+        boxes: clear them."""
+        markers = [Marker(ns=TRAJECTORY_NS, id=m.id, action=Marker.DELETE)
+                   for m in self._trajectory]
+        for marker in markers:
+            marker.header.frame_id = self.root_frame
+        shown = []
+        for index, (name, T_world_box, half) in enumerate(boxes):
+            marker = self._marker(TRAJECTORY_NS, index, Marker.CUBE, T_world_box, stamp,
+                                  TRAJECTORY_COLOR)
+            marker.scale.x, marker.scale.y, marker.scale.z = (2.0 * float(h) for h in half)
+            marker.text = name
+            shown.append(marker)
+        if shown:
+            at = np.array(boxes[0][1], dtype=float)
+            at[:3, :3] = np.eye(3)
+            at[2, 3] += float(np.linalg.norm(boxes[0][2])) + TEXT_HEIGHT
+            label = self._marker(TRAJECTORY_NS, len(shown), Marker.TEXT_VIEW_FACING, at, stamp,
+                                 TEXT_COLOR)
+            label.scale.z = TEXT_HEIGHT
+            label.text = text
+            shown.append(label)
+        self._trajectory = shown
+        if markers or shown:
+            self._publisher.publish(MarkerArray(markers=markers + shown))
 
     def _proximity_markers(self, checker, stamp, records) -> list:
         """The near pairs: nearest points joined (LINE_LIST, apart pairs), the contact points
@@ -183,11 +218,15 @@ class MarkerPublisher:
         return marker
 
     def clear(self, root_frame: Optional[str] = None) -> None:
-        """Delete every marker shown (a new model, or nothing left to show)."""
-        if self._content or self._shapes:
+        """Delete every marker shown (a new model, or nothing left to show but the last
+        trajectory's first contact, which stays until the next trajectory or a new model)."""
+        dropped = root_frame is not None and bool(self._trajectory)
+        if root_frame is not None:
+            self._trajectory = []
+        if self._content or self._shapes or dropped:
             marker = Marker(action=Marker.DELETEALL)
             marker.header.frame_id = self.root_frame
-            self._publisher.publish(MarkerArray(markers=[marker]))
+            self._publisher.publish(MarkerArray(markers=[marker] + self._trajectory))
         if root_frame is not None:
             self.root_frame = root_frame
         self._content = ()

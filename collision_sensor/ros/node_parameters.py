@@ -40,6 +40,9 @@ FAIL_SAFE_POLICIES = (CONTACT, HOLD)
 #: Default of ``max_joint_state_bytes``: a JointState of 1000 joints, names of 24 characters,
 #: positions, velocities and efforts is about 60 KiB serialized.
 MAX_JOINT_STATE_BYTES = 64 * 1024
+#: Default of ``max_trajectory_bytes``: a JointTrajectory of 7 joints with positions, velocities
+#: and accelerations is about 190 bytes a point serialized, so 1 MiB holds about 5000 points.
+MAX_TRAJECTORY_BYTES = 1024 * 1024
 #: Accepted values of ``joint_states_qos``.
 JOINT_STATES_QOS = ('sensor_data', 'reliable')
 #: The engine's defaults, so that the node and the offline tools agree out of the box.
@@ -187,6 +190,11 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
                   'directories under which MESH_RESOURCE files given as file:// or absolute '
                   'paths may lie (package:// URIs need none); empty: package:// only',
                   'each entry an existing directory'),
+    ParameterSpec('max_trajectory_bytes', MAX_TRAJECTORY_BYTES,
+                  'largest trajectory message taken (bytes, serialized); a larger one is '
+                  'answered invalid before it is decoded and never relayed. The default holds '
+                  'about 5000 points of 7 joints with positions, velocities and accelerations',
+                  '>= 1024'),
 )
 
 _SPECS = {spec.name: spec for spec in PARAMETERS}
@@ -213,6 +221,7 @@ class NodeSettings:
     :ivar max_unknown_joints: unknown joint names remembered.
     :ivar max_joint_state_bytes: largest serialized joint_states message taken.
     :ivar check_motion: verdicts cover the motion from the previous state checked.
+    :ivar max_trajectory_bytes: largest serialized trajectory message taken.
     :ivar xacro_args: ``{name: value}`` for a ``.xacro`` urdf_path.
     :ivar warning_distance: metres; 0: no proximity outputs.
     :ivar warning_ignore: pairs left out of the warning zone, each sorted.
@@ -237,6 +246,7 @@ class NodeSettings:
     max_unknown_joints: int = MAX_UNKNOWN_NAMES
     max_joint_state_bytes: int = MAX_JOINT_STATE_BYTES
     check_motion: bool = True
+    max_trajectory_bytes: int = MAX_TRAJECTORY_BYTES
     xacro_args: Dict[str, str] = field(default_factory=dict)
     overload_policy: str = 'newest'
     warning_distance: float = 0.0
@@ -397,6 +407,7 @@ def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
         max_unknown_joints=_non_negative_int(merged, 'max_unknown_joints'),
         max_joint_state_bytes=_at_least(merged, 'max_joint_state_bytes', 1024),
         check_motion=bool(merged['check_motion']),
+        max_trajectory_bytes=_at_least(merged, 'max_trajectory_bytes', 1024),
         warning_distance=_non_negative(merged, 'warning_distance'),
         warning_ignore=frozenset(sorted_pair(*entry.split(':'))
                                  for entry in _parse_pairs(merged['warning_ignore'],

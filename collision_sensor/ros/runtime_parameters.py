@@ -2,16 +2,16 @@
 applied between two checks, all at once.
 
 The dynamic parameters (:data:`~collision_sensor.ros.node_parameters.DYNAMIC`):
-``warning_distance``, ``warning_ignore``, ``publish_markers`` and ``joint_limit_policy`` are
-applied under the node's lock before the request is answered; ``padding``, ``link_padding`` and
-``allowed_collisions`` change the checker itself: the request is answered once the values are
-validated (names against the robot in use), and a new checker is built on the loader thread
-with them, carrying the joint state and the scene over, while the current one keeps answering;
-it replaces the current one between two checks (``parameters_pending`` on /diagnostics until
-then, ``parameter_changes_applied_total`` counts the changes applied). Either way the change is
-answered by a verdict at the current state (header: the time and the root frame), as a scene
-change is, and logged. A refused request changes nothing and names the reason (``ros2 param
-set`` prints it).
+``warning_distance``, ``warning_ignore``, ``publish_markers``, ``joint_limit_policy`` and
+``check_motion`` are applied under the node's lock before the request is answered; ``padding``,
+``link_padding`` and ``allowed_collisions`` change the checker itself: the request is answered
+once the values are validated (names against the robot in use), and a new checker is built on
+the loader thread with them, carrying the joint state and the scene over, while the current one
+keeps answering; it replaces the current one between two checks (``parameters_pending`` on
+/diagnostics until then, ``parameter_changes_applied_total`` counts the changes applied).
+Either way the change is answered by a verdict at the current state (header: the time and the
+root frame), as a scene change is, and logged. A refused request changes nothing and names the
+reason (``ros2 param set`` prints it).
 """
 from typing import List
 

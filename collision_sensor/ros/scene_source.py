@@ -13,7 +13,6 @@ A new checker (a new robot, or a parameter change that needs one) gets the objec
 through the topic before it replaces the current one, so no verdict is given without them; if
 they do not fit a new robot they are dropped, and the log says so.
 """
-import threading
 from typing import Optional
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
@@ -50,9 +49,6 @@ class SceneSource(InputSource):
         settings = host.settings
         self.topic = SceneTopic(settings.scene_limits, settings.package_paths or None)
         self._worker: Optional[NewestFirstWorker] = None
-        # Held from preparing a change until it is committed, by the scene thread and by a
-        # new checker's preparation: changes are committed in the order they were prepared.
-        self._changing = threading.Lock()
         self.rejection = ''    # the last rejected array's reason, '' once one applied
 
     def start(self) -> None:
@@ -73,9 +69,8 @@ class SceneSource(InputSource):
             self._worker = None
 
     def prepare_model(self, checker, stack):
-        """Prepare the topic's objects on ``checker`` (held until the swap: no array is
-        committed to the old checker meanwhile)."""
-        stack.enter_context(self._changing)
+        """Prepare the topic's objects on ``checker`` (the node holds ``checker_changes`` until
+        the swap: no array is committed to the old checker meanwhile)."""
         topic = self.topic
         if not topic.objects:
             return None
@@ -125,7 +120,9 @@ class SceneSource(InputSource):
         for msg in batch:
             notes = []
             try:
-                with self._changing:
+                # Changes are committed in the order they were prepared, and none while a
+                # new checker is prepared or a trajectory checked (host.checker_changes).
+                with host.checker_changes:
                     self._apply(list(msg.markers), notes)
             except Exception as error:  # noqa: B902 - one array must never stop the node
                 if not host.context.ok():

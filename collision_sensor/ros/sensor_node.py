@@ -8,6 +8,8 @@ concern:
 :mod:`.input_source`             the source abstraction: one class per kind of input
 :mod:`.joint_state_source`       ``joint_states``: merging, validation, the answer to each
 :mod:`.scene_source`             ``scene``: objects added, moved, removed at run time
+:mod:`.trajectory_source`        ``trajectory``: planned trajectories checked, valid ones relayed
+:mod:`.motion_stream`            ``check_motion``: verdicts on the motion from the state before
 :mod:`.verdicts`                 ``contact``, ``colliding_pairs``, the fail-safe answers
 :mod:`.warning_zone`             ``near``, ``min_distance``, ``near_pairs``; pairs always near
 :mod:`.markers`                  ``~/markers``
@@ -31,11 +33,14 @@ robot_description   in   std_msgs/String                     reliable, transient
                                                              (only when ``urdf_path`` is empty)
 scene               in   visualization_msgs/MarkerArray      reliable, transient local, depth
                                                              :data:`SCENE_DEPTH`
+trajectory          in   trajectory_msgs/JointTrajectory     reliable, depth 100
 contact             out  std_msgs/Bool                       reliable, transient local, depth 100
 colliding_pairs     out  diagnostic_msgs/DiagnosticArray     reliable, transient local, depth 100
 near                out  std_msgs/Bool                       as contact (``warning_distance`` > 0)
 min_distance        out  std_msgs/Float64                    as contact (``warning_distance`` > 0)
 near_pairs          out  diagnostic_msgs/DiagnosticArray     as contact (``warning_distance`` > 0)
+trajectory_result   out  diagnostic_msgs/DiagnosticArray     as contact, one per trajectory
+trajectory_out      out  trajectory_msgs/JointTrajectory     reliable, depth 10 (valid ones)
 ~/markers           out  visualization_msgs/MarkerArray      reliable, depth 10 (if enabled)
 /diagnostics        out  diagnostic_msgs/DiagnosticArray     reliable, depth 10, once a second
 =================== ==== =================================== ====================================
@@ -70,12 +75,13 @@ the merge undone, the next state checked from scratch, /diagnostics ERROR until 
 checked again), silent input as stale (``stale_policy``, /diagnostics ERROR); a bad
 ``robot_description`` is rejected with an error and the current model stays.
 
-Threads: the executor (:func:`make_executor`: rclpy's ``EventsExecutor`` where available)
-takes joint states and hands each to the checking thread, which merges, checks and publishes;
-scene arrays are applied on a scene thread; new checkers are built on a loader thread
-(checking goes on meanwhile); everything else runs on the executor's thread. One lock keeps the
-model, the merged state and the counters consistent. Only rclpy's public API is used, but for
-one read in :func:`~collision_sensor.ros.node_parameters.unknown_overrides`.
+Threads: the executor (:func:`make_executor`: rclpy's ``EventsExecutor`` where available) takes
+joint states and hands each to the checking thread, which merges, checks and publishes; scene
+arrays are applied on a scene thread; trajectories are checked on a trajectory thread; new
+checkers are built on a loader thread (checking goes on meanwhile); everything else runs on the
+executor's thread. One lock keeps the model, the merged state and the counters consistent. Only
+rclpy's public API is used, but for one read in
+:func:`~collision_sensor.ros.node_parameters.unknown_overrides`.
 
 Input QoS: ``joint_states_qos: sensor_data`` (best effort, keep last 5, rclpy's
 ``qos_profile_sensor_data``) for drivers that publish best effort: under overload the
@@ -121,6 +127,7 @@ from collision_sensor.ros.node_parameters import (
 from collision_sensor.ros.runtime_parameters import CHECKER_PARAMETERS, RuntimeParameters
 from collision_sensor.ros.scene_source import (  # noqa: F401
     MAX_SCENE_BACKLOG, SCENE_DEPTH, SCENE_QOS, SceneSource)
+from collision_sensor.ros.trajectory_source import TrajectorySource
 from collision_sensor.ros.verdicts import (  # noqa: F401
     ENGINE_ERROR, LATCHED_QOS, VERDICT_DEPTH, VERDICT_QOS, VerdictPublisher, failure_status)
 from collision_sensor.ros.warning_zone import WarningZone
@@ -159,6 +166,10 @@ class CollisionSensorNode(Node):
         # is logged while it is held (logging can block on a slow stdout): log lines are
         # collected as notes and written after the lock is released.
         self.lock = threading.Lock()
+        # Held from preparing a change of the checker's scene (or a new checker) until it is
+        # committed, and by a reader that must see one scene throughout without holding the
+        # lock (a trajectory check): taken before the lock, never while holding it.
+        self.checker_changes = threading.Lock()
         self.log = NodeLog(self.get_logger(), self.context.ok, time.monotonic)
         self.checker = None
         self.root_frame = ''
@@ -186,7 +197,7 @@ class CollisionSensorNode(Node):
 
     def _make_sources(self) -> List[InputSource]:
         """The node's inputs (see :mod:`collision_sensor.ros.input_source`): one line each."""
-        return [self.joints, SceneSource(self)]
+        return [self.joints, SceneSource(self), TrajectorySource(self)]
 
     def _configure(self) -> None:
         self.settings: NodeSettings = declare_node_parameters(self)
@@ -236,6 +247,7 @@ class CollisionSensorNode(Node):
         hand it their data, then it replaces the current one under the lock, between two
         checks; the newest parameters are applied at the same moment."""
         with contextlib.ExitStack() as stack:
+            stack.enter_context(self.checker_changes)
             commits = prepare_all(self.sources, checker, stack)
             loaded = []
             with self.lock:

@@ -193,3 +193,26 @@ def test_partial_states_are_swept_from_the_last_state(crossing):
                                   settings(), False)
     assert motion.in_collision and motion.met == expected_met(
         crossing.oracle, crossing.q_half, crossing.q1)[1]
+
+
+def test_trajectory_checks_between_states_change_no_answer_of_the_stream(crossing):
+    """The node checks planned trajectories on the checker in use while joint states are
+    swept on it (the engine serializes the calls; check_trajectory leaves the carried state
+    alone): a stream with a trajectory checked between every two states answers as without."""
+    from collision_sensor.engine.sampling import random_configurations
+    from collision_sensor.engine.trajectory import TrajectoryPoint
+    plain, mixed = fresh(crossing.make()), fresh(crossing.make())
+    one, two = MotionStream(), MotionStream()
+    rng = np.random.default_rng(4)
+    frames = random_configurations(plain, 60, 9)
+    arm = list(plain.joint_names[:7])
+    contacts = 0
+    for k, q in enumerate(frames):
+        expected = one.check(plain, q, 0.01 * k, settings(), False)
+        got = two.check(mixed, q, 0.01 * k, settings(), False)
+        assert (answer(got[0]), got[1]) == (answer(expected[0]), expected[1]), k
+        contacts += got[1].in_collision
+        target = random_configurations(mixed, 1, int(rng.integers(1000)))[0]
+        mixed.check_trajectory(arm, [TrajectoryPoint(1.0, target[:7], [0.0] * 7),
+                                     TrajectoryPoint(2.0, q[:7], [0.0] * 7)])
+    assert contacts >= 5

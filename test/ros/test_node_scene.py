@@ -24,7 +24,7 @@ from collision_sensor import CollisionChecker  # noqa: E402
 from collision_sensor.engine.dynamic_scene import AddObject  # noqa: E402
 from collision_sensor.engine.scene_markers import SceneTopic  # noqa: E402
 from collision_sensor.ros.node import CollisionSensorNode, quaternion_from_matrix  # noqa: E402
-from ros_helpers import RosHarness, reliable  # noqa: E402
+from ros_helpers import RosHarness, node_status, reliable  # noqa: E402
 from small_robot import SMALL_ROBOT  # noqa: E402
 from engine_oracles import SceneOracle  # noqa: E402
 
@@ -126,19 +126,7 @@ class SceneProbe:
     def status(self, which, condition, timeout=10.0):
         """The node's /diagnostics status ``which`` (``scene``, ``collision sensor``) once
         ``condition(status, values)``: (status, values)."""
-        name = f'{self.ros.namespace.strip("/")}/collision_sensor: {which}'
-        found = []
-
-        def ready():
-            for msg in self.diagnostics.messages:
-                for status in msg.status:
-                    values = {kv.key: kv.value for kv in status.values}
-                    if status.name == name and condition(status, values):
-                        found.append((status, values))
-            return bool(found)
-
-        assert self.ros.spin_until(ready, timeout), 'no matching scene status'
-        return found[-1]
+        return node_status(self.ros, self.diagnostics, which, condition, timeout)
 
 
 def test_add_move_remove_each_answered_at_once_as_fcl_says(ros, robot_file):

@@ -1,0 +1,357 @@
+"""The ``trajectory`` input: planned trajectories checked before they run; valid ones relayed.
+
+The node subscribes ``trajectory`` (``trajectory_msgs/JointTrajectory``, reliable) and checks
+each trajectory along the path joint_trajectory_controller will follow
+(``CollisionChecker.check_trajectory``, :mod:`collision_sensor.engine.trajectory`: linear,
+cubic or quintic between points, segment 0 from the current state at rest, wrap-around for
+continuous joints), from the joint state accepted last, with the node's
+``joint_limit_tolerance`` for the joint limits along the way. Each trajectory is answered by
+one ``diagnostic_msgs/DiagnosticArray`` on ``trajectory_result`` (reliable, transient local,
+as the verdicts), its header the trajectory's, with one status:
+
+- name ``<node>: trajectory``, level OK (valid) or ERROR, message ``valid`` or the reason,
+  ``hardware_id`` the root link;
+- values ``valid`` (``true``/``false``), ``kind`` (``valid``, ``contact``, ``joint_limits``,
+  ``malformed``, ``no_start``, ``oversized``, ``dropped``, ``engine_error``),
+  ``first_invalid_segment`` (0: from the start to point 0, i: point i - 1 to point i; empty
+  when none), ``time_from_start`` (s, of the first contact or limit violation; empty when
+  none), ``link_a``, ``link_b`` (the first pair in contact there; empty when none),
+  ``colliding_pairs`` (every pair in contact there, ``a:b`` comma-separated), ``reason``
+  (empty when valid), ``points``, ``joints``.
+
+A valid trajectory is then relayed unchanged (the bytes received) on ``trajectory_out``
+(reliable), so the node can sit between a planner and a controller's ``joint_trajectory``
+topic; an invalid one is never relayed. The start is the state accepted last: with none yet,
+joints still missing (``require_all_joints``) or the state stale (``stale_timeout``), the
+trajectory is invalid (``no_start``): fail safe. A trajectory above ``max_trajectory_bytes``
+serialized is answered ``oversized`` before it is decoded; more than
+:data:`MAX_TRAJECTORY_BACKLOG` waiting, the newcomers are answered ``dropped`` at once (nothing
+is queued without bound). With ``publish_markers``, ``~/markers`` shows the boxes of the links
+in contact at a trajectory's first contact (namespace ``trajectory_contact``, magenta, with a
+text naming the time and the pairs) until the next trajectory is answered.
+
+Threads: the executor only takes the bytes; trajectories are decoded and checked in arrival order
+on a thread of their own. A check holds the node's lock only to read the start state (and to place
+the markers): ``check_trajectory`` leaves the carried state alone and the engine serializes its
+calls, so joint states keep being answered meanwhile. It holds the checker-change lock
+(``host.checker_changes``) throughout instead: a scene array or a new checker waits until the
+trajectory is answered, so a trajectory is checked against one scene and one model.
+"""
+import time
+from typing import Optional
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+from trajectory_msgs.msg import JointTrajectory
+
+from collision_sensor.engine.trajectory import (
+    TrajectoryPoint, TrajectoryResult, build_segments)
+from collision_sensor.ros.input_source import InputSource
+from collision_sensor.ros.joint_state_source import Oversized, header_of
+from collision_sensor.ros.verdicts import VERDICT_QOS
+from collision_sensor.ros.work_queue import NewestFirstWorker
+from collision_sensor.untrusted_text import listing, printable
+
+#: ``trajectory``: reliable, volatile (a trajectory is not for late joiners), keep last 100: a
+#: burst of that many is taken (the executor only hands the bytes over; the excess is answered
+#: ``dropped``), and what the middleware reports lost beyond it is counted (``lost_total``).
+TRAJECTORY_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                            reliability=ReliabilityPolicy.RELIABLE,
+                            durability=DurabilityPolicy.VOLATILE)
+#: ``trajectory_out``: reliable, volatile, as a controller's ``joint_trajectory`` subscription.
+RELAY_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                       reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.VOLATILE)
+#: Trajectories that may wait to be checked; more are answered ``dropped`` at once.
+MAX_TRAJECTORY_BACKLOG = 10
+#: Longest reason in a result (characters).
+MAX_REASON_CHARS = 1000
+#: What ``kind`` says (see the module docstring).
+KINDS = ('valid', 'contact', 'joint_limits', 'malformed', 'no_start', 'oversized', 'dropped',
+         'engine_error')
+
+
+class Dropped:
+    """A trajectory that arrived while :data:`MAX_TRAJECTORY_BACKLOG` waited: answered, never
+    decoded."""
+
+    __slots__ = ('header',)
+
+    def __init__(self, data: bytes):
+        self.header = header_of(data)
+
+
+def points_of(msg: JointTrajectory) -> list:
+    """Return the trajectory's points as ``TrajectoryPoint``\\ s (the engine validates them)."""
+    return [TrajectoryPoint(point.time_from_start.sec + 1e-9 * point.time_from_start.nanosec,
+                            point.positions, point.velocities, point.accelerations)
+            for point in msg.points]
+
+
+def kind_of(result: TrajectoryResult) -> str:
+    """Return the ``kind`` of an engine answer."""
+    if result.valid:
+        return 'valid'
+    if result.colliding_pairs:
+        return 'contact'
+    return 'joint_limits' if result.first_invalid_segment is not None else 'malformed'
+
+
+def boxes_at(checker, q, names) -> list:
+    """Return ``checker.collision_boxes(names)`` as they are at the state ``q``, without moving
+    the carried state: each box of a link (or of an object attached to it) moved by the link's
+    motion from the carried state to ``q`` (forward kinematics at both); world objects' boxes
+    as they are (lock held: the carried poses are read).
+
+    :param q: ``(J,)`` in the order of ``checker.joint_names``.
+    """
+    kinematics = checker.kinematics
+    index = {name: i for i, name in enumerate(kinematics.link_names)}
+    now = np.fromiter(checker.positions.values(), dtype=np.float64,
+                      count=len(checker.joint_names))
+    T_now, T_then = kinematics.forward_kinematics(now), kinematics.forward_kinematics(q)
+    attached = checker.attachments
+    boxes = []
+    for name, T_world_box, half in checker.collision_boxes(names):
+        link = name if name in index else attached.get(name, (None,))[0]
+        if link is not None:
+            k = index[link]
+            T_world_box = T_then[k] @ np.linalg.inv(T_now[k]) @ T_world_box
+        boxes.append((name, T_world_box, half))
+    return boxes
+
+
+class TrajectorySource(InputSource):
+    """Planned trajectories: subscription, size bound, the check, the answer and the relay."""
+
+    name = 'trajectory'
+
+    def __init__(self, host):
+        super().__init__(host)
+        self._worker: Optional[NewestFirstWorker] = None
+        self._result_pub = self._relay_pub = None
+        self._max_bytes = host.settings.max_trajectory_bytes
+        self.last = ('', '')     # the last answer's (kind, reason)
+        self.problems = 0        # oversized, dropped or failed since the last status
+        self.check_time_max = 0.0
+
+    def start(self) -> None:
+        host = self.host
+        self._result_pub = host.create_publisher(DiagnosticArray, 'trajectory_result',
+                                                 VERDICT_QOS)
+        self._relay_pub = host.create_publisher(JointTrajectory, 'trajectory_out', RELAY_QOS)
+        self._worker = NewestFirstWorker(self._check_batch, 'trajectory checker', None)
+        host.create_subscription(
+            JointTrajectory, 'trajectory', self._take, TRAJECTORY_QOS, raw=True,
+            callback_group=MutuallyExclusiveCallbackGroup(),
+            event_callbacks=SubscriptionEventCallbacks(
+                message_lost=self._on_message_lost, incompatible_qos=self._on_incompatible_qos,
+                use_default_callbacks=False))
+
+    def timeout_due(self, now: float) -> bool:
+        return False    # a planner publishes when it plans: no timeout
+
+    def close(self) -> None:
+        if self._worker is not None:
+            self._worker.stop()
+            self._worker = None
+
+    # -- the executor's thread ----------------------------------------------------------------
+
+    def _take(self, data: bytes) -> None:
+        """Hand a trajectory's bytes to the checking thread, which decodes them (decoding a few
+        thousand points takes milliseconds: not on the executor's thread); above the size
+        bound or the backlog, a placeholder answered in its turn."""
+        if len(data) > self._max_bytes:
+            item = Oversized(data)
+        elif self._worker.backlog() >= MAX_TRAJECTORY_BACKLOG:
+            item = Dropped(data)
+        else:
+            item = data
+        self._worker.put(item)
+
+    def _on_message_lost(self, info) -> None:
+        host = self.host
+        with host.lock:
+            host.totals['trajectories_lost'] += info.total_count_change
+            self.problems += 1
+        host.log.warn('trajectory_lost', f'{info.total_count_change} trajectories lost before '
+                      f'the node took them ({info.total_count} in all): never answered; send '
+                      'fewer at once (counted as lost_total on the trajectory status)')
+
+    def _on_incompatible_qos(self, event) -> None:
+        self.host.log.warn(
+            'trajectory_qos', 'a publisher of trajectory offers a QoS this subscription cannot '
+            f'match (policy {event.last_policy_kind}); its trajectories are never received. '
+            'Publish reliable')
+
+    # -- the checking thread ------------------------------------------------------------------
+
+    def _check_batch(self, batch: list, _newest_only: bool) -> None:
+        host = self.host
+        for item in batch:
+            notes = []
+            try:
+                self._answer(item, notes)
+            except Exception as error:  # noqa: B902 - one trajectory must never stop the node
+                if not host.context.ok():
+                    return
+                notes.append(('error', None, 'trajectory skipped after an internal error: '
+                              f'{printable(repr(error), 300)}'))
+            host.log.write(notes)
+
+    def _answer(self, item, notes: list) -> None:
+        """Check one trajectory (or answer a placeholder), publish its result, relay it when
+        valid."""
+        host = self.host
+        if isinstance(item, Oversized):
+            self._publish(item.header, 'oversized', None, (
+                f'{item.size} bytes, above max_trajectory_bytes ({self._max_bytes}); raise the '
+                'parameter if the planner\'s trajectories are really that large, or send fewer '
+                'points'), notes)
+            return
+        if isinstance(item, Dropped):
+            self._publish(item.header, 'dropped', None, (
+                f'{MAX_TRAJECTORY_BACKLOG} trajectories waited to be checked already; send '
+                'them one at a time'), notes)
+            return
+        data = item
+        try:
+            msg = deserialize_message(data, JointTrajectory)
+        except Exception as error:  # noqa: B902 - whatever the bytes, answered
+            self._publish(header_of(data), 'malformed', None, 'the message could not be '
+                          f'decoded: {printable(repr(error), 300)}', notes)
+            return
+        points = points_of(msg)
+        names = list(msg.joint_names)
+        size = (len(points), len(names))
+        started = time.perf_counter()
+        with host.checker_changes:
+            with host.lock:
+                checker = host.checker
+                start, why = (None, 'no robot model yet') if checker is None else \
+                    host.joints.start_state(checker, time.monotonic())
+                tolerance = host.settings.joint_limit_tolerance
+            if start is None:
+                self._publish(msg.header, 'no_start', None, why, notes, size)
+                return
+            try:
+                result = checker.check_trajectory(names, points, start=start,
+                                                  limit_tolerance=tolerance)
+            except Exception as error:  # noqa: B902 - answered, never relayed
+                self._publish(msg.header, 'engine_error', None, 'the check failed: '
+                              f'{printable(repr(error), 300)}', notes, size)
+                return
+            elapsed = time.perf_counter() - started
+            self.check_time_max = max(self.check_time_max, elapsed)
+            if host.markers is not None:
+                try:
+                    self._show_contact(checker, msg, names, points, start, result)
+                except Exception as error:  # noqa: B902 - the answer goes out regardless
+                    notes.append(('warning', 'trajectory_markers', 'trajectory markers '
+                                  f'skipped after an error: {printable(repr(error), 300)}'))
+        if result.valid:
+            self._relay_pub.publish(data)   # the bytes received: unchanged
+        self._publish(msg.header, kind_of(result), result, printable(result.reason,
+                                                                    MAX_REASON_CHARS), notes,
+                      size)
+
+    def _show_contact(self, checker, msg, names, points, start, result) -> None:
+        """Show on ``~/markers`` the boxes of the pairs in contact at the first contact, or
+        clear the last trajectory's (a trajectory without contact)."""
+        host = self.host
+        boxes, text = [], ''
+        if result.colliding_pairs:
+            q_start = np.array([start[name] for name in checker.joint_names])
+            coef, _ = build_segments(checker, names, points, q_start)
+            i = result.first_invalid_segment
+            u = checker.check_spline(coef[i:i + 1]).motion.first_contact
+            q = np.polynomial.polynomial.polyval(u, coef[i].T)
+            linked = sorted({name for pair in result.colliding_pairs for name in pair})
+            text = printable(f'trajectory: first contact at {result.time_from_start:.3f} s '
+                             f'(segment {i}): ' + ', '.join(f'{a}:{b}' for a, b
+                                                            in result.colliding_pairs), 300)
+        with host.lock:
+            if host.markers is None or host.checker is not checker:
+                return
+            if text:
+                boxes = boxes_at(checker, q, linked)
+            host.markers.trajectory_contact(boxes, msg.header.stamp, text)
+
+    def _publish(self, header, kind: str, result: Optional[TrajectoryResult], reason: str,
+                 notes: list, size=(0, 0)) -> None:
+        """Publish the one status answering a trajectory; log an invalid one (throttled)."""
+        host = self.host
+        valid = kind == 'valid'
+        segment = result.first_invalid_segment if result is not None else None
+        at = result.time_from_start if result is not None else None
+        pairs = result.colliding_pairs if result is not None else ()
+        if len(reason) > MAX_REASON_CHARS:
+            reason = reason[:MAX_REASON_CHARS - 3] + '...'
+        values = {
+            'valid': str(valid).lower(),
+            'kind': kind,
+            'first_invalid_segment': '' if segment is None else str(segment),
+            'time_from_start': '' if at is None else f'{at:.9g}',
+            'link_a': pairs[0][0] if pairs else '',
+            'link_b': pairs[0][1] if pairs else '',
+            'colliding_pairs': listing((f'{a}:{b}' for a, b in pairs), total=len(pairs)),
+            'reason': reason,
+            'points': str(size[0]),
+            'joints': str(size[1]),
+        }
+        status = DiagnosticStatus(
+            level=DiagnosticStatus.OK if valid else DiagnosticStatus.ERROR,
+            name=f'{host.get_fully_qualified_name().lstrip("/")}: trajectory',
+            message='valid' if valid else reason, hardware_id=host.root_frame,
+            values=[KeyValue(key=key, value=value) for key, value in values.items()])
+        self._result_pub.publish(DiagnosticArray(header=header, status=[status]))
+        with host.lock:
+            host.totals['trajectories'] += 1
+            host.totals[f'trajectories_{kind}'] += 1
+            if valid:
+                host.totals['trajectories_relayed'] += 1
+            if kind in ('oversized', 'dropped', 'engine_error'):
+                self.problems += 1
+            self.last = (kind, reason)
+        if not valid:
+            notes.append(('warning', f'trajectory_{kind}',
+                          f'trajectory refused ({kind}), not relayed: {reason}'))
+
+    # -- diagnostics --------------------------------------------------------------------------
+
+    def status(self, now: float, notes: list) -> Optional[DiagnosticStatus]:
+        """The ``trajectory`` status on /diagnostics (lock held), once the source started."""
+        host = self.host
+        if self._result_pub is None:
+            return None
+        totals = host.totals
+        kind, reason = self.last
+        level, message = DiagnosticStatus.OK, 'no trajectory yet'
+        if kind:
+            message = 'last trajectory valid, relayed' if kind == 'valid' else \
+                f'last trajectory refused ({kind}): {reason}'
+        if self.problems:
+            level = DiagnosticStatus.WARN
+            message = (f'{self.problems} trajectories oversized, dropped, lost or failed; '
+                       f'{message}')
+        self.problems = 0
+        values = {
+            'trajectories_total': str(totals['trajectories']),
+            'relayed_total': str(totals['trajectories_relayed']),
+            'lost_total': str(totals['trajectories_lost']),
+            **{f'{k}_total': str(totals[f'trajectories_{k}']) for k in KINDS},
+            'last_kind': kind,
+            'last_reason': reason,
+            'check_time_max_ms': f'{1e3 * self.check_time_max:.3f}',
+            'max_trajectory_bytes': str(self._max_bytes),
+            'waiting': str(self._worker.backlog() if self._worker is not None else 0),
+        }
+        return DiagnosticStatus(
+            level=level, name=f'{host.get_fully_qualified_name().lstrip("/")}: trajectory',
+            message=printable(message, 1000), hardware_id=printable(host.root_frame),
+            values=[KeyValue(key=key, value=value) for key, value in values.items()])
