@@ -16,7 +16,23 @@ of its own, so for every message:
 - latency: wall clock when the verdict reaches this process's callback minus the stamp
   (publish -> verdict received, both processes on this machine's clock), p50 / p99 / max;
 - wrong: verdicts that differ from ``CollisionChecker.check`` on the same configuration here;
-- the node's RSS (``/proc/<pid>/status``) after the warm-up and at the end.
+- the node's RSS (``/proc/<pid>/status``) after the warm-up and at the end, and its CPU time
+  (user + system, ``/proc/<pid>/stat``) per message sent during each run: its cost, whatever
+  else loads the machine.
+
+``--check-motion true|false`` sets the node's ``check_motion`` (default: off for random
+configurations, which jump; the node's default with ``--walk``); with it on, each verdict is
+compared with ``CollisionChecker.check_motion`` from the configuration of the verdict received
+before it. ``--walk STEP`` publishes a coherent walk instead of random configurations (straight
+moves between random waypoints, the joint that moves most by STEP per message, forth then back,
+so the cycle has no jump: a driver's stream, where random configurations are the worst case for
+motion checks). ``--trajectories RATE`` publishes, during each run, planned trajectories of
+``--trajectory-points`` points (cubic, within the limits) at RATE Hz on the node's
+``trajectory`` topic, to measure the joint states' latency while trajectories are checked;
+their results' count and latency are printed.
+
+``--per-call`` only times ``update`` against ``update_motion`` on the same configurations in
+this process (the engine's part of a verdict, without the node).
 
 The highest rate of those tried that had no drop is reported. ``--executor`` sets
 ``COLLISION_SENSOR_EXECUTOR`` for the node (see
@@ -53,11 +69,13 @@ def _node_command(params_file: str, namespace: str):
         '--log-level', 'warn']
 
 
-def _write_params(directory: str, robot) -> str:
+def _write_params(directory: str, robot, check_motion: Optional[bool] = None) -> str:
     import yaml
     values = {'urdf_path': robot.urdf, 'srdf_path': robot.srdf,
               'package_paths': [f'{name}={path}' for name, path in robot.package_paths.items()],
               'joint_states_qos': 'reliable', 'stale_timeout': 0.0}
+    if check_motion is not None:
+        values['check_motion'] = check_motion
     path = os.path.join(directory, 'node_latency.yaml')
     with open(path, 'w') as stream:
         yaml.safe_dump({'/**': {'ros__parameters': values}}, stream)
@@ -68,7 +86,8 @@ class Driver:
     """The bench's side of the DDS link, in this process: a pacing publisher and a verdict
     recorder on rclpy's public API (the recorder spun by an executor on a thread of its own)."""
 
-    def __init__(self, namespace: str, joint_names, configurations, expected):
+    def __init__(self, namespace: str, joint_names, configurations, expected,
+                 trajectories=None):
         import rclpy
         from diagnostic_msgs.msg import DiagnosticArray
         from rclpy.node import Node
@@ -102,7 +121,21 @@ class Driver:
         self.namespace = namespace
         self.joint_names = list(joint_names)
         self.configurations = [list(map(float, q)) for q in configurations]
-        self.expected = expected
+        self.expected = expected    # (previous index or None, index) -> pair names
+        # Planned trajectories published meanwhile: (JointTrajectory, rate) or None.
+        self.trajectories = trajectories
+        self.trajectory_results = []    # (receive wall ns, stamp ns, valid)
+        self._last_index = None     # the configuration published last, by the previous run
+        if trajectories is not None:
+            from trajectory_msgs.msg import JointTrajectory
+            self.trajectory_publisher = self.node.create_publisher(
+                JointTrajectory, 'trajectory',
+                QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                           durability=DurabilityPolicy.VOLATILE))
+            self.node.create_subscription(
+                DiagnosticArray, 'trajectory_result', self._on_trajectory_result,
+                QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                           durability=DurabilityPolicy.VOLATILE))
         self._msg_type = JointState
         self.received = []      # (receive wall ns, stamp ns, pair names "a:b")
         self.sent = {}          # stamp ns -> configuration index
@@ -126,6 +159,13 @@ class Driver:
         stamp = msg.header.stamp
         self.received.append((now, stamp.sec * 1_000_000_000 + stamp.nanosec,
                               tuple(status.name for status in msg.status)))
+
+    def _on_trajectory_result(self, msg):
+        now = time.time_ns()
+        stamp = msg.header.stamp
+        values = {kv.key: kv.value for kv in msg.status[0].values} if msg.status else {}
+        self.trajectory_results.append((now, stamp.sec * 1_000_000_000 + stamp.nanosec,
+                                        values.get('valid') == 'true'))
 
     def _on_diagnostics(self, msg):
         for status in msg.status:
@@ -151,6 +191,10 @@ class Driver:
         """Publish at ``rate`` for ``duration`` seconds; return the figures."""
         self.received = []
         self.sent = {}
+        self.trajectory_results = []
+        trajectories_sent = 0
+        trajectory_period_ns = (int(1e9 / self.trajectories[1]) if self.trajectories
+                                else None)
         count = int(round(rate * duration))
         period_ns = int(1e9 / rate)
         late = 0
@@ -174,23 +218,43 @@ class Driver:
             stamp.sec, stamp.nanosec = divmod(now, 1_000_000_000)
             self.sent[now] = index
             self.publisher.publish(msg)
+            if trajectory_period_ns and target - start >= trajectories_sent * \
+                    trajectory_period_ns:
+                trajectory = self.trajectories[0]
+                trajectory.header.stamp.sec, trajectory.header.stamp.nanosec = divmod(
+                    time.time_ns(), 1_000_000_000)
+                self.trajectory_publisher.publish(trajectory)
+                trajectories_sent += 1
         publish_seconds = time.monotonic() - began
         self.published_total += count
         # Stragglers: up to 2 s after the last publication.
         self.spin_until(lambda: len(self.received) >= count, 2.0)
-        return self._figures(rate, count, publish_seconds, late)
+        figures = self._figures(rate, count, publish_seconds, late)
+        if trajectory_period_ns:
+            self.spin_until(lambda: len(self.trajectory_results) >= trajectories_sent, 60.0)
+            waits = np.array([(received - stamp) / 1e6
+                              for received, stamp, _ in self.trajectory_results] or [np.nan])
+            figures['trajectories'] = (trajectories_sent, len(self.trajectory_results),
+                                       sum(valid for _, _, valid in self.trajectory_results),
+                                       float(np.median(waits)), float(np.max(waits)))
+        return figures
 
     def _figures(self, rate, count, publish_seconds, late):
         latencies, wrong = [], 0
         seen = set()
+        # The node answers in order, and checks the motion from the state it answered before
+        # (states it skipped under overload are not swept through).
+        previous = self._last_index
         for received_ns, stamp_ns, names in list(self.received):
             index = self.sent.get(stamp_ns)
             if index is None:   # a verdict for a message of an earlier run
                 continue
             seen.add(stamp_ns)
             latencies.append((received_ns - stamp_ns) / 1e6)
-            if names != self.expected[index]:
+            if names != self.expected(previous, index):
                 wrong += 1
+            previous = index
+        self._last_index = previous
         latencies = np.array(latencies) if latencies else np.array([np.nan])
         return {
             'rate_hz': rate, 'published': count,
@@ -208,6 +272,17 @@ class Driver:
         self._spinner.join(2.0)
         self._executor.shutdown()
         self.node.destroy_node()
+
+
+def cpu_seconds(pid: int) -> Optional[float]:
+    """Return a process's CPU time so far (user + system, all threads, from ``/proc``), or
+    None: per message, it is the node's cost whatever else loads the machine."""
+    try:
+        with open(f'/proc/{pid}/stat') as stat:
+            fields = stat.read().rsplit(')', 1)[1].split()
+    except (OSError, IndexError):
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
 def rss_kib(pid: int) -> Optional[int]:
@@ -234,8 +309,82 @@ def _configurations(checker, count: int, seed: int):
     return configurations, expected
 
 
+def _walk(checker, count: int, step: float, seed: int):
+    """Return (count, J) configurations of a coherent walk within the limits and their
+    colliding pairs: straight moves between seeded random waypoints (each within 30 % of the
+    joints' ranges of the last), the joint that moves most
+    by ``step`` per configuration (a driver's stream during fast moves, in and out of contact),
+    for ``count // 2``, then back the same way (cycled through, it has no jump)."""
+    rng = np.random.default_rng(seed)
+    names = checker.joint_names
+    lower = np.array([checker.joint_limits[name][0] for name in names])
+    upper = np.array([checker.joint_limits[name][1] for name in names])
+    q = rng.uniform(lower, upper)
+    forth = []
+    while len(forth) < count // 2:
+        target = np.clip(q + rng.uniform(-0.3, 0.3, len(q)) * (upper - lower), lower, upper)
+        steps = max(1, int(np.ceil(np.max(np.abs(target - q)) / step)))
+        forth.extend(q + (target - q) * (k / steps) for k in range(1, steps + 1))
+        q = target
+    forth = forth[:count // 2]
+    configurations = np.array(forth + forth[::-1])
+    expected = [tuple(f'{a}:{b}' for a, b in checker.check(q).colliding_pairs)
+                for q in configurations]
+    return configurations, expected
+
+
+def motion_expectation(checker, configurations, instant):
+    """Return ``expected(previous, index)``: the verdict's pair names when the node checks the
+    motion from configuration ``previous`` (None: the instant) to ``index``, as the node lays
+    them out (pairs in contact there, then those met on the way)."""
+    cache = {}
+
+    def expected(previous, index):
+        if previous is None or previous == index:
+            return instant[index]
+        key = (previous, index)
+        if key not in cache:
+            found = checker.check_motion(configurations[previous], configurations[index])
+            now = instant[index]
+            met = tuple(f'{a}:{b}' for a, b in found.colliding_pairs
+                        if f'{a}:{b}' not in now) if found.in_collision else ()
+            cache[key] = now + met
+        return cache[key]
+    return expected
+
+
+def planned_trajectory(checker, points: int, seed: int):
+    """Return a ``JointTrajectory`` of ``points`` points (positions and velocities: cubic),
+    0.01 s apart, a smooth path within the limits around the middle of the joints' ranges."""
+    from builtin_interfaces.msg import Duration
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+    rng = np.random.default_rng(seed)
+    names = checker.joint_names
+    lower = np.array([checker.joint_limits[name][0] for name in names])
+    upper = np.array([checker.joint_limits[name][1] for name in names])
+    middle, reach = 0.5 * (lower + upper), 0.2 * (upper - lower)
+    speed = rng.uniform(0.5, 2.0, len(names))
+    times = 0.01 * np.arange(1, points + 1)
+    positions = middle + reach * np.sin(np.outer(times, speed))
+    velocities = reach * speed * np.cos(np.outer(times, speed))
+    msg = JointTrajectory(joint_names=list(names))
+    for t, q, v in zip(times, positions, velocities):
+        sec, nanosec = divmod(int(round(t * 1e9)), 1_000_000_000)
+        msg.points.append(JointTrajectoryPoint(
+            positions=q.tolist(), velocities=v.tolist(),
+            time_from_start=Duration(sec=sec, nanosec=nanosec)))
+    return msg
+
+
 def _print_figures(label: str, figures: dict, rss: Optional[int] = None):
     memory = f'  node RSS {rss / 1024:6.1f} MiB' if rss is not None else ''
+    if 'cpu_us' in figures:
+        memory += f'  node CPU {figures["cpu_us"]:6.1f} us per message'
+    if 'trajectories' in figures:
+        sent, answered, valid, median, longest = figures['trajectories']
+        memory += (f'  trajectories sent {sent} answered {answered} valid {valid} result '
+                   f'latency median {median:.1f} ms max {longest:.1f} ms')
     print(f'{label:>10}: rate {figures["rate_hz"]:5.0f} Hz (published at '
           f'{figures["achieved_publish_rate_hz"]:7.1f} Hz, {figures["late_publications"]} late)'
           f'  sent {figures["published"]:6d}  dropped {figures["dropped"]:5d}'
@@ -269,6 +418,28 @@ def _soak(driver, rate: float, duration: float, window: float, pid: int) -> None
           f'({100.0 * (rss_end - rss_start) / rss_start:+.1f} %)', flush=True)
 
 
+def _per_call(checker, configurations, passes: int = 5) -> None:
+    """Print the time per configuration of ``update`` and ``update_motion`` (each pass over
+    every configuration in order, from a state checked at the first; min / median / max of the
+    passes), and their ratio: what ``check_motion`` adds to the engine's part of a verdict."""
+    rows = [np.ascontiguousarray(q) for q in configurations]
+    times = {}
+    for name in ('update', 'update_motion'):
+        call = getattr(checker, name)
+        per = []
+        for _ in range(passes):
+            checker.check(rows[0])
+            started = time.perf_counter()
+            for q in rows:
+                call(q)
+            per.append(1e6 * (time.perf_counter() - started) / len(rows))
+        times[name] = sorted(per)
+        print(f'{name:>14}: us per configuration min {per and min(per):7.2f}  median '
+              f'{float(np.median(per)):7.2f}  max {max(per):7.2f}', flush=True)
+    ratio = float(np.median(times['update_motion']) / np.median(times['update']))
+    print(f'update_motion / update (medians): {ratio:.2f}', flush=True)
+
+
 def main(argv=None) -> int:
     """Run the benchmark; print the figures."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
@@ -283,6 +454,18 @@ def main(argv=None) -> int:
                         help='the node\'s executor: events (default), single or multi')
     parser.add_argument('--robot', default='panda', help='example robot: panda or ur5')
     parser.add_argument('--seed', type=int, default=1)
+    parser.add_argument('--check-motion', choices=('true', 'false'), default=None,
+                        help='the node\'s check_motion (default: false for random '
+                        'configurations, the node\'s default with --walk)')
+    parser.add_argument('--walk', type=float, default=None, metavar='STEP',
+                        help='publish a coherent walk, STEP rad per message at most, instead '
+                        'of random configurations')
+    parser.add_argument('--trajectories', type=float, default=None, metavar='RATE',
+                        help='also publish planned trajectories at RATE Hz during each run')
+    parser.add_argument('--trajectory-points', type=int, default=1000)
+    parser.add_argument('--per-call', action='store_true',
+                        help='only time update and update_motion per configuration on this '
+                        'process\'s checker (no node), 5 passes each, and exit')
     args = parser.parse_args(argv)
     rates = [float(rate) for rate in args.rate.split(',') if rate.strip()]
     duration = args.duration if args.duration is not None else (600.0 if args.soak else 30.0)
@@ -300,19 +483,40 @@ def main(argv=None) -> int:
           f'{environment.get("COLLISION_SENSOR_EXECUTOR", "default (events)")}', flush=True)
     checker = CollisionChecker.from_urdf(robot.urdf, srdf=robot.srdf,
                                          package_paths=robot.package_paths)
-    configurations, expected = _configurations(checker, N_CONFIGURATIONS, args.seed)
-    colliding = sum(1 for pairs in expected if pairs)
-    print(f'{N_CONFIGURATIONS} random configurations, {colliding} colliding', flush=True)
+    if args.walk is not None:
+        configurations, instant = _walk(checker, 10 * N_CONFIGURATIONS, args.walk, args.seed)
+        what = f'a walk of {len(configurations)} configurations ({args.walk:g} rad per step)'
+    else:
+        configurations, instant = _configurations(checker, N_CONFIGURATIONS, args.seed)
+        what = f'{N_CONFIGURATIONS} random configurations'
+    colliding = sum(1 for pairs in instant if pairs)
+    if args.per_call:
+        print(f'{what}, {colliding} colliding')
+        _per_call(checker, configurations)
+        return 0
+    from collision_sensor.ros.node_parameters import default_values
+    # Random configurations are jumps, no motion of a robot: by default they are checked as
+    # instants (the figures of the README's instant runs); a walk with the node's default.
+    motion = (args.check_motion == 'true' if args.check_motion is not None
+              else args.walk is not None and default_values()['check_motion'])
+    print(f'{what}, {colliding} colliding; check_motion {str(motion).lower()}', flush=True)
+    expected = (motion_expectation(checker, configurations, instant) if motion
+                else lambda previous, index: instant[index])
+    trajectories = None
+    if args.trajectories:
+        trajectories = (planned_trajectory(checker, args.trajectory_points, args.seed),
+                        args.trajectories)
 
     directory = tempfile.mkdtemp(prefix='node_latency_')
     namespace = f'/node_latency_{uuid.uuid4().hex[:8]}'
-    command = _node_command(_write_params(directory, robot), namespace)
+    command = _node_command(_write_params(directory, robot, motion), namespace)
     log_path = os.path.join(directory, 'node.log')
     log = open(log_path, 'w')
     node = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=environment)
     driver = None
     try:
-        driver = Driver(namespace, checker.joint_names, configurations, expected)
+        driver = Driver(namespace, checker.joint_names, configurations, expected,
+                        trajectories)
         if not driver.wait_for_node(120.0):
             print(f'the node did not come up; its log: {log_path}', file=sys.stderr)
             return 1
@@ -324,7 +528,10 @@ def main(argv=None) -> int:
         else:
             best = None
             for rate in rates:
+                cpu = cpu_seconds(node.pid)
                 figures = driver.run(rate, duration, first_index=200)
+                if cpu is not None and cpu_seconds(node.pid) is not None:
+                    figures['cpu_us'] = 1e6 * (cpu_seconds(node.pid) - cpu) / figures['published']
                 _print_figures(f'{duration:g} s', figures, rss_kib(node.pid))
                 if figures['dropped'] == 0:
                     best = max(best or 0.0, rate)

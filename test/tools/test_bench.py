@@ -172,7 +172,11 @@ def test_motion_cells_segments_and_path_are_as_drawn():
 @pytest.mark.parametrize('args, line', [
     (['--rate', '200,400', '--duration', '1'], 'highest rate without drops:'),
     (['--soak', '--rate', '200', '--duration', '2', '--window', '1'], 'soak total: 2 s at 200 Hz'),
-], ids=['rates', 'soak'])
+    # check_motion on a walk, every verdict against check_motion here, trajectories meanwhile
+    (['--rate', '200', '--duration', '2', '--walk', '0.01', '--seed', '2', '--check-motion',
+      'true', '--trajectories', '1', '--trajectory-points', '20'],
+     'trajectories sent 2 answered 2'),
+], ids=['rates', 'soak', 'motion'])
 def test_node_latency_drives_the_console_script_from_another_process(args, line, tmp_path):
     """The node as a process of its own; the figures printed, the node's counters read back."""
     pytest.importorskip('rclpy')
@@ -186,6 +190,7 @@ def test_node_latency_drives_the_console_script_from_another_process(args, line,
     assert run.returncode == 0, out
     assert line in run.stdout and 'node RSS' in run.stdout, out
     assert 'node counters: received_total' in run.stdout and 'exited with' not in out, out
+    assert re.search(r'wrong\s+0\b', run.stdout) and not re.search(r'wrong\s+[1-9]', run.stdout)
 
 
 @pytest.mark.parametrize('robot', ['tiago_pro', 'kinova'])
