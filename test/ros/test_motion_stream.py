@@ -32,7 +32,7 @@ def elbow_crossing(panda_urdf, panda_srdf, erd_package_paths):
     q0[names.index('panda_joint4')] = -2.6
     q1 = q0.copy()
     q1[names.index('panda_joint4')] = -0.8
-    q_mid, q_next = interpolate(probe._motion_kinds, q0, q1, [2 / 3, 2 / 3 + 1e-3])
+    q_mid, q_next = interpolate(probe.motion_kinds, q0, q1, [2 / 3, 2 / 3 + 1e-3])
 
     def fingertips(q):
         probe.check(q)
