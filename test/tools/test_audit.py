@@ -204,8 +204,11 @@ def _heavy(tmp_path, name='heavy', frames=150_000):
 def check_kills(make_runner, fleet, spec, options, serial_records, tmp_path):
     """Kill the worker of one long unit once (it is checked on its retry) and of another on
     both attempts (it is reported); every other line as a serial run gives it."""
-    units = find_units([fleet[0], _heavy(tmp_path, 'once'), _heavy(tmp_path, 'twice')])
-    once, twice = len(units) - 2, len(units) - 1
+    # The long units first: each call then starts on an idle worker as it is announced, and the
+    # kill lands while it runs (a call queued behind another may be finished by the time the
+    # driver announces it).
+    units = find_units([_heavy(tmp_path, 'once'), _heavy(tmp_path, 'twice'), fleet[0]])
+    once, twice = 0, 1
     killed = []
 
     def kill(index, attempt, pid):
