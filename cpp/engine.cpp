@@ -235,14 +235,12 @@ int64_t Engine::path(const double* Q, int64_t n, int64_t* segment, double* t,
         *segment = 0;
         return 1;
     }
-    for (int64_t i = 0; i + 1 < n; ++i) {
-        if (check_straight_motion(c, Q + J * i, Q + J * (i + 1), nullptr, model_.n_pairs, t,
-                                  pairs)) {
-            *segment = i;
-            return 1;
-        }
-    }
-    return 0;
+    double along;  // in [0, n - 1]: segment k at [k, k + 1]
+    if (!check_polyline_motion(c, Q, n, &along, pairs)) return 0;
+    const int64_t k = along > 0.0 ? std::min(int64_t(std::ceil(along)) - 1, n - 2) : 0;
+    *segment = k;
+    *t = std::min(std::max(along - double(k), 0.0), 1.0);
+    return 1;
 }
 
 int64_t Engine::spline(const double* coef, int64_t n, int64_t* segment, double* t,

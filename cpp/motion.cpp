@@ -72,45 +72,44 @@ class MotionQuery {
         : c_(c), m_(c.view.model), w_(c.work), counters_(c.scratch.counters) {
         w_.size_for(m_);
         w_.evaluated = false;   // the model's joint origins may have changed since
+        w_.first_order = true;  // until a polyline's interval spans segments
         std::fill(w_.crude.begin(), w_.crude.end(), -1.0);
     }
 
     // The straight path q0 -> q1 prepared: each link's joint's speed per unit of the
     // parameter (constant along it).
     void straight_speeds(const double* q0) {
-        // E (planning.hpp: the prismatic joints' |value|, summed) at most its larger end's.
-        double e0 = 0.0, e1 = 0.0;
+        w_.extension_max = extension_bound(q0, w_.delta.data());
         for (int64_t k = 0; k < m_.n_links; ++k) {
-            if (m_.kin.joint_type[k] != JOINT_PRISMATIC) continue;
-            const int64_t j = m_.kin.q_index[k];
-            const double mult = m_.kin.multiplier[k], off = m_.kin.offset[k];
-            e0 += std::fabs(mult * q0[j] + off);
-            e1 += std::fabs(mult * (q0[j] + w_.delta[j]) + off);
-        }
-        w_.extension_max = std::max(e0, e1) * (1.0 + MOTION_BOUND_REL);
-        for (int64_t k = 0; k < m_.n_links; ++k) {
-            const int64_t kind = m_.kin.joint_type[k];
-            const int64_t j = m_.kin.q_index[k];
-            double trans = 0.0, rot = 0.0;
-            if (kind == JOINT_REVOLUTE) {
-                rot = std::fabs(m_.kin.multiplier[k]) * w_.var[j];
-            } else if (kind == JOINT_PRISMATIC) {
-                trans = std::fabs(m_.kin.multiplier[k]) * w_.var[j];
-            } else if (kind == JOINT_PLANAR) {
-                trans = std::hypot(w_.delta[j], w_.delta[j + 1]);
-                rot = w_.var[j + 2];
-            } else if (kind == JOINT_FLOATING) {
-                trans = std::sqrt(w_.delta[j] * w_.delta[j] + w_.delta[j + 1] * w_.delta[j + 1] +
-                                  w_.delta[j + 2] * w_.delta[j + 2]);
-                rot = w_.var[j + 3];
-            }
-            w_.trans[k] = trans * (1.0 + MOTION_BOUND_REL);
-            w_.rot[k] = rot * (1.0 + MOTION_BOUND_REL);
-            w_.speed[k] = (kind == JOINT_REVOLUTE || kind == JOINT_PRISMATIC)
-                              ? m_.kin.multiplier[k] * w_.delta[j]
-                              : 0.0;
+            double speeds[3];
+            link_speeds(k, w_.delta.data(), w_.var.data(), speeds);
+            w_.trans[k] = speeds[0];
+            w_.rot[k] = speeds[1];
+            w_.speed[k] = speeds[2];
             w_.accel[k] = 0.0;
-            w_.moving[k] = (trans > 0.0 || rot > 0.0) ? 1 : 0;
+            w_.moving[k] = (speeds[0] > 0.0 || speeds[1] > 0.0) ? 1 : 0;
+        }
+    }
+
+    // The polyline prepared: its segments' speeds per link (path_speeds picks an interval's
+    // largest), var[j] the largest of its segments' (the crude bound's rate, per unit of the
+    // parameter everywhere) and E's bound the largest of its straight segments'.
+    void polyline_speeds(const PolylinePath& path) {
+        const int64_t J = m_.n_joints, L = m_.n_links;
+        std::fill(w_.var.begin(), w_.var.end(), 0.0);
+        std::fill(w_.moving.begin(), w_.moving.end(), uint8_t(0));
+        w_.extension_max = 0.0;
+        for (int64_t s = 0; s < path.segments; ++s) {
+            const double* delta = path.delta + J * s;
+            const double* var = path.var + J * s;
+            w_.extension_max =
+                std::max(w_.extension_max, extension_bound(path.Q + J * s, delta));
+            for (int64_t j = 0; j < J; ++j) w_.var[j] = std::max(w_.var[j], var[j]);
+            for (int64_t k = 0; k < L; ++k) {
+                double* speeds = w_.poly_speeds.data() + 3 * (L * s + k);
+                link_speeds(k, delta, var, speeds);
+                if (speeds[0] > 0.0 || speeds[1] > 0.0) w_.moving[k] = 1;
+            }
         }
     }
 
@@ -153,6 +152,45 @@ class MotionQuery {
    private:
     static constexpr int MARCH_ON = 0, MARCH_FREE = 1, MARCH_CONTACT = 2;
 
+    // E (planning.hpp: the prismatic joints' |value|, summed) along the straight motion from
+    // q0 by delta: at most its larger end's.
+    double extension_bound(const double* q0, const double* delta) const {
+        double e0 = 0.0, e1 = 0.0;
+        for (int64_t k = 0; k < m_.n_links; ++k) {
+            if (m_.kin.joint_type[k] != JOINT_PRISMATIC) continue;
+            const int64_t j = m_.kin.q_index[k];
+            const double mult = m_.kin.multiplier[k], off = m_.kin.offset[k];
+            e0 += std::fabs(mult * q0[j] + off);
+            e1 += std::fabs(mult * (q0[j] + delta[j]) + off);
+        }
+        return std::max(e0, e1) * (1.0 + MOTION_BOUND_REL);
+    }
+
+    // Link k's joint along a straight motion (StraightPath's delta, var): {trans, rot, signed
+    // speed} per unit of the parameter.
+    void link_speeds(int64_t k, const double* delta, const double* var, double* out) const {
+        const int64_t kind = m_.kin.joint_type[k];
+        const int64_t j = m_.kin.q_index[k];
+        double trans = 0.0, rot = 0.0;
+        if (kind == JOINT_REVOLUTE) {
+            rot = std::fabs(m_.kin.multiplier[k]) * var[j];
+        } else if (kind == JOINT_PRISMATIC) {
+            trans = std::fabs(m_.kin.multiplier[k]) * var[j];
+        } else if (kind == JOINT_PLANAR) {
+            trans = std::hypot(delta[j], delta[j + 1]);
+            rot = var[j + 2];
+        } else if (kind == JOINT_FLOATING) {
+            trans = std::sqrt(delta[j] * delta[j] + delta[j + 1] * delta[j + 1] +
+                              delta[j + 2] * delta[j + 2]);
+            rot = var[j + 3];
+        }
+        out[0] = trans * (1.0 + MOTION_BOUND_REL);
+        out[1] = rot * (1.0 + MOTION_BOUND_REL);
+        out[2] = (kind == JOINT_REVOLUTE || kind == JOINT_PRISMATIC)
+                     ? m_.kin.multiplier[k] * delta[j]
+                     : 0.0;
+    }
+
     void evaluate(const double* q);
     void link_pose(int64_t i);
     void pair_pose(int64_t a, int64_t b, double* pose);
@@ -160,13 +198,26 @@ class MotionQuery {
     void margin(int64_t p, double h2);
     WithinResult pair_within(int64_t p, const double* pose, double h, double extra = 0.0);
     double solid_gap(int64_t a, int64_t b, const double* pose) const;
-    bool crude_apart(const StraightPath& path, int64_t p, const double* pose, double h,
-                     double* reach);
     bool crude_apart(const SplinePath&, int64_t, const double*, double, double*) {
         return false;
     }
+    bool crude_apart(const PolylinePath&, int64_t p, const double* pose, double h,
+                     double* reach) {
+        return crude_apart(p, pose, h, reach);
+    }
+    bool crude_apart(const StraightPath&, int64_t p, const double* pose, double h,
+                     double* reach) {
+        return crude_apart(p, pose, h, reach);
+    }
+    bool crude_apart(int64_t p, const double* pose, double h, double* reach);
+    double crude_rate(int64_t p);
+    double sphere_gap(int64_t p, const double* pose) const;
+    bool waypoint_leap(const StraightPath&, MotionWork::March&) { return false; }
+    bool waypoint_leap(const SplinePath&, MotionWork::March&) { return false; }
+    bool waypoint_leap(const PolylinePath& path, MotionWork::March& s);
     void path_speeds(const StraightPath&, double, double) {}  // constant (straight_speeds)
     void path_speeds(const SplinePath& path, double t, double h2);
+    void path_speeds(const PolylinePath& path, double t, double h2);
     template <class Path>
     int march_step(MotionWork::March& s, const Path& path, double t_end);
 
@@ -260,7 +311,7 @@ void MotionQuery::margin(int64_t p, double h2) {
     for (int s = 0; s < 2; ++s) {
         const int64_t x = s == 0 ? m_.pair_a[p] : m_.pair_b[p];
         SideMotion& side = mm.side[s];
-        side.first_order = true;
+        side.first_order = w_.first_order;
         side.omega[0] = side.omega[1] = side.omega[2] = 0.0;
         for (int64_t i = 0; i < w_.side_n[s]; ++i) {
             const int64_t k = w_.side_link[s][i];
@@ -417,14 +468,35 @@ void MotionQuery::path_speeds(const SplinePath& path, double t, double h2) {
     }
 }
 
+// A polyline's speeds over [t - h2, t + h2]: per link the largest of the segments it meets;
+// within one segment its straight motion's (signed speeds, first-order bounds), else speeds
+// 0 and the zeroth order only (the direction changes at a waypoint).
+void MotionQuery::path_speeds(const PolylinePath& path, double t, double h2) {
+    const int64_t L = m_.n_links;
+    const int64_t k0 = path.segment_of(t - h2);
+    // The segment holding the window's end (an end at waypoint k: segment k - 1).
+    const int64_t k1 = std::max(k0, std::min(int64_t(std::ceil(t + h2)) - 1, path.segments - 1));
+    w_.first_order = k0 == k1;
+    for (int64_t k = 0; k < L; ++k) {
+        double trans = 0.0, rot = 0.0;
+        for (int64_t s = k0; s <= k1; ++s) {
+            const double* speeds = w_.poly_speeds.data() + 3 * (L * s + k);
+            trans = std::max(trans, speeds[0]);
+            rot = std::max(rot, speeds[1]);
+        }
+        w_.trans[k] = trans;
+        w_.rot[k] = rot;
+        w_.speed[k] = k0 == k1 ? w_.poly_speeds[3 * (L * k0 + k) + 2] : 0.0;
+        w_.accel[k] = 0.0;
+    }
+}
+
 // The cheapest proof first, before the pair's joints are even looked at: the planning's
 // configuration-free bound of how far each variable moves the pair (model.hpp: reach,
 // reach_ext, E at most its largest along the path), against the gap of the spheres around
 // the two bodies. Pairs far apart pass whole motions so. INF reach rows (a floating joint's
 // quaternion) prove nothing here.
-bool MotionQuery::crude_apart(const StraightPath& path, int64_t p, const double* pose, double h,
-                              double* reach) {
-    (void)path;
+double MotionQuery::crude_rate(int64_t p) {
     double& rate = w_.crude[p];
     if (rate < 0.0) {
         const int64_t J = m_.n_joints;
@@ -435,15 +507,56 @@ bool MotionQuery::crude_apart(const StraightPath& path, int64_t p, const double*
             if (w_.var[j] > 0.0) sum += w_.var[j] * (r[j] + w_.extension_max * rx[j]);
         rate = sum * (1.0 + MOTION_BOUND_REL);
     }
-    if (!(rate < INF)) return false;
+    return rate;
+}
+
+// The gap between the spheres around pair p's two bodies (body b at pose in body a).
+double MotionQuery::sphere_gap(int64_t p, const double* pose) const {
     const double* A = m_.body_box(m_.pair_a[p]);
     const double* B = m_.body_box(m_.pair_b[p]);
     double d[3];
     centre_offset(A, B, pose, d);
-    const double gap = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) -
-                       (A[BOX_RADIUS] + B[BOX_RADIUS]) * (1.0 + SPHERE_EPS_REL);
+    return std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) -
+           (A[BOX_RADIUS] + B[BOX_RADIUS]) * (1.0 + SPHERE_EPS_REL);
+}
+
+bool MotionQuery::crude_apart(int64_t p, const double* pose, double h, double* reach) {
+    const double rate = crude_rate(p);
+    if (!(rate < INF)) return false;
+    const double gap = sphere_gap(p, pose);
     if (!(gap > rate * h)) return false;
     *reach = rate > 0.0 ? gap / rate : INF;
+    return true;
+}
+
+// A polyline's crude bound at the waypoints around s.t (their poses shared by every pair and
+// computed once): the pair is apart on [k - r, k + r] about waypoint k with r its sphere gap
+// there over its crude rate. Takes s.t as far as one of those intervals that holds it goes;
+// false when none takes it further.
+bool MotionQuery::waypoint_leap(const PolylinePath& path, MotionWork::March& s) {
+    const double rate = crude_rate(s.p);
+    if (!(rate < INF) || !(rate > 0.0)) return false;
+    const int64_t L = m_.n_links;
+    const int64_t a = m_.pair_a[s.p], b = m_.pair_b[s.p];
+    const double lo = std::floor(s.t);
+    double best = s.t;
+    for (const double k : {lo, lo + 1.0}) {
+        if (k > path.end()) break;
+        const int64_t i = int64_t(k);
+        double* T = w_.poly_T.data() + 16 * L * i;
+        if (!w_.poly_posed[i]) {
+            forward_kinematics(m_.kin, path.Q + path.n * i, T);
+            w_.poly_posed[i] = 1;
+        }
+        const double* Tb = m_.is_world_object(b) ? c_.view.state.poses.T_world_body + 16 * b
+                                                 : T + 16 * b;
+        double pose[POSE_WIDTH];
+        relative_pose(T + 16 * a, Tb, pose);
+        const double r = sphere_gap(s.p, pose) / rate * (1.0 - MOTION_BOUND_REL);
+        if (r > 0.0 && k - r <= s.t) best = std::max(best, k + r);
+    }
+    if (!(best > s.t)) return false;
+    s.t = best;
     return true;
 }
 
@@ -459,20 +572,24 @@ template <class Path>
 int MotionQuery::march_step(MotionWork::March& s, const Path& path, double t_end) {
     const int64_t a = m_.pair_a[s.p], b = m_.pair_b[s.p];
     double pose[POSE_WIDTH];
-    const double hi = std::min(s.t + s.length, t_end);
+    if (waypoint_leap(path, s)) return s.t >= t_end ? MARCH_FREE : MARCH_ON;
+    // A polyline's interval ends at the next waypoint: beyond it the speeds change (the crude
+    // bound across waypoints is waypoint_leap's).
+    const double hi = path.clip(s.t, std::min(s.t + s.length, t_end));
     const double m = 0.5 * (s.t + hi);
     const double h = 0.5 * (hi - s.t);
+    double crude_reach;
+    WithinResult w;
     path.at(m, w_.q_next.data());
     evaluate(w_.q_next.data());
     pair_pose(a, b, pose);
-    double crude_reach;
-    WithinResult w;
     if (crude_apart(path, s.p, pose, h, &crude_reach)) {
         w = {false, 0.0, crude_reach};
     } else {
-        path_speeds(path, m, 2.0 * h);
+        const double h2 = path.room(m, h);
+        path_speeds(path, m, h2);
         sides(s.p);
-        margin(s.p, 2.0 * h);
+        margin(s.p, h2);
         w = pair_within(s.p, pose, h);
     }
     if (!w.within) {
@@ -526,7 +643,7 @@ int64_t MotionQuery::march_pairs(const int64_t* list, int64_t n, const Path& pat
     while (!heap.empty() && heap.front().t < *best) {
         std::pop_heap(heap.begin(), heap.end(), later);
         MotionWork::March& s = heap.back();
-        const int state = march_step(s, path, std::min(*best, 1.0));
+        const int state = march_step(s, path, std::min(*best, path.end()));
         if (state == MARCH_ON) {
             std::push_heap(heap.begin(), heap.end(), later);
             continue;
@@ -567,6 +684,23 @@ int64_t check_straight_motion(MotionContext& c, const double* q0, const double* 
     path.prepare(q1);
     query.straight_speeds(q0);
     return query.check(list, list ? n : c.view.model.n_pairs, path, q0, t, pairs);
+}
+
+int64_t check_polyline_motion(MotionContext& c, const double* Q, int64_t n, double* t,
+                              uint8_t* pairs) {
+    MotionQuery query(c);
+    MotionWork& w = c.work;
+    const Model& m = c.view.model;
+    const int64_t J = m.n_joints, S = n - 1;
+    for (auto* v : {&w.poly_delta, &w.poly_var, &w.poly_quat0}) v->assign(S * J, 0.0);
+    w.poly_speeds.assign(3 * S * m.n_links, 0.0);
+    w.poly_T.resize(16 * (S + 1) * m.n_links);
+    w.poly_posed.assign(S + 1, 0);
+    PolylinePath path{Q, m.motion_kind, J, S, w.poly_delta.data(), w.poly_var.data(),
+                      w.poly_quat0.data()};
+    path.prepare();
+    query.polyline_speeds(path);
+    return query.check(nullptr, m.n_pairs, path, Q, t, pairs);
 }
 
 int64_t check_spline_motion(MotionContext& c, const double* coef, double* t, uint8_t* pairs) {

@@ -102,6 +102,12 @@ struct StraightPath {
         }
     }
 
+    double end() const { return 1.0; }
+    // The interval [lo, hi] (march_step) cut where the path's speeds jump: nowhere.
+    double clip(double, double hi) const { return hi; }
+    // The half-width of the path around m over which an interval [m - h, m + h] is bounded.
+    double room(double, double h) const { return 2.0 * h; }
+
     // q(t) into q.
     void at(double t, double* q) const {
         for (int64_t j = 0; j < n; ++j) {
@@ -136,12 +142,60 @@ struct StraightPath {
     }
 };
 
+// Straight motions through waypoints Q (segments + 1 rows of n), t in [0, segments]: segment k
+// (StraightPath from row k to row k + 1) at t in [k, k + 1]. A pair marches along the whole
+// polyline at once: where it is far from everything its intervals span many segments (the
+// speeds over an interval are the largest of its segments'), so a path of short segments costs
+// about what one motion of its length does, not one start per segment.
+struct PolylinePath {
+    const double* Q;
+    const int64_t* kind;
+    int64_t n;
+    int64_t segments;
+    double* delta;  // (segments, n): each segment's StraightPath arrays
+    double* var;
+    double* quat0;
+
+    void prepare() {
+        for (int64_t k = 0; k < segments; ++k) segment(k).prepare(Q + n * (k + 1));
+    }
+    StraightPath segment(int64_t k) const {
+        return {Q + n * k, kind, n, delta + n * k, var + n * k, quat0 + n * k};
+    }
+    // The segment holding t (a waypoint's t = k: the segment it starts, the last at the end).
+    int64_t segment_of(double t) const {
+        const double k = std::floor(t);
+        return k <= 0.0 ? 0 : std::min(int64_t(k), segments - 1);
+    }
+    double end() const { return double(segments); }
+    // At the waypoint after lo: beyond it the speeds change.
+    double clip(double lo, double hi) const {
+        return std::min(hi, double(segment_of(lo)) + 1.0);
+    }
+    // An interval inside one segment is bounded over as much of the segment around it as
+    // 2 h allows (first-order bounds hold within a segment only; path_speeds); one that spans
+    // waypoints over 2 h.
+    double room(double m, double h) const {
+        const int64_t k = segment_of(m - h);
+        if (m + h > double(k + 1)) return 2.0 * h;
+        return std::max(h, std::min({2.0 * h, double(k + 1) - m, m - double(k)}));
+    }
+    void at(double t, double* q) const {
+        const int64_t k = segment_of(t);
+        segment(k).at(std::min(std::max(t - double(k), 0.0), 1.0), q);
+    }
+};
+
 // A path of polynomials, t in [0, 1]: q_j(t) = sum_k coef[6 j + k] t^k, degree at most 5 (a
 // segment of joint_trajectory_controller's spline, linear, cubic or quintic in time, with time
 // rescaled to [0, 1]); the variables of planar and floating joints stay constant.
 struct SplinePath {
     const double* coef;  // (n, 6)
     int64_t n;
+
+    double end() const { return 1.0; }
+    double clip(double, double hi) const { return hi; }
+    double room(double, double h) const { return 2.0 * h; }
 
     void at(double t, double* q) const {
         for (int64_t j = 0; j < n; ++j) {
@@ -571,6 +625,16 @@ struct MotionWork {
         double t, length, factor;
     };
     std::vector<double> delta, var, quat0;  // (J,) StraightPath's
+    // PolylinePath's: its segments' arrays (S, J), and per segment and link the joint's
+    // trans, rot and signed speed (S, L, 3) as straight_speeds gives them.
+    std::vector<double> poly_delta, poly_var, poly_quat0, poly_speeds;
+    // Every link's pose at each waypoint, computed on first use (poly_posed): the crude bound
+    // at a waypoint (MotionQuery::waypoint_leap) then costs no kinematics.
+    std::vector<double> poly_T;        // (S + 1, L, 16)
+    std::vector<uint8_t> poly_posed;   // (S + 1,)
+    // The speeds in trans, rot, speed hold along the whole interval at hand as one straight
+    // motion's (first-order bounds valid); false when it spans segments of a polyline.
+    bool first_order = true;
     std::vector<double> q, q_prev, q_next;  // (J,) the state evaluated; update_motion's start
     bool evaluated = false;                 // q holds a state (T follows it where stamped)
     std::vector<double> crude;              // (P,) each pair's crude rate (-1: not yet)
@@ -614,6 +678,12 @@ struct MotionContext {
 // looked at (list null: every pair).
 int64_t check_straight_motion(MotionContext& c, const double* q0, const double* q1,
                               const int64_t* list, int64_t n, double* t, uint8_t* pairs);
+
+// The same for the straight motions through the waypoints Q (n rows, n >= 2) in turn, as one
+// path (PolylinePath): *t in [0, n - 1], segment floor(t) (a contact at waypoint k > 0 is the
+// end of segment k - 1: t = k), every pair.
+int64_t check_polyline_motion(MotionContext& c, const double* Q, int64_t n, double* t,
+                              uint8_t* pairs);
 
 // The same for one spline segment (coef: (J, 6), SplinePath; its ends usable, its planar and
 // floating variables constant), every pair.

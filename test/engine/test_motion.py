@@ -384,7 +384,7 @@ def test_padding_and_attached_objects_count_as_in_check(panda_urdf, panda_srdf,
 
 
 def test_check_path_reports_the_first_segment_not_free(panda_cell):
-    checker, _ = panda_cell
+    checker, oracle = panda_cell
     segments = random_segments(checker, 60, seed=13)
     free = [s for s in segments if not checker.check_motion(*s).in_collision]
     hit = next(s for s in segments if checker.check_motion(*s).in_collision)
@@ -394,12 +394,97 @@ def test_check_path_reports_the_first_segment_not_free(panda_cell):
     expected = next(i for i in range(len(waypoints) - 1)
                     if checker.check_motion(waypoints[i], waypoints[i + 1]).in_collision)
     assert result.first_invalid_segment == expected and result.in_collision
-    assert result.motion == checker.check_motion(waypoints[expected], waypoints[expected + 1])
+    # The path is marched as one (its pairs' intervals span waypoints): the same contact as the
+    # segment alone, both certified to the touching tolerance, not to the last bit.
+    assert assert_motion_against_oracle(checker, oracle, waypoints[expected],
+                                        waypoints[expected + 1], result.motion)
+    alone = checker.check_motion(waypoints[expected], waypoints[expected + 1])
+    assert result.motion.first_contact == pytest.approx(alone.first_contact, abs=1e-4)
     assert checker.check_path(np.array(waypoints[:2])).first_invalid_segment is None
     # A single waypoint: its instant.
     _, _, in_contact = sampled_first_contact(checker, *hit)
     assert checker.check_path(in_contact[None]).first_invalid_segment == 0
     assert checker.check_path(np.array([hit[0]])).first_invalid_segment is None
+
+
+def _walk_path(checker, rng, n, step):
+    """A path of n waypoints from a clear state: a smooth random walk of about step rad per
+    segment, within the limits."""
+    lower = np.maximum(checker.kinematics.lower, -math.pi)
+    upper = np.minimum(checker.kinematics.upper, math.pi)
+    q = next(q for q in random_configurations(checker, 200, seed=int(rng.integers(1 << 30)))
+             if not checker.check(q).in_collision)
+    direction = rng.normal(size=len(q))
+    rows = [q]
+    for _ in range(n - 1):
+        direction = 0.8 * direction + 0.6 * rng.normal(size=len(q))
+        q = np.clip(q + step * direction / np.linalg.norm(direction), lower, upper)
+        rows.append(q)
+    return np.array(rows)
+
+
+@pytest.mark.parametrize('cell', ['panda_cell', 'ur5_cell'])
+def test_a_long_path_is_its_segments_checked_one_by_one(cell, request):
+    """check_path marches the whole polyline at once (pairs far from everything leap over
+    waypoints); it must say what its segments checked one by one say, and its contact must
+    meet the contract against sampling and python-fcl."""
+    checker, oracle = request.getfixturevalue(cell)
+    rng = np.random.default_rng(37)
+    contacts = free = 0
+    for trial in range(12):
+        Q = _walk_path(checker, rng, 30, [0.01, 0.02, 0.04, 0.08][trial % 4])
+        result = checker.check_path(Q)
+        expected = next((i for i in range(len(Q) - 1)
+                         if checker.check_motion(Q[i], Q[i + 1]).in_collision), None)
+        assert result.first_invalid_segment == expected, trial
+        if expected is None:
+            free += 1
+            continue
+        contacts += 1
+        assert assert_motion_against_oracle(checker, oracle, Q[expected], Q[expected + 1],
+                                            result.motion)
+    assert contacts >= 2 and free >= 2, (contacts, free)
+
+
+@pytest.mark.parametrize('kind', ['floating', 'planar'])
+def test_a_moving_base_path_is_its_segments_checked_one_by_one(kind):
+    """The same across waypoints where a base turns (slerp, theta the shorter way) and a
+    continuous elbow wraps."""
+    checker = _small_on_a_base(kind)
+    rng = np.random.default_rng(41)
+    names = checker.joint_names
+    outcomes = set()
+    for _ in range(16):
+        q = checker.kinematics.neutral()
+        while True:   # a clear start
+            for j, name in enumerate(names):
+                if name.endswith(('/x', '/y', '/trans_x', '/trans_y')):
+                    q[j] = rng.uniform(-0.4, 0.4)
+                elif name.endswith('/theta'):
+                    q[j] = rng.uniform(-4, 4)
+            if not checker.check(q).in_collision:
+                break
+        rows = [q]
+        for _ in range(9):   # small steps: a base driving and turning, the arm moving
+            q = q.copy()
+            for j, name in enumerate(names):
+                if name.endswith(('/x', '/y', '/trans_x', '/trans_y', '/trans_z')):
+                    q[j] += rng.normal(0.0, 0.03)
+                elif name.endswith('/theta') or '/rot_' not in name:
+                    q[j] += rng.normal(0.0, 0.3)
+                else:
+                    q[j] += rng.normal(0.0, 0.1)
+            rows.append(q)
+        Q = np.array(rows)
+        result = checker.check_path(Q)
+        expected = next((i for i in range(len(Q) - 1)
+                         if checker.check_motion(Q[i], Q[i + 1]).in_collision), None)
+        assert result.first_invalid_segment == expected
+        if expected is not None:
+            alone = checker.check_motion(Q[expected], Q[expected + 1])
+            assert result.motion.first_contact == pytest.approx(alone.first_contact, abs=1e-4)
+        outcomes.add(expected is None)
+    assert outcomes == {True, False}
 
 
 def test_bad_input_names_the_culprit_and_changes_nothing(panda_cell):
