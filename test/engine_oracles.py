@@ -1,7 +1,7 @@
 """Independent oracles for whole-robot answers: python-fcl on the same triangles, with
 pinocchio's kinematics, and a brute-force all-triangle-pairs check.
 
-Primitives are solid (README, "Contact rule"): besides the surfaces, fcl's true primitive
+Primitives are solid (docs/engine.md, "Contact rule"): besides the surfaces, fcl's true primitive
 (fcl.Box, fcl.Sphere, fcl.Cylinder) decides whether a vertex of the other body's element lies
 inside it; one vertex decides for the whole element once no surfaces meet."""
 import os

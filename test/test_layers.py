@@ -1,4 +1,4 @@
-"""The package's layers, as the README's architecture section draws them, by static imports.
+"""The package's layers, as docs/engine.md's architecture section draws them, by imports.
 
 model (files in, a model out) <- engine (the checker and the compiled engine) <- tools (the
 offline command-line tools and engine benchmarks) <- ros (everything on the ROS graph). A layer

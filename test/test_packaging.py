@@ -284,8 +284,8 @@ def colcon_install(tmp_path_factory):
     install prefix (``install/collision_sensor``, colcon's isolated layout).
 
     colcon runs with the python of a venv of the workspace's own (:func:`plain_venv`), as in
-    the README's recipe: the installed scripts name that python, and nothing of this
-    checkout's ``.venv/bin`` lies beside it."""
+    the workspace recipe (docs/robots.md): the installed scripts name that python, and nothing
+    of this checkout's ``.venv/bin`` lies beside it."""
     if not colcon_available():
         pytest.skip('colcon-core and colcon-ros are not installed in this environment '
                     '(pip install -e ".[test]" brings them)')
@@ -362,11 +362,12 @@ def test_colcon_installed_check_finds_the_paper_collisions(colcon_install, tmp_p
     check_summary(proc, os.path.join(colcon_install, 'share', PACKAGE))
 
 
-# --- 5. the README's workspace recipe --------------------------------------------------------
+# --- 5. the workspace recipe in docs/robots.md ----------------------------------------------
 
 def workspace_recipe():
-    """Return the commands of the README's workspace recipe, continuation lines joined."""
-    with open(os.path.join(REPO, 'README.md'), encoding='utf-8') as stream:
+    """Return the commands of the workspace recipe in docs/robots.md, continuation lines
+    joined."""
+    with open(os.path.join(REPO, 'docs', 'robots.md'), encoding='utf-8') as stream:
         text = stream.read()
     section = text.split('## In a ROS 2 workspace', 1)[1].split('\n## ', 1)[0]
     block = section.split('```sh\n', 1)[1].split('```', 1)[0]

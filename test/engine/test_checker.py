@@ -137,7 +137,7 @@ def _inside(solid, T, x):
 def _brute_force_pairs(checker):
     """Pairs whose triangles meet (all triangle pairs), or with a part of one body wholly
     inside a primitive of the other (one vertex of each element decides, once no triangles
-    meet): the contact rule, README "Contact rule"."""
+    meet): the contact rule, docs/engine.md "Contact rule"."""
     tris = _world_triangles(checker)
     solids = _world_solids(checker)
 

@@ -201,7 +201,7 @@ def test_as_fast_as_possible_into_the_node_in_another_process(ros):
                                   'collision sensor')
     ros.probe.create_subscription(DiagnosticArray, '/diagnostics', record, 100)
     node_args = ['--ros-args', '-r', f'__ns:={ros.namespace}']
-    # One verdict per frame (README: "for one verdict per frame of a replay as fast as
+    # One verdict per frame (docs/offline.md: "for one verdict per frame of a replay as fast as
     # possible"): the player's acknowledgement is the middleware's, on receipt.
     for name, value in dict(demo_cell_parameters(), overload_policy='every').items():
         node_args += ['-p', f'{name}:={value}']

@@ -241,9 +241,10 @@ def _marker_pose(marker):
 
 def _fcl_scene_pairs(oracle, q, objects):
     """The colliding pairs of the robot, the scene file and ``objects`` ({name: (fcl shape,
-    link or None, touch links, T)}) by python-fcl, the pairs taken from the README's rules:
-    each object against every link but its own and its touch links; attached objects against
-    the scene file's objects and other objects; world objects never against each other."""
+    link or None, touch links, T)}) by python-fcl, the pairs taken from the rules of
+    docs/dynamic_scene.md: each object against every link but its own and its touch links;
+    attached objects against the scene file's objects and other objects; world objects never
+    against each other."""
     robot = oracle._objects(q, lambda body, index, bvh, mesh: (bvh, np.eye(4)))
     poses = oracle.poses(q)
     placed = {}
