@@ -27,7 +27,7 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PACKAGE = 'collision_sensor'
 # What a release ships: everything setup.py reads, and nothing else of the checkout.
 SHIPPED = ('package.xml', 'setup.py', 'setup.cfg', 'pyproject.toml', 'MANIFEST.in', 'resource',
-           'collision_sensor', 'cpp', 'config', 'meshes', 'LICENSE', 'README.md')
+           'collision_sensor', 'cpp', 'config', 'meshes', 'LICENSE', 'README.md', 'docs')
 CONSOLE_SCRIPTS = ('collision_sensor_node', 'collision_sensor_play', 'collision_sensor_check',
                    'collision_sensor_bench', 'collision_sensor_acm', 'collision_sensor_demo')
 ROS_FREE_MODULES = ('collision_sensor', 'collision_sensor.engine.checker',

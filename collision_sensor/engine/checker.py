@@ -93,7 +93,7 @@ class CollisionChecker:
     are every two bodies with geometry, robot-robot and robot-scene, minus the exception list
     (adjacent links, SRDF ``disable_collisions``, ``allowed_collisions``). Contact means the
     two bodies' triangle surfaces share a point (touching counts); a body wholly inside another
-    without touching its surface is not reported (see README, "Contact rule"). With padding
+    without touching its surface is not reported (see docs/engine.md, "Contact rule"). With padding
     (``padding``, ``link_padding`` in the config), each link's geometry is grown by its padding
     (a sphere swept over it): contact means the surfaces come within the two paddings' sum.
 

@@ -25,7 +25,7 @@ leaf_size             1          most triangles per tree leaf (1: a leaf box is 
 primitive_sections    32         tessellation of URDF/scene cylinders and spheres
 mesh_containment      False      also treat closed (watertight, consistently wound) meshes
                                  as solid: anything wholly inside one collides with it, as
-                                 with primitives, which are always solid (README, "Contact
+                                 with primitives, which are always solid (docs/engine.md, "Contact
                                  rule"); costs a ray test over the mesh's triangles per
                                  element pair whose spheres overlap and surfaces do not meet
 padding               0.0        metres every robot link's geometry is grown by (a sphere

@@ -6,7 +6,7 @@ so an rclpy message, a rosbags one or a test double all work. The node
 (:mod:`collision_sensor.ros.sensor_node`) applies the changes with
 :meth:`CollisionChecker.prepare_scene_changes` / ``commit_scene_changes``.
 
-Rules (README, "Dynamic scene"):
+Rules (docs/dynamic_scene.md):
 
 - a marker's ``(ns, id)`` names the object: ``ns`` when ``id`` is 0, else ``ns/id``; printable
   characters only, no ``:`` (pairs are written ``a:b``), at most :data:`MAX_NAME_CHARS`;

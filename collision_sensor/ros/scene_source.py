@@ -1,7 +1,7 @@
 """The ``scene`` input: ``visualization_msgs/MarkerArray`` changing the checker's scene objects.
 
 Every array changes the scene all or nothing (:mod:`collision_sensor.engine.scene_markers` has
-the rules; README, "Dynamic scene"). Arrays are applied in arrival order on a thread of their
+the rules; docs/dynamic_scene.md). Arrays are applied in arrival order on a thread of their
 own: files are read and trees built there, without the node's lock, so joint states keep getting
 verdicts meanwhile (with the scene as it was); only the swap takes the lock. Every array is
 answered at once: by the ``scene`` status on ``/diagnostics`` (its counts of arrays applied and

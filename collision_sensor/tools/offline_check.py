@@ -421,7 +421,7 @@ def build_parser() -> argparse.ArgumentParser:
                              'node applies its scene topic (default %(default)s)')
     parser.add_argument('--joint-map', metavar='YAML',
                         help='LeRobot datasets: which entry of the state vector is which URDF '
-                             'joint, with a scale and an offset (see the README); without it '
+                             'joint, with a scale and an offset (see docs/offline.md); without it '
                              'the entries must be named as the joints, in rad or m')
     parser.add_argument('--report', metavar='FILE',
                         help='many recordings: write one JSON line per recording or episode as '

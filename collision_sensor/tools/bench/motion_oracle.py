@@ -7,7 +7,7 @@ interpolated as ``check_motion`` moves (:func:`motion_cells.discretized`), check
 python-fcl (:class:`FclConfirmation`) shares only the triangles with the engine: link poses
 come from pinocchio's kinematics (its own URDF parsing), and every element and scene object is
 an ``fcl.BVHModel`` (OBBRSS) over the triangles our loader produced. Primitives are solid
-(README, "Contact rule"): a body also meets a box, sphere or cylinder (scene object or URDF
+(docs/engine.md, "Contact rule"): a body also meets a box, sphere or cylinder (scene object or URDF
 element) when fcl's true shape meets any of its triangles, so a body wholly inside one is in
 contact. A pair is in contact if its BVHs collide or a solid meets the other; its distance is
 fcl's BVH distance, 0 when in contact.
@@ -72,7 +72,7 @@ class FclConfirmation:
     their triangles meet (``fcl.collide`` on the BVHs); an element of one lies wholly inside
     a solid primitive of the other (every vertex inside the true shape, numpy); some vertex
     of one lies inside such a solid (the sliver between an inscribed tessellation and the true
-    shape: the engine lets one vertex decide there, README "Contact rule", so either answer
+    shape: the engine lets one vertex decide there, docs/engine.md "Contact rule", so either answer
     is right). Pairs whose bounding spheres are apart are not asked.
 
     :raises ImportError: python-fcl or pinocchio is not installed.
