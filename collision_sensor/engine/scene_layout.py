@@ -60,11 +60,15 @@ class SceneLayout:
             ``changed`` (added, replaced, removed, or attached and moved) are computed again.
         """
         self.objects = dict(objects)
-        self._robot_depth = robot.depth
         link_index = {name: i for i, name in enumerate(kin.link_names)}
         attached = [p for p in self.objects.values() if p.attach_to is not None]
         world = [p for p in self.objects.values() if p.attach_to is None]
-        self._placed = placed = attached + world
+        placed = attached + world
+        # The forest's trees in order (the robot's, then the objects'): names and depths only,
+        # no blocks (the objects' arrays are held once, by the engine's buffers: take_views).
+        self._placed_names = [p.name for p in placed]
+        #: (1 + objects,) the robot's deepest tree's depth, then each object's.
+        self.depths = np.array([robot.depth] + [p.block.depth for p in placed])
         self.body_names = tuple(kin.link_names) + tuple(p.name for p in placed)
         self.body_index = {name: b for b, name in enumerate(self.body_names)}
         self.n_links = n_links = len(kin.link_names) + len(attached)
@@ -171,11 +175,6 @@ class SceneLayout:
     def pair_b(self) -> np.ndarray:
         return self.arrays['pair_b']
 
-    @property
-    def depths(self) -> np.ndarray:
-        """(1 + objects,) the robot's deepest tree's depth, then each object's."""
-        return np.array([self._robot_depth] + [p.block.depth for p in self._placed])
-
     def carry(self, old: 'SceneLayout', forced_names: FrozenSet[str]) -> None:
         """Take over the carried state of ``old`` (the layout this one replaces, its arrays
         the engine's views): by the layout's groups, a state slot per pair row by row, per
@@ -232,8 +231,9 @@ class SceneLayout:
         self.arrays = views
         n_nodes, n_tris = len(robot.boxes), len(robot.tris)
         node_start, tri_start = self._node_start, self._tri_start
-        for p, n0, n1, t0, t1 in zip(self._placed, node_start[:-1], node_start[1:],
-                                     tri_start[:-1], tri_start[1:]):
+        for name, n0, n1, t0, t1 in zip(self._placed_names, node_start[:-1], node_start[1:],
+                                        tri_start[:-1], tri_start[1:]):
+            p = self.objects[name]
             block = dataclasses.replace(
                 p.block, boxes=views['boxes'][n0:n1], volume=views['volume'][n0:n1],
                 gain=views['gain'][n0:n1], tris=views['tris'][t0:t1])

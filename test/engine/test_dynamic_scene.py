@@ -472,3 +472,22 @@ def test_poses_are_checked_and_quaternions_normalised():
     far[0, 3] = 1e7
     with pytest.raises(SceneError, match='within'):
         checked_pose(far, 'o')
+
+
+def test_an_added_objects_tree_is_held_once_by_the_engines_buffers():
+    """After a commit, the object's tree lives only in the engine's buffers: the arrays its
+    block was built with are freed (scenario 4 measures the memory this saves)."""
+    import gc
+    import weakref
+    checker, _ = _small_cell()
+    prepared = checker.prepare_scene_changes(
+        [AddObject(_random_object(np.random.default_rng(3), 'ball'))])
+    built = prepared.objects['ball'].block
+    freed = [weakref.ref(array) for array in (built.tris, built.boxes, built.volume)]
+    checker.commit_scene_changes(prepared)
+    del prepared, built
+    gc.collect()
+    assert [ref() for ref in freed] == [None, None, None]
+    block = checker._scene.objects['ball'].block
+    assert np.shares_memory(block.tris, checker.packed_array('tris'))
+    assert np.shares_memory(block.boxes, checker.packed_array('boxes'))
