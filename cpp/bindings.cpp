@@ -23,6 +23,7 @@
 #include "bounding_volumes.hpp"
 #include "engine.hpp"
 #include "obb_tree.hpp"
+#include "proximity.hpp"
 
 namespace py = pybind11;
 namespace cs = collision_sensor;
@@ -177,11 +178,14 @@ struct PyEngine {
         expect_shape("distance", distance, {model.n_pairs});
         expect_shape("points", points, {model.n_pairs, 6});
         const double* data = q.data();
+        const cs::ProximityRequest request = {max_distance};
         const cs::ProximityResult result = {writable("distance", distance),
                                             writable("points", points)};
         py::gil_scoped_release release;
         std::lock_guard<std::mutex> hold(engine->lock());
-        return engine->proximity(data, {max_distance}, result);
+        return engine->read_at(data, [&](const cs::EngineView& view, cs::Scratch& scratch) {
+            cs::measure_proximity(view, request, scratch, result);
+        });
     }
 
     void poses() {

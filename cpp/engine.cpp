@@ -158,15 +158,6 @@ void Engine::refresh_all_poses() {
     collision_sensor::refresh_all_poses(model_, state_.q_ref, state_.poses);
 }
 
-int64_t Engine::proximity(const double* q, const ProximityRequest& request,
-                          const ProximityResult& result) {
-    const int64_t code = query(q, false);
-    if (code < 0) return code;
-    refresh_all_poses();
-    measure_proximity(view(), request, scratch_, result);
-    return code;
-}
-
 int64_t Engine::motion(const double* q0, const double* q1, double* t, uint8_t* pairs) {
     const int64_t J = model_.n_joints;
     const int64_t bad0 = unusable_variable(model_.kin, q0, J);

@@ -19,9 +19,11 @@
 // do (collision_sensor/engine/dynamic_scene.py).
 //
 // Adding a query: a function of its own file over an EngineView and a Scratch (as
-// proximity.hpp, motion.hpp), an entry point here that brings the state up to date and calls
-// it, its binding (bindings.cpp), and the checker's method
-// (collision_sensor/engine/checker.py).
+// proximity.hpp: measure_proximity), run by read() or read_at() below from its binding
+// (bindings.cpp: PyEngine::proximity), and the checker's method
+// (collision_sensor/engine/checker.py); nothing here changes. The motion checks (motion.hpp)
+// are entry points here: they keep work areas of their own (MotionWork), and update_motion
+// runs the incremental query itself.
 #pragma once
 
 #include <cstdint>
@@ -31,7 +33,6 @@
 #include "layout.hpp"
 #include "model.hpp"
 #include "motion.hpp"
-#include "proximity.hpp"
 
 namespace collision_sensor {
 
@@ -64,10 +65,6 @@ class Engine {
     // Returns n, or -1 - (J i + j) when row i's value j is not usable: every row is validated
     // before any is run, so nothing changed then.
     int64_t batch(const double* Q, int64_t n, bool full, uint8_t* statuses, int64_t* codes);
-    // query(q, false), then measure_proximity (proximity.hpp) into result. Returns query()'s
-    // code (nothing measured when it is negative).
-    int64_t proximity(const double* q, const ProximityRequest& request,
-                      const ProximityResult& result);
     // Bring every link pose up to date (incremental calls compute them only on demand).
     void refresh_all_poses();
 
@@ -81,14 +78,32 @@ class Engine {
     // instant q) to q, then query(q, false) (its code in *query_code): -1 - j when q[j] is
     // not usable (nothing changed then).
     int64_t update_motion(const double* q, double* t, uint8_t* pairs, int64_t* query_code);
-    // The straight motions Q[0] -> Q[1] -> ... -> Q[n - 1] (n >= 1; one row: its instant) in
-    // turn until one is not free (*segment its index, -1: none): -1 - (J i + j) when row
-    // i's value j is not usable.
+    // The straight motions Q[0] -> Q[1] -> ... -> Q[n - 1] (n >= 1; one row: its instant),
+    // marched as one path (check_polyline_motion): *segment the first not free (-1: none),
+    // *t the first contact's fraction of it; -1 - (J i + j) when row i's value j is not
+    // usable.
     int64_t path(const double* Q, int64_t n, int64_t* segment, double* t, uint8_t* pairs);
     // The spline segments coef (n, J, 6) (SplinePath) in turn, as path: -1 - i when segment
     // i has a coefficient that is not finite, moves a planar or floating joint, or starts or
     // ends at a value that is not usable.
     int64_t spline(const double* coef, int64_t n, int64_t* segment, double* t, uint8_t* pairs);
+
+    // Run a query of another kind, query(view, scratch): over the model and the carried state
+    // as they are (read-only), in the engine's own context. The caller holds lock().
+    template <class Query>
+    void read(Query&& query) {
+        query(view(), scratch_);
+    }
+    // The same at q: query(q, false) first (the statuses up to date with q), every pose then
+    // current. Returns query()'s code; the query does not run when it is negative.
+    template <class Query>
+    int64_t read_at(const double* q, Query&& query) {
+        const int64_t code = this->query(q, false);
+        if (code < 0) return code;
+        refresh_all_poses();
+        read(query);
+        return code;
+    }
 
     // Give world object b the pose T (4, 4, row-major) and force its pairs, if T is a rigid
     // transform (is_rigid_transform). Returns 0, or MOVE_REFUSED when b is no world object or

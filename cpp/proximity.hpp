@@ -2,7 +2,7 @@
 //
 // A query of its own over an engine's model and carried state, read through an EngineView
 // (context.hpp), working in a Scratch: the engine brings the statuses and poses up to date
-// with q first (engine.hpp: Engine::proximity), then measure_proximity reads them.
+// with q first (engine.hpp: Engine::read_at), then measure_proximity reads them.
 #pragma once
 
 #include <cstdint>
