@@ -33,6 +33,13 @@ the next frame waits for the node's answer to it (as ``collision_sensor_play`` k
 a line says what it changed (an object appearing, attached to a link, dropped, removed; plain
 moves are counted, not printed).
 
+``--motion`` runs the node with ``check_motion`` on and plays ``guard_rail_5hz`` (a 5 Hz
+recording of the arm swinging its tool over a 1 cm guard rail: every recorded frame is clear,
+one motion between two of them goes through the rail) and prints, frame by frame, what the
+frame alone says (the pairs in contact at the state, what an instant check reports) beside what
+the motion into it says (the pairs met on the way, with where), then how many motions in
+contact lay between two clear frames.
+
 Exit status: 0 done, 1 the node failed (did not come up, died, gave no verdict), 2 bad
 arguments or sequence, 130 interrupted. ``--describe-panda`` keeps the first demo: the Panda's
 kinematic tree, collision elements and a few link poses (needs example-robot-data).
@@ -55,6 +62,7 @@ from collision_sensor.errors import CollisionSensorError
 PROG = 'collision_sensor_demo'
 DEFAULT_SEQUENCE = 'paper_experiment'
 DYNAMIC_SEQUENCE = 'moving_part'
+MOTION_SEQUENCE = 'guard_rail_5hz'
 NAMESPACE = '/collision_sensor_demo'
 NODE_NAME = 'collision_sensor'          # the node's default name
 START_TIMEOUT = None    # s for the node to be ready; None: as long as the node process lives
@@ -98,15 +106,15 @@ def node_command() -> List[str]:
     return console_command('collision_sensor_node')
 
 
-def demo_cell_parameters() -> Dict[str, object]:
+def demo_cell_parameters(motion: bool = False) -> Dict[str, object]:
     """Return the node parameters that load the bundled demo cell, with reliable input and
-    instant verdicts (``check_motion`` off: the demo's summary is compared with the offline
-    check's, which checks each frame's instant)."""
+    instant verdicts unless ``motion`` (``check_motion`` off: the demo's summary is compared
+    with the offline check's, which checks each frame's instant)."""
     from collision_sensor.model.share import config_path
     return {'urdf_path': config_path('demo_arm.urdf'),
             'srdf_path': config_path('demo_arm.srdf'),
             'scene_path': config_path('demo_scene.yaml'),
-            'joint_states_qos': 'reliable', 'check_motion': False}
+            'joint_states_qos': 'reliable', 'check_motion': motion}
 
 
 # -- the node process -------------------------------------------------------------------------
@@ -186,25 +194,37 @@ class CheckTime:
 class Verdicts:
     """Verdicts and check times received by the listener, shared with the main thread.
 
-    ``pairs`` holds the verdicts on frames (their header is the frame's, frame_id empty);
+    ``pairs`` holds the verdicts on frames (their header is the frame's, frame_id empty): the
+    pairs in contact at the frame, and (with ``check_motion``) ``met`` those met on the way into
+    it, with the fraction of the motion where (``first_contact``; ``None`` when none);
     ``scene_verdicts`` counts those the node gives on applying a scene array (header frame_id:
     the robot's root frame).
     """
 
     status_name: str
     pairs: List[Tuple[int, Tuple[Pair, ...]]] = field(default_factory=list)
+    met: List[Tuple[Tuple[Pair, ...], Optional[float]]] = field(default_factory=list)
     scene_verdicts: int = 0
     check_time: CheckTime = field(default_factory=CheckTime)
     condition: threading.Condition = field(default_factory=threading.Condition)
 
     def on_colliding_pairs(self, msg) -> None:
         stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-        pairs = tuple(tuple(status.name.split(':', 1)) for status in msg.status)
+        now, met, at = [], [], None
+        for status in msg.status:
+            values = {kv.key: kv.value for kv in status.values}
+            pair = tuple(status.name.split(':', 1))
+            if 'first_contact' in values:
+                met.append(pair)
+                at = float(values['first_contact'])
+            else:
+                now.append(pair)
         with self.condition:
             if msg.header.frame_id:
                 self.scene_verdicts += 1
             else:
-                self.pairs.append((stamp_ns, pairs))
+                self.pairs.append((stamp_ns, tuple(now)))
+                self.met.append((tuple(met), at))
             self.condition.notify_all()
 
     def on_diagnostics(self, msg) -> None:
@@ -264,6 +284,43 @@ def change_lines(t: float, before: Sequence[Pair], after: Sequence[Pair]) -> Lis
     for sign, pair in [('+', p) for p in entering] + [('-', p) for p in leaving]:
         lines.append(f'  {t:7.3f} s  {state:<8} {sign} {pair[0]} -- {pair[1]}')
         state = ''
+    return lines
+
+
+def motion_line(t: float, now: Sequence[Pair], met: Sequence[Pair],
+                first_contact: Optional[float]) -> str:
+    """One frame side by side: the pairs in contact at it (what an instant check reports),
+    then what the motion into it met on the way (``check_motion``)."""
+    instant = f'CONTACT {pairs_text(now)}' if now else 'clear'
+    if met:
+        motion = f'CONTACT {pairs_text(met)} at {first_contact:.2f} of the way'
+    else:
+        motion = 'CONTACT (in contact at the frame)' if now else 'clear'
+    return f'  {t:7.3f} s  {instant:<26} {motion}'
+
+
+def motion_summary_lines(seq, verdicts: 'Verdicts') -> List[str]:
+    """The motion summary: motions in contact, and those between two clear frames (which
+    checks of the recorded states alone miss)."""
+    n = len(seq)
+    t0 = float(seq.times[0]) if n else 0.0
+    frames = [pairs for _, pairs in verdicts.pairs[:n]]
+    met = verdicts.met[:n]
+    missed = [i for i in range(1, n) if met[i][0] and not frames[i - 1] and not frames[i]]
+    lines = [f'summary of {seq.source}',
+             f'  frames:                 {n}; in contact at the frame (instant checks): '
+             f'{sum(bool(p) for p in frames)}',
+             f'  motions between frames: {max(n - 1, 0)}; meeting contact on the way: '
+             f'{sum(bool(m) for m, _ in met[1:])}, of which between two clear frames: '
+             f'{len(missed)}']
+    for i in missed:
+        pairs, at = met[i]
+        when = seq.times[i - 1] - t0 + at * (seq.times[i] - seq.times[i - 1])
+        lines.append(f'    frames {i - 1} -> {i}: {pairs_text(pairs)} at {when:.3f} s '
+                     '(missed by instant checks)')
+    contact = any(frames) or any(m for m, _ in met)
+    lines.append('  result: ' + ('COLLISION' if contact else 'clear')
+                 + (' (on the way only)' if contact and not any(frames) else ''))
     return lines
 
 
@@ -351,12 +408,14 @@ def _stamp_ns(seconds: float) -> int:
 
 def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast: bool = False,
              start_timeout: float = START_TIMEOUT, verdict_timeout: float = VERDICT_TIMEOUT,
-             out=sys.stdout) -> int:
+             out=sys.stdout, motion: bool = False) -> int:
     """Start the node, play ``seq`` into it, print contacts and the summary; return 0.
 
     :param seq: the :class:`~collision_sensor.model.sequences.JointSequence` to play.
     :param rate: frames per second instead of the recorded timing.
     :param fast: no timing: each frame as soon as the previous verdict is in.
+    :param motion: the node checks the motion into each frame (``check_motion``); each frame
+        is printed with the instant's verdict beside the motion's.
     :raises DemoError: the node did not come up, died or gave no verdict in time.
     """
     import rclpy
@@ -380,7 +439,7 @@ def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast
                                  reliability=ReliabilityPolicy.RELIABLE)
 
     say(f'starting collision_sensor_node on the demo cell (namespace {namespace}) ...')
-    node = NodeProcess(demo_cell_parameters(), namespace, echo=out)
+    node = NodeProcess(demo_cell_parameters(motion), namespace, echo=out)
     context = rclpy.Context()
     rclpy.init(args=['--ros-args', '-r', f'__ns:={namespace}'], context=context)
     executor = SingleThreadedExecutor(context=context)
@@ -409,7 +468,10 @@ def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast
         say(f'node up after {time.monotonic() - started:.1f} s; playing '
             f'{os.path.basename(seq.source)} ({n} frames, {seq.duration:.2f} s, {timing})')
         say()
-        say('     time  state    change of the colliding pairs (as the node reports them)')
+        if motion:
+            say('     time  the frame alone (instant)  the motion into it (check_motion)')
+        else:
+            say('     time  state    change of the colliding pairs (as the node reports them)')
 
         offsets = frame_offsets(seq.times, rate)
         start = time.monotonic()
@@ -436,7 +498,10 @@ def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast
             if stamp_ns != _stamp_ns(float(seq.times[index])):
                 raise DemoError(f'verdict {index} answers the frame stamped {stamp_ns * 1e-9:.9f}'
                                 f' s, expected {seq.times[index]:.9f} s: verdicts out of order')
-            if pairs != previous:
+            if motion:
+                met, at = verdicts.met[index]
+                say(motion_line(float(seq.times[index]) - t0, pairs, met, at))
+            elif pairs != previous:
                 for line in change_lines(float(seq.times[index]) - t0, previous, pairs):
                     say(line)
                 previous = pairs
@@ -445,8 +510,10 @@ def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast
         verdicts.wait(lambda: verdicts.check_time.checks >= n, DIAGNOSTICS_WAIT)
 
         say()
-        for line in summary_lines(seq, [pairs for _, pairs in verdicts.pairs[:n]], played,
-                                  verdicts.check_time):
+        lines = (motion_summary_lines(seq, verdicts) if motion else
+                 summary_lines(seq, [pairs for _, pairs in verdicts.pairs[:n]], played,
+                               verdicts.check_time))
+        for line in lines:
             say(line)
         if seq.scene:
             say(f'  scene arrays:        {len(seq.scene)} published, {verdicts.scene_verdicts} '
@@ -478,12 +545,18 @@ def build_parser() -> argparse.ArgumentParser:
                'Exit status: 0 done, 1 the node failed, 2 bad arguments, 130 interrupted.')
     parser.add_argument('--sequence', default=None, metavar='NAME|PATH',
                         help='a bundled sequence (paper_experiment, into_drum_clear, random, '
-                             'moving_part) or a CSV file or bag of the demo arm (default '
-                             f'{DEFAULT_SEQUENCE}, with --dynamic {DYNAMIC_SEQUENCE})')
+                             'moving_part, guard_rail_5hz) or a CSV file or bag of the demo '
+                             f'arm (default {DEFAULT_SEQUENCE}, with --dynamic '
+                             f'{DYNAMIC_SEQUENCE}, with --motion {MOTION_SEQUENCE})')
     parser.add_argument('--dynamic', action='store_true',
                         help='the dynamic scene: a crate on a conveyor picked up, carried and '
                              'dropped, a fixture in the way (objects on the node\'s scene '
                              f'topic); plays {DYNAMIC_SEQUENCE}')
+    parser.add_argument('--motion', action='store_true',
+                        help='the node checks the motion between frames (check_motion): each '
+                             "frame's instant verdict beside the motion's; plays "
+                             f'{MOTION_SEQUENCE}, a 5 Hz recording whose frames are all clear '
+                             'while one motion goes through a guard rail')
     timing = parser.add_mutually_exclusive_group()
     timing.add_argument('--rate', type=float, metavar='HZ',
                         help='publish at a fixed rate instead of the recorded timing')
@@ -520,7 +593,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     from collision_sensor.model.sequences import read_sequence
     from collision_sensor.tools.offline_check import bundled_sequence_path
     try:
-        name = args.sequence or (DYNAMIC_SEQUENCE if args.dynamic else DEFAULT_SEQUENCE)
+        name = args.sequence or (DYNAMIC_SEQUENCE if args.dynamic else
+                                 MOTION_SEQUENCE if args.motion else DEFAULT_SEQUENCE)
         seq = read_sequence(bundled_sequence_path(name))
     except CollisionSensorError as err:
         return _error(str(err), 2)
@@ -533,7 +607,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
           + (f' (set here: {", ".join(chosen)})' if chosen else ''), flush=True)
     try:
         return run_demo(seq, namespace=args.namespace, rate=args.rate,
-                        fast=args.as_fast_as_possible, start_timeout=args.timeout)
+                        fast=args.as_fast_as_possible, start_timeout=args.timeout,
+                        motion=args.motion)
     except DemoError as err:
         return _error(str(err), 1)
     except KeyboardInterrupt:

@@ -165,3 +165,36 @@ def test_a_bad_sequence_fails_before_ros_starts(tmp_path):
     assert run.returncode == 2
     assert run.stderr.startswith('collision_sensor_demo: error: ') and 'missing.csv' in run.stderr
     assert 'starting collision_sensor_node' not in run.stdout
+
+
+def test_the_motion_demo_shows_what_instant_checks_miss(tmp_path, capsys):
+    """``make demo DEMO_ARGS=--motion``: every frame of guard_rail_5hz is clear, the node
+    with check_motion reports the motion through the guard rail, as the offline checker's
+    ``--motion`` does (each frame side by side: the instant, then the motion into it)."""
+    run = run_demo('--motion', '--as-fast-as-possible')
+    assert run.returncode == 0, run.stdout + run.stderr
+    out = run.stdout
+    path = tmp_path / 'motion.jsonl'
+    offline_check.main(['guard_rail_5hz', '--motion', '--json', str(path), '--progress',
+                        'never'])
+    capsys.readouterr()
+    frames = [json.loads(line) for line in path.read_text().splitlines()]
+    rows = re.findall(r'^\s+(\d+\.\d+) s  (clear|CONTACT[^\n]*?)\s{2,}(clear|CONTACT[^\n]*)$',
+                      out, re.MULTILINE)
+    assert len(rows) == len(frames), out
+    t0 = frames[0]['time']
+    missed = []
+    for (t, instant, motion), frame in zip(rows, frames):
+        assert float(t) == pytest.approx(frame['time'] - t0, abs=1e-3)
+        assert instant == 'clear' and not frame['in_collision']
+        met = (frame['motion'] or {}).get('pairs', [])   # none into the first frame
+        assert (motion != 'clear') == bool(met), (t, motion, frame)
+        for a, b in met:
+            assert f'{a} -- {b}' in motion
+            missed.append(frame['index'])
+    assert missed, 'the recording should hold a motion through the guard rail'
+    assert (f'meeting contact on the way: {len(missed)}, of which between two clear frames: '
+            f'{len(missed)}') in out
+    for index in missed:
+        assert f'frames {index - 1} -> {index}: ' in out
+    assert 'result: COLLISION (on the way only)' in out
