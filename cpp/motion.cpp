@@ -123,6 +123,23 @@ class MotionQuery {
         }
     }
 
+    // update_motion's second certificate for pair p, apart at both ends of the straight step
+    // prepared (straight_speeds) with distance bounds summing to gaps: apart all along when
+    // gaps exceeds how far its bodies' points can move relative to each other over the step,
+    // bounded at its end q1 (MotionMargin's zeroth order over the whole step: the levers of
+    // this configuration, not the planning's configuration-free reach).
+    bool step_apart(int64_t p, const double* q1, double gaps) {
+        const int64_t a = m_.pair_a[p], b = m_.pair_b[p];
+        double pose[POSE_WIDTH];
+        evaluate(q1);
+        pair_pose(a, b, pose);
+        sides(p);
+        margin(p, 1.0);
+        const BoxMotion ma = w_.margin.box_motion(m_.body_box(a), 0);
+        const BoxMotion mb = w_.margin.box_motion(m_.body_box(b), 1);
+        return gaps > (ma.rate + mb.rate) * (1.0 + MOTION_BOUND_REL);
+    }
+
     // Pairs list[:n] (null: all) marched along path; returns the pair of the first contact
     // (-1: none), its parameter in *best.
     template <class Path>
@@ -727,6 +744,8 @@ int64_t check_step_motion(MotionContext& c, const double* q0, const double* q1,
         if (m.motion_kind[j] == MOTION_WRAP && w.var[j] != std::fabs(q1[j] - q0[j]))
             return check_straight_motion(c, q0, q1, nullptr, m.n_pairs, t, pairs);
     const double e_max = std::max(extension_before, s.extension[0]);
+    MotionQuery query(c);
+    query.straight_speeds(q0);
     w.marched.clear();
     const int64_t J = m.n_joints;
     for (int64_t i = 0; i < n; ++i) {
@@ -738,7 +757,8 @@ int64_t check_step_motion(MotionContext& c, const double* q0, const double* q1,
             const double* reach_ext = m.reach_ext + J * p;
             for (int64_t j = 0; j < J; ++j)
                 if (w.var[j] > 0.0) r += w.var[j] * (reach[j] + e_max * reach_ext[j]);
-            if (w.prev_gap[p] + s.clearance[p] > r * (1.0 + MOTION_BOUND_REL)) continue;
+            const double gaps = w.prev_gap[p] + s.clearance[p];
+            if (gaps > r * (1.0 + MOTION_BOUND_REL) || query.step_apart(p, q1, gaps)) continue;
         }
         w.marched.push_back(p);
     }
