@@ -35,6 +35,11 @@ padding               0.0        metres every robot link's geometry is grown by 
 link_padding          {}         ``{link: metres}``, a link's own padding instead of
                                  ``padding``; links of the robot only (scene objects are
                                  never padded)
+threads               0          threads ``check_batch``, ``update_batch``, ``check_path``
+                                 and ``check_spline`` run on (contiguous chunks of the rows,
+                                 the same answers as one thread): 0 every hardware thread of
+                                 the machine (std::thread::hardware_concurrency), 1 the
+                                 calling thread alone, at most 256
 ===================== ========== ============================================================
 """
 from dataclasses import dataclass, fields, replace
@@ -47,6 +52,8 @@ from collision_sensor.engine.traversal import EXPANSION_RULES
 from collision_sensor.errors import ConfigError
 
 BOX_TESTS = {'paper': BOX_TEST_PAPER, 'sat': BOX_TEST_SAT}
+#: The most threads the setting ``threads`` may ask for (cpp/workers.hpp: MAX_THREADS).
+MAX_THREADS = 256
 OBB_FITS = {'pca': OBB_PCA, 'hull_pca': OBB_HULL_PCA, 'min_volume': OBB_MIN_VOLUME}
 
 
@@ -66,6 +73,7 @@ class CheckerConfig:
     padding: float = 0.0
     #: ``((link, metres), ...)`` sorted by link; given as a mapping, see :meth:`from_mapping`.
     link_padding: Tuple[Tuple[str, float], ...] = ()
+    threads: int = 0
 
     @classmethod
     def from_mapping(cls, config: Optional[Mapping[str, Any]] = None) -> 'CheckerConfig':
@@ -161,6 +169,12 @@ def _converted(config):
             out[key] = _metres(key, value)
         elif key == 'link_padding':
             out[key] = _link_padding(value)
+        elif key == 'threads':
+            if isinstance(value, bool) or not isinstance(value, int) or not \
+                    0 <= value <= MAX_THREADS:
+                raise ConfigError(f'setting threads: expected an integer from 0 (every core) to '
+                                  f'{MAX_THREADS}, got {value!r}')
+            out[key] = value
         elif key in ('leaf_size', 'primitive_sections'):
             minimum = 1 if key == 'leaf_size' else 3
             if isinstance(value, bool) or not isinstance(value, int) or value < minimum:

@@ -1,0 +1,89 @@
+// A batch's rows on several threads (issue 27): worker contexts and the chunked run.
+//
+// A query writes only its context: the carried state (context.hpp: State) and the work areas
+// (Scratch; MotionWork for the motion checks). The model, the options and, for a motion check
+// or a full check, the engine's state are only read. So rows that do not depend on each
+// other's carried state can run at once, each thread in a Worker of its own (a copy of the
+// engine's state, a Scratch and a MotionWork), over a contiguous chunk of the rows; nothing a
+// thread writes is shared (each writes its own rows of the output), and the engine's lock is
+// held by the caller for the whole batch, so no scene method or other query runs meanwhile.
+//
+// Answers are the single thread's: every query's answer depends only on its row, the model and
+// the state it starts from, never on the work areas' history (their caches are stamped, the
+// motion checks start each call afresh).
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+#include <functional>
+#include <stdexcept>
+#include <vector>
+
+#include "context.hpp"
+#include "model.hpp"
+#include "motion.hpp"
+
+namespace collision_sensor {
+
+// The most threads a setting may ask for (a bound on the workers' memory, far beyond any
+// machine this runs on).
+constexpr int64_t MAX_THREADS = 256;
+
+// The threads a setting asks for: 0 -> the machine's hardware threads
+// (std::thread::hardware_concurrency, 1 when it is not known), else the setting itself.
+int64_t resolve_threads(int64_t setting);
+
+// A worker thread failed (memory ran out in its work areas): the batch has no answer. The
+// binding raises it as EngineWorkerError.
+struct WorkerError : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+// A carried state with arrays of its own (the engine's lives in the packed buffers), made a
+// copy of another: every array, the fronts' bookkeeping and the forced pairs. with_fronts:
+// the fronts' node pairs too (an incremental check goes on from them); without, they are only
+// sized (a full check sets every pair's front length to 0 and starts afresh).
+class OwnedState {
+   public:
+    void copy_from(const State& from, const Model& m, bool with_fronts);
+    State& state() { return state_; }
+
+   private:
+    std::vector<double> q_last_, q_ref_, extension_, T_world_body_, clearance_, q_eval_, travel_;
+    std::vector<int64_t> stale_, flags_, status_, witness_, forced_;
+    State state_{};
+};
+
+// One thread's context: its state, its work areas, its motion work, and its answer rows for
+// the motion checks (pairs (P,) and t, segment). Counters start at 0 and are added to the
+// engine's after each batch.
+struct Worker {
+    Worker(const Model& m, int64_t front_capacity);
+    // The counters every box and triangle test adds to: a cache line of their own, away from
+    // another thread's (made before scratch, which counts into them).
+    alignas(64) int64_t counters[N_COUNTERS + (8 - N_COUNTERS % 8) % 8] = {};
+    OwnedState state;
+    Scratch scratch;
+    MotionWork motion;
+    std::vector<uint8_t> pairs;
+    double t = 0.0;
+    int64_t segment = -1;
+};
+
+// Row range [begin, end) of chunk c of k over n rows: contiguous, sizes differing by at most 1.
+struct Chunk {
+    int64_t begin, end;
+};
+inline Chunk chunk_of(int64_t c, int64_t k, int64_t n) {
+    const int64_t q = n / k, r = n % k;
+    const int64_t begin = c * q + std::min(c, r);
+    return {begin, begin + q + (c < r ? 1 : 0)};
+}
+
+// Run job(c) for every chunk c in [0, k): chunk 0 on the calling thread, the others on threads
+// of their own (a thread that cannot be started: its chunk on the calling thread afterwards),
+// and return once all are done. The first exception a job throws is rethrown here, after every
+// thread has been joined, as a WorkerError naming it.
+void run_chunks(int64_t k, const std::function<void(int64_t)>& job);
+
+}  // namespace collision_sensor
