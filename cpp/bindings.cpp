@@ -111,7 +111,7 @@ struct PyEngine {
 
     PyEngine(Array<double> F_, const Array<int64_t>& F_layout, Array<int64_t> I_,
              const Array<int64_t>& I_layout, int box_test, int expansion,
-             double motion_tolerance, int64_t threads)
+             double motion_tolerance, int64_t threads, double min_chunk_us)
         : F(std::move(F_)), I(std::move(I_)) {
         expect_shape("F", F, {-1});
         expect_shape("I", I, {-1});
@@ -122,6 +122,7 @@ struct PyEngine {
         options.expansion = expansion;
         options.motion_tolerance = motion_tolerance;
         options.threads = threads;
+        options.min_chunk_us = min_chunk_us;
         engine = std::make_unique<cs::Engine>(writable("F", F), F.shape(0), F_layout.data(),
                                               writable("I", I), I.shape(0), I_layout.data(),
                                               options);
@@ -427,10 +428,11 @@ void bind_engine(py::module_& m) {
                          "(int64) and their layout rows (cpp/layout.hpp); see cpp/engine.hpp. "
                          "Not for use outside CollisionChecker.")
         .def(py::init<Array<double>, const Array<int64_t>&, Array<int64_t>,
-                      const Array<int64_t>&, int, int, double, int64_t>(),
+                      const Array<int64_t>&, int, int, double, int64_t, double>(),
              py::arg("F").noconvert(), py::arg("F_layout"), py::arg("I").noconvert(),
              py::arg("I_layout"), py::arg("box_test"), py::arg("expansion"),
-             py::arg("motion_tolerance"), py::arg("threads") = 1)
+             py::arg("motion_tolerance"), py::arg("threads") = 1,
+             py::arg("min_chunk_us") = 0.0)
         .def_property_readonly(
             "threads", [](const PyEngine& e) { return e.engine->threads(); },
             "The threads batch, path and spline run on (the threads setting resolved: 0 "

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
@@ -29,6 +30,8 @@ const Options& checked(const Options& o) {
         throw std::invalid_argument("threads: " + std::to_string(o.threads) +
                                     " is not 0 (every core) or a count from 1 to " +
                                     std::to_string(MAX_THREADS));
+    if (!(o.min_chunk_us >= 0.0 && std::isfinite(o.min_chunk_us)))
+        throw std::invalid_argument("min_chunk_us: not a finite number >= 0");
     return o;
 }
 
@@ -65,6 +68,12 @@ int64_t run_query(CheckContext& c, const double* q, bool full) {
     bool changed = false;
     const int64_t rechecked = recheck_pairs(c, n, full, &changed);
     return 2 * rechecked + (changed ? 1 : 0);
+}
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+    return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
 // Rows [begin, end) of a batch in context c, statuses and codes out; the first row a full
@@ -200,25 +209,32 @@ int64_t Engine::batch(const double* Q, int64_t n, bool full, uint8_t* statuses,
         if (bad >= 0) return -1 - (J * i + bad);
     }
     if (n == 0) return 0;
-    const int64_t k = std::min(options_.threads, n);
     if (full) {
         // Each row a full check, whose answer is its own: in the workers' copies of the
         // carried state (a full check reads of it only the scene's poses).
+        const int64_t k = chunks(BATCH_FULL, n);
         ready_workers(k);
+        double first_seconds = 0.0;
         run_chunks(k, [&](int64_t w) {
+            const Clock::time_point start = Clock::now();
             Worker& worker = *workers_[w];
             worker.state.copy_from(state_, model_, false);
             CheckContext c = {model_, worker.state.state(), worker.scratch, options_, nullptr};
             const Chunk rows = chunk_of(w, k, n);
             run_rows(c, Q, rows.begin, rows.end, true, false, statuses, codes);
+            if (w == 0) first_seconds = seconds_since(start);
         });
+        planner_.learn(BATCH_FULL, chunk_of(0, k, n).end, first_seconds);
         gather_counters(k);
         restate_changed(n, k, P, statuses, codes);
         return n;
     }
-    if (k <= 1 || options_.motion_tolerance > 0.0) {
+    const int64_t k = options_.motion_tolerance > 0.0 ? 1 : chunks(BATCH_UPDATE, n);
+    if (k <= 1) {
+        const Clock::time_point start = Clock::now();
         CheckContext c = {model_, state_, scratch_, options_, nullptr};
         run_rows(c, Q, 0, n, false, false, statuses, codes);
+        planner_.learn(BATCH_UPDATE, n, seconds_since(start));
         return n;
     }
     update_batch(Q, n, k, statuses, codes);
@@ -233,7 +249,9 @@ void Engine::update_batch(const double* Q, int64_t n, int64_t k, uint8_t* status
     ready_workers(k - 1);
     // Copied before any chunk runs: the last one runs in the engine's own state.
     for (int64_t w = 0; w + 1 < k; ++w) workers_[w]->state.copy_from(state_, model_, w == 0);
+    double first_seconds = 0.0;
     run_chunks(k, [&](int64_t w) {
+        const Clock::time_point start = Clock::now();
         const Chunk rows = chunk_of(w, k, n);
         if (w == k - 1) {
             CheckContext c = {model_, state_, scratch_, options_, nullptr};
@@ -243,7 +261,9 @@ void Engine::update_batch(const double* Q, int64_t n, int64_t k, uint8_t* status
         Worker& worker = *workers_[w];
         CheckContext c = {model_, worker.state.state(), worker.scratch, options_, nullptr};
         run_rows(c, Q, rows.begin, rows.end, false, w > 0, statuses, codes);
+        if (w == 0) first_seconds = seconds_since(start);
     });
+    planner_.learn(BATCH_UPDATE, chunk_of(0, k, n).end, first_seconds);
     gather_counters(k - 1);
     restate_changed(n, k, P, statuses, codes);
 }
@@ -323,31 +343,19 @@ int64_t Engine::path(const double* Q, int64_t n, int64_t* segment, double* t,
         if (bad >= 0) return -1 - (J * i + bad);
     }
     *segment = -1;
-    const int64_t k = std::min(options_.threads, n - 1);
-    if (k >= 2) {
-        const int64_t P = model_.n_pairs;
-        return first_contact(
-            n - 1, k,
-            [Q, J, P](MotionContext& c, int64_t i, double* t, uint8_t* pairs) {
-                return check_straight_motion(c, Q + J * i, Q + J * (i + 1), nullptr, P, t,
-                                             pairs);
-            },
-            segment, t, pairs);
-    }
-    MotionContext c = motion_context();
     if (n == 1) {  // one waypoint: its instant
+        MotionContext c = motion_context();
         if (!check_straight_motion(c, Q, Q, nullptr, model_.n_pairs, t, pairs)) return 0;
         *segment = 0;
         return 1;
     }
-    for (int64_t i = 0; i + 1 < n; ++i) {
-        if (check_straight_motion(c, Q + J * i, Q + J * (i + 1), nullptr, model_.n_pairs, t,
-                                  pairs)) {
-            *segment = i;
-            return 1;
-        }
-    }
-    return 0;
+    const int64_t P = model_.n_pairs;
+    return first_contact(
+        n - 1,
+        [Q, J, P](MotionContext& c, int64_t i, double* t, uint8_t* pairs) {
+            return check_straight_motion(c, Q + J * i, Q + J * (i + 1), nullptr, P, t, pairs);
+        },
+        segment, t, pairs);
 }
 
 int64_t Engine::spline(const double* coef, int64_t n, int64_t* segment, double* t,
@@ -373,48 +381,60 @@ int64_t Engine::spline(const double* coef, int64_t n, int64_t* segment, double* 
         }
     }
     *segment = -1;
-    const int64_t k = std::min(options_.threads, n);
-    if (k >= 2) {
-        return first_contact(
-            n, k,
-            [coef, J](MotionContext& c, int64_t i, double* t, uint8_t* pairs) {
-                return check_spline_motion(c, coef + 6 * J * i, t, pairs);
-            },
-            segment, t, pairs);
-    }
-    MotionContext c = motion_context();
-    for (int64_t i = 0; i < n; ++i) {
-        if (check_spline_motion(c, coef + 6 * J * i, t, pairs)) {
-            *segment = i;
-            return 1;
-        }
-    }
-    return 0;
+    return first_contact(
+        n,
+        [coef, J](MotionContext& c, int64_t i, double* t, uint8_t* pairs) {
+            return check_spline_motion(c, coef + 6 * J * i, t, pairs);
+        },
+        segment, t, pairs);
 }
 
-// Each chunk checks its segments in turn until one is not free, or until an earlier chunk
-// found one (its own answer could then only be later); the answer is the earliest chunk's
-// first, which is the first segment not free, as on one thread (every chunk before it ran to
-// its end).
-int64_t Engine::first_contact(int64_t n, int64_t k, const SegmentCheck& check,
-                              int64_t* segment, double* t, uint8_t* pairs) {
+// On one chunk: the segments in turn in the engine's own context, until one is not free.
+// On k >= 2: each chunk checks its segments in turn until one is not free, or until an
+// earlier chunk found one (its own answer could then only be later); the answer is the
+// earliest chunk's first, which is the first segment not free, as on one thread (every chunk
+// before it ran to its end).
+int64_t Engine::first_contact(int64_t n, const SegmentCheck& check, int64_t* segment,
+                              double* t, uint8_t* pairs) {
+    const int64_t k = chunks(BATCH_SEGMENTS, n);
+    const Clock::time_point start = Clock::now();
+    if (k <= 1) {
+        MotionContext c = motion_context();
+        for (int64_t i = 0; i < n; ++i) {
+            if (check(c, i, t, pairs)) {
+                planner_.learn(BATCH_SEGMENTS, i + 1, seconds_since(start));
+                *segment = i;
+                return 1;
+            }
+        }
+        planner_.learn(BATCH_SEGMENTS, n, seconds_since(start));
+        return 0;
+    }
     ready_workers(k);
     std::atomic<int64_t> first(k);  // the earliest chunk that met contact so far
+    int64_t first_done = 0;
+    double first_seconds = 0.0;
     run_chunks(k, [&](int64_t w) {
         Worker& worker = *workers_[w];
         worker.segment = -1;
         MotionContext c = {view(), worker.scratch, worker.motion};
         const Chunk segments = chunk_of(w, k, n);
-        for (int64_t i = segments.begin;
-             i < segments.end && first.load(std::memory_order_relaxed) > w; ++i) {
+        int64_t i = segments.begin;
+        for (; i < segments.end && first.load(std::memory_order_relaxed) > w; ++i) {
             if (!check(c, i, &worker.t, worker.pairs.data())) continue;
             worker.segment = i;
             int64_t known = first.load();
             while (known > w && !first.compare_exchange_weak(known, w)) {
             }
-            return;
+            ++i;
+            break;
+        }
+        if (w == 0) {
+            first_done = i - segments.begin;
+            first_seconds = seconds_since(start);
         }
     });
+    planner_.learn(BATCH_SEGMENTS, first_done, first_seconds);
     gather_counters(k);
     const int64_t w = first.load();
     if (w >= k) return 0;

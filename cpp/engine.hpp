@@ -67,6 +67,7 @@ class Engine {
     // query() on each row of Q (n, J) in turn; statuses (n, P) uint8 and codes (n,) out.
     // Returns n, or -1 - (J i + j) when row i's value j is not usable: every row is validated
     // before any is run, so nothing changed then. On options.threads threads (workers.hpp),
+    // cut into chunks as workers.hpp's SplitPlanner says (options.min_chunk_us of work each),
     // with the single thread's statuses and the codes' changed bits (each row's against the
     // row before; the first's against the carried state):
     //   full   the rows in workers' copies of the state: the carried state is left as it was;
@@ -129,6 +130,10 @@ class Engine {
     int64_t run(const double* q, bool full, MotionRecord* record = nullptr);
     MotionContext motion_context() { return {view(), scratch_, motion_work_}; }
     void force(int64_t p);
+    // Chunks for n items of kind (planner_, options_).
+    int64_t chunks(BatchKind kind, int64_t n) const {
+        return planner_.chunks(kind, n, options_.threads, 1e3 * options_.min_chunk_us);
+    }
     // Workers 0 .. k - 1, made on first use (workers.hpp).
     void ready_workers(int64_t k);
     // Add workers 0 .. k - 1's counters to the engine's, and zero theirs.
@@ -138,9 +143,10 @@ class Engine {
     // Segment check i in context c: 1 contact (*t, pairs), 0 free.
     using SegmentCheck = std::function<int64_t(MotionContext& c, int64_t i, double* t,
                                                uint8_t* pairs)>;
-    // Segments [0, n) on k >= 2 threads in chunks, the first not free answered (path()).
-    int64_t first_contact(int64_t n, int64_t k, const SegmentCheck& check, int64_t* segment,
-                          double* t, uint8_t* pairs);
+    // Segments [0, n) in chunks (one: in turn, in the engine's own context), the first not
+    // free answered (path(), spline()).
+    int64_t first_contact(int64_t n, const SegmentCheck& check, int64_t* segment, double* t,
+                          uint8_t* pairs);
 
     std::mutex lock_;
     ResolvedLayout layout_;  // the buffers' slots, writable (the scene methods write the model)
@@ -150,6 +156,7 @@ class Engine {
     Scratch scratch_;  // the engine's own context (its work group slots packed)
     MotionWork motion_work_;  // the motion checks' own areas, sized on their first use
     std::vector<std::unique_ptr<Worker>> workers_;  // the batches' other contexts
+    SplitPlanner planner_;                          // how many chunks a batch is cut into
 };
 
 }  // namespace collision_sensor

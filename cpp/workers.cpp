@@ -2,6 +2,7 @@
 #include "workers.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <exception>
 #include <mutex>
 #include <string>
@@ -14,6 +15,23 @@ int64_t resolve_threads(int64_t setting) {
     if (setting > 0) return setting;
     const unsigned cores = std::thread::hardware_concurrency();
     return cores > 0 ? int64_t(cores) : 1;
+}
+
+int64_t SplitPlanner::chunks(BatchKind kind, int64_t n, int64_t threads,
+                             double min_chunk_ns) const {
+    const int64_t most = std::min(threads, n);
+    if (most <= 1) return 1;
+    const double estimate = ns_per_item[kind];
+    if (!(estimate > 0.0)) return most;
+    const double k = std::floor(double(n) * estimate / std::max(min_chunk_ns, 1e-9));
+    return k >= double(most) ? most : std::max<int64_t>(1, int64_t(k));
+}
+
+void SplitPlanner::learn(BatchKind kind, int64_t items, double seconds) {
+    if (items <= 0 || !(seconds > 0.0)) return;
+    const double ns = seconds * 1e9 / double(items);
+    double& estimate = ns_per_item[kind];
+    estimate = estimate > 0.0 ? 0.5 * (estimate + ns) : ns;
 }
 
 namespace {

@@ -70,6 +70,21 @@ struct Worker {
     int64_t segment = -1;
 };
 
+// How many chunks a batch is cut into: a thread costs tens of microseconds to start and to
+// join (more on a loaded machine), so a batch is split only into chunks of at least
+// min_chunk_ns of work, as estimated from the items of the engine's earlier batches of the
+// same kind (the calling thread's chunk, timed). Only the split depends on it, never an answer.
+enum BatchKind : int { BATCH_FULL, BATCH_UPDATE, BATCH_SEGMENTS, N_BATCH_KINDS };
+
+struct SplitPlanner {
+    double ns_per_item[N_BATCH_KINDS] = {};  // 0: not known yet (the first batch is split)
+
+    // Chunks for n items of kind on up to threads threads: in [1, min(threads, n)].
+    int64_t chunks(BatchKind kind, int64_t n, int64_t threads, double min_chunk_ns) const;
+    // Learn from items done in seconds on one thread (half the old estimate, half the new).
+    void learn(BatchKind kind, int64_t items, double seconds);
+};
+
 // Row range [begin, end) of chunk c of k over n rows: contiguous, sizes differing by at most 1.
 struct Chunk {
     int64_t begin, end;

@@ -381,7 +381,8 @@ class CollisionChecker:
                                    box_test=config.box_test_code,
                                    expansion=config.expansion_code,
                                    motion_tolerance=config.motion_tolerance,
-                                   threads=config.threads)
+                                   threads=config.threads,
+                                   min_chunk_us=config.min_chunk_us)
 
         # Nothing above changed the checker; from here on, nothing can fail.
         views = self._views = packed.views
@@ -533,8 +534,9 @@ class CollisionChecker:
         """Check many configurations from scratch, in one compiled call; return (n, P) bool
         statuses, columns in the order of :attr:`checked_pairs`.
 
-        The rows run on :attr:`threads` threads (contiguous chunks, the answers those of one
-        thread), each in a copy of the carried state: the carried state is left as it was,
+        The rows run on :attr:`threads` threads (contiguous chunks of at least the setting
+        ``min_chunk_us`` of work; the answers those of one thread), each in a copy of the
+        carried state: the carried state is left as it was,
         and the next :meth:`update` goes on from the positions of the last single call.
 
         :param configurations: (n, J) float, rows in the order of :attr:`joint_names`.

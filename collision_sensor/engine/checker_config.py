@@ -40,6 +40,11 @@ threads               0          threads ``check_batch``, ``update_batch``, ``ch
                                  the same answers as one thread): 0 every hardware thread of
                                  the machine (std::thread::hardware_concurrency), 1 the
                                  calling thread alone, at most 256
+min_chunk_us          200.0      a batch is cut into chunks of at least this much work
+                                 (microseconds, estimated from the checker's earlier
+                                 batches): a thread costs tens of microseconds to start, so a
+                                 short batch runs on fewer threads (answers never depend on
+                                 it); 0: always as many chunks as threads
 ===================== ========== ============================================================
 """
 from dataclasses import dataclass, fields, replace
@@ -74,6 +79,7 @@ class CheckerConfig:
     #: ``((link, metres), ...)`` sorted by link; given as a mapping, see :meth:`from_mapping`.
     link_padding: Tuple[Tuple[str, float], ...] = ()
     threads: int = 0
+    min_chunk_us: float = 200.0
 
     @classmethod
     def from_mapping(cls, config: Optional[Mapping[str, Any]] = None) -> 'CheckerConfig':
@@ -167,6 +173,15 @@ def _converted(config):
             out[key] = _choice(key, value, OBB_FITS)
         elif key == 'padding':
             out[key] = _metres(key, value)
+        elif key == 'min_chunk_us':
+            try:
+                work = float(value)
+            except (TypeError, ValueError):
+                work = math.nan
+            if isinstance(value, bool) or not (work >= 0.0 and math.isfinite(work)):
+                raise ConfigError(f'setting min_chunk_us: expected a finite number of '
+                                  f'microseconds >= 0, got {value!r}')
+            out[key] = work
         elif key == 'link_padding':
             out[key] = _link_padding(value)
         elif key == 'threads':

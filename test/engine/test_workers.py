@@ -42,7 +42,7 @@ def _build(erd_share, name, threads, **config):
     return CollisionChecker.from_urdf(
         os.path.join(robots, urdf), srdf=os.path.join(robots, srdf),
         package_paths={'example-robot-data': erd_share}, scene=scene,
-        config={'threads': threads, **config})
+        config={'threads': threads, 'min_chunk_us': 0, **config})
 
 
 @pytest.fixture(scope='module', params=sorted(ROBOTS))
@@ -329,3 +329,27 @@ def test_the_engine_refuses_a_thread_count_out_of_range(erd_share):
             engine.Engine(packed.F, packed.F_layout, packed.I, packed.I_layout,
                           box_test=engine.BOX_TEST_SAT, expansion=engine.EXPAND_WIDER,
                           motion_tolerance=0.0, threads=bad)
+
+
+def test_short_batches_run_on_fewer_threads(erd_share):
+    """With min_chunk_us, once the engine knows what a row costs, a batch is cut only into
+    chunks of that much work: a short update_batch then runs in turn (no full check in its
+    middle), a long one in chunks; the answers are the same either way."""
+    checker = _build(erd_share, 'panda', 2, min_chunk_us=200.0)
+    reference = _build(erd_share, 'panda', 1)
+    walk = np.repeat(_configurations(checker, 1, seed=18), 3000, axis=0)
+    walk[:, 5] += np.linspace(0.0, 0.5, 3000)  # one wrist joint turns: few pairs re-checked
+    pairs = len(checker.checked_pairs)
+    checker.check(walk[0])
+    _, codes = checker._batch(walk, full=False)  # nothing known yet: two chunks
+    assert codes[1500] >> 1 == pairs
+    for n in (20, 3000):
+        checker.check(walk[0])
+        reference.check(walk[0])
+        statuses, codes = checker._batch(walk[:n], full=False)
+        assert np.array_equal(statuses, reference.update_batch(walk[:n]))
+        middle = codes[n // 2] >> 1 == pairs
+        assert middle == (n == 3000), n
+    checker.check(walk[0])
+    with pytest.raises(ConfigError, match='setting min_chunk_us'):
+        _build(erd_share, 'panda', 2, min_chunk_us=-1)
