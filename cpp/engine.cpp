@@ -188,7 +188,7 @@ int64_t Engine::run(const double* q, bool full, MotionRecord* record) {
 
 void Engine::ready_workers(int64_t k) {
     while (int64_t(workers_.size()) < k)
-        workers_.push_back(std::make_unique<Worker>(model_, state_.fronts.capacity));
+        workers_.push_back(std::make_unique<Worker>(model_, state_.fronts));
 }
 
 void Engine::gather_counters(int64_t k) {
@@ -411,6 +411,7 @@ int64_t Engine::first_contact(int64_t n, const SegmentCheck& check, int64_t* seg
         return 0;
     }
     ready_workers(k);
+    for (int64_t w = 0; w < k; ++w) workers_[w]->motion.size_for(model_);
     std::atomic<int64_t> first(k);  // the earliest chunk that met contact so far
     int64_t first_done = 0;
     double first_seconds = 0.0;

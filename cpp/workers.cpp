@@ -44,6 +44,27 @@ T* copied(std::vector<T>& to, const T* from, int64_t n) {
 
 }  // namespace
 
+void OwnedState::size_for(const Model& m, const Fronts& fronts) {
+    const int64_t J = m.n_joints, P = m.n_pairs, B = m.n_bodies;
+    q_last_.resize(J);
+    q_ref_.resize(J);
+    extension_.resize(1);
+    T_world_body_.resize(16 * B);
+    stale_.resize(B);
+    flags_.resize(N_QUERY_FLAGS);
+    status_.resize(P);
+    witness_.resize(2 * P);
+    forced_.resize(P);
+    clearance_.resize(P);
+    q_eval_.resize(P * J);
+    travel_.resize(2 * P);
+    state_.fronts.state.resize(fronts.state.size());
+    state_.fronts.travel.resize(fronts.travel.size());
+    state_.fronts.pairs.resize(fronts.pairs.size());
+    state_.fronts.until.resize(fronts.until.size());
+    state_.forced_list.reserve(P);
+}
+
 void OwnedState::copy_from(const State& from, const Model& m, bool with_fronts) {
     const int64_t J = m.n_joints, P = m.n_pairs, B = m.n_bodies;
     State& s = state_;
@@ -74,8 +95,11 @@ void OwnedState::copy_from(const State& from, const Model& m, bool with_fronts) 
     s.forced_list = from.forced_list;
 }
 
-Worker::Worker(const Model& m, int64_t front_capacity)
-    : scratch(m, front_capacity, counters), pairs(m.n_pairs, 0) {}
+Worker::Worker(const Model& m, const Fronts& fronts)
+    : gap_before(CACHE_GAP), scratch(m, fronts.capacity, counters), pairs(m.n_pairs, 0) {
+    state.size_for(m, fronts);
+    gap_after.assign(CACHE_GAP, 0);
+}
 
 void run_chunks(int64_t k, const std::function<void(int64_t)>& job) {
     std::mutex guard;

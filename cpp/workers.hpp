@@ -45,6 +45,8 @@ struct WorkerError : std::runtime_error {
 // sized (a full check sets every pair's front length to 0 and starts afresh).
 class OwnedState {
    public:
+    // Allocate every array for the model (copy_from then reuses them).
+    void size_for(const Model& m, const Fronts& fronts);
     void copy_from(const State& from, const Model& m, bool with_fronts);
     State& state() { return state_; }
 
@@ -58,7 +60,14 @@ class OwnedState {
 // the motion checks (pairs (P,) and t, segment). Counters start at 0 and are added to the
 // engine's after each batch.
 struct Worker {
-    Worker(const Model& m, int64_t front_capacity);
+    // Every area a batch of rows writes is allocated here, on the thread that makes the
+    // workers, one worker after the other, with a gap of CACHE_GAP bytes before and after: no
+    // cache line holds two workers' data (what one thread writes at every test would slow the
+    // other). The motion work is sized on its first use (Engine::first_contact, on that
+    // thread too): it grows with the forest's nodes, and batches of rows never use it.
+    Worker(const Model& m, const Fronts& fronts);
+    static constexpr size_t CACHE_GAP = 256;
+    std::vector<char> gap_before;
     // The counters every box and triangle test adds to: a cache line of their own, away from
     // another thread's (made before scratch, which counts into them).
     alignas(64) int64_t counters[N_COUNTERS + (8 - N_COUNTERS % 8) % 8] = {};
@@ -68,6 +77,7 @@ struct Worker {
     std::vector<uint8_t> pairs;
     double t = 0.0;
     int64_t segment = -1;
+    std::vector<char> gap_after;
 };
 
 // How many chunks a batch is cut into: a thread costs tens of microseconds to start and to
