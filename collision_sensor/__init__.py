@@ -3,12 +3,12 @@
 Importing this package never imports rclpy; the ROS node lives in ``collision_sensor.ros.node``.
 """
 from collision_sensor.errors import (
-    CollisionSensorError, ConfigError, EngineBuildError, EngineInputError, JointStateError,
-    LoadWarning, MeshError, RobotDescriptionError, SceneError, SequenceError, SrdfError)
+    CollisionSensorError, ConfigError, EngineBuildError, EngineInputError, EngineWorkerError,
+    JointStateError, LoadWarning, MeshError, RobotDescriptionError, SceneError, SequenceError, SrdfError)
 
 __all__ = [
     'CollisionChecker', 'CheckResult', 'ProximityRecord', 'CollisionSensorError', 'ConfigError',
-    'EngineBuildError', 'EngineInputError', 'JointStateError',
+    'EngineBuildError', 'EngineInputError', 'EngineWorkerError', 'JointStateError',
     'LoadWarning', 'MeshError', 'RobotDescriptionError', 'SceneError', 'SequenceError',
     'SrdfError',
 ]

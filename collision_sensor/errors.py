@@ -57,6 +57,11 @@ class EngineInputError(CollisionSensorError, ValueError):
     are not finite, an index out of range; the message names the argument."""
 
 
+class EngineWorkerError(CollisionSensorError, RuntimeError):
+    """A worker thread of a batch failed (memory ran out in its work areas): the call has no
+    answer (``cpp/workers.hpp``)."""
+
+
 #: Lines of one warning printed at most; the rest are counted (all kept in ``.warnings``).
 MAX_WARNING_LINES = 20
 

@@ -7,7 +7,8 @@
 // writes). Every shape is checked by one function (expect_shape). Errors cross as the
 // package's own exceptions (collision_sensor/errors.py): EngineInputError for an argument the
 // engine cannot take, EngineBuildError for packed buffers whose layout is not the engine's,
-// JointStateError for joint values it cannot honour.
+// JointStateError for joint values it cannot honour, EngineWorkerError for a batch whose worker
+// thread failed.
 //
 // The engine's constants and the layout of its packed arrays (layout.hpp) are exported here
 // under their C++ names: the Python side reads them, and writes none of them again.
@@ -35,7 +36,7 @@ using Array = py::array_t<T, py::array::c_style>;
 
 // The package's exception types, looked up once (and kept for the interpreter's life).
 struct PackageErrors {
-    py::handle input, build, joint_state;
+    py::handle input, build, joint_state, worker;
 };
 
 const PackageErrors& errors() {
@@ -43,7 +44,8 @@ const PackageErrors& errors() {
         py::module_ m = py::module_::import("collision_sensor.errors");
         return PackageErrors{py::object(m.attr("EngineInputError")).release(),
                              py::object(m.attr("EngineBuildError")).release(),
-                             py::object(m.attr("JointStateError")).release()};
+                             py::object(m.attr("JointStateError")).release(),
+                             py::object(m.attr("EngineWorkerError")).release()};
     }();
     return e;
 }
@@ -110,7 +112,7 @@ struct PyEngine {
 
     PyEngine(Array<double> F_, const Array<int64_t>& F_layout, Array<int64_t> I_,
              const Array<int64_t>& I_layout, int box_test, int expansion,
-             double motion_tolerance)
+             double motion_tolerance, int64_t threads, double min_chunk_us)
         : F(std::move(F_)), I(std::move(I_)) {
         expect_shape("F", F, {-1});
         expect_shape("I", I, {-1});
@@ -120,6 +122,8 @@ struct PyEngine {
         options.box_test = box_test;
         options.expansion = expansion;
         options.motion_tolerance = motion_tolerance;
+        options.threads = threads;
+        options.min_chunk_us = min_chunk_us;
         engine = std::make_unique<cs::Engine>(writable("F", F), F.shape(0), F_layout.data(),
                                               writable("I", I), I.shape(0), I_layout.data(),
                                               options);
@@ -428,10 +432,15 @@ void bind_engine(py::module_& m) {
                          "(int64) and their layout rows (cpp/layout.hpp); see cpp/engine.hpp. "
                          "Not for use outside CollisionChecker.")
         .def(py::init<Array<double>, const Array<int64_t>&, Array<int64_t>,
-                      const Array<int64_t>&, int, int, double>(),
+                      const Array<int64_t>&, int, int, double, int64_t, double>(),
              py::arg("F").noconvert(), py::arg("F_layout"), py::arg("I").noconvert(),
              py::arg("I_layout"), py::arg("box_test"), py::arg("expansion"),
-             py::arg("motion_tolerance"))
+             py::arg("motion_tolerance"), py::arg("threads") = 1,
+             py::arg("min_chunk_us") = 0.0)
+        .def_property_readonly(
+            "threads", [](const PyEngine& e) { return e.engine->threads(); },
+            "The threads batch, path and spline run on (the threads setting resolved: 0 "
+            "asked for the machine's hardware threads).")
         .def("query", &PyEngine::query, py::arg("q"), py::arg("full"),
              "Bring the statuses up to date with q (a C-contiguous float64 array of J values; "
              "anything else answers NOT_AN_ARRAY and changes nothing); return 2 * rechecked + "
@@ -760,7 +769,7 @@ void bind_build_kernels(py::module_& m) {
 
 //: Bumped whenever the binding's functions or the packed layouts change; the Python side
 //: refuses an extension built from other sources (collision_sensor/engine/compiled.py).
-constexpr int ENGINE_API = 4;
+constexpr int ENGINE_API = 5;
 
 PYBIND11_MODULE(_engine, m) {
     m.doc() = "collision_sensor's compiled engine (C++17); see collision_sensor.engine.compiled";
@@ -783,6 +792,8 @@ PYBIND11_MODULE(_engine, m) {
             if (thrown) std::rethrow_exception(thrown);
         } catch (const cs::LayoutError& error) {
             PyErr_SetString(errors().build.ptr(), error.what());
+        } catch (const cs::WorkerError& error) {
+            PyErr_SetString(errors().worker.ptr(), error.what());
         } catch (const std::invalid_argument& error) {
             PyErr_SetString(errors().input.ptr(), error.what());
         }

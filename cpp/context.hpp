@@ -27,6 +27,12 @@ struct Options {
     int expansion = EXPAND_WIDER;  // EXPAND_*
     // A joint counts as moved when it changed by more than this (rad or m) since q_ref.
     double motion_tolerance = 0.0;
+    // Threads a batch's rows run on (workers.hpp); 0: the machine's hardware threads (the
+    // engine resolves it when it is made), 1: the calling thread alone.
+    int64_t threads = 1;
+    // A batch is split only into chunks of at least this much estimated work (us;
+    // workers.hpp: SplitPlanner); 0: into as many chunks as threads (or items).
+    double min_chunk_us = 0.0;
 };
 
 // Body poses and whether each is behind its joints (poses.hpp): T_world_body (B, 4, 4) and

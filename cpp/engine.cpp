@@ -2,6 +2,8 @@
 #include "engine.hpp"
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
@@ -24,7 +26,75 @@ const Options& checked(const Options& o) {
                                     " is not one of EXPAND_*");
     if (!(o.motion_tolerance >= 0.0 && std::isfinite(o.motion_tolerance)))
         throw std::invalid_argument("motion_tolerance: not a finite number >= 0");
+    if (o.threads < 0 || o.threads > MAX_THREADS)
+        throw std::invalid_argument("threads: " + std::to_string(o.threads) +
+                                    " is not 0 (every core) or a count from 1 to " +
+                                    std::to_string(MAX_THREADS));
+    if (!(o.min_chunk_us >= 0.0 && std::isfinite(o.min_chunk_us)))
+        throw std::invalid_argument("min_chunk_us: not a finite number >= 0");
     return o;
+}
+
+Options resolved(const Options& o) {
+    Options out = checked(o);
+    out.threads = resolve_threads(o.threads);
+    return out;
+}
+
+// Bring the context's statuses up to date with q (usable): Engine::query's answer.
+int64_t run_query(CheckContext& c, const double* q, bool full) {
+    const Model& m = c.model;
+    State& s = c.state;
+    full = full || s.flags[QUERY_CHECKED_ONCE] == 0;
+    bool any_moved = full;
+    const double tolerance = c.options.motion_tolerance;
+    for (int64_t j = 0; j < m.n_joints; ++j) {
+        s.q_last[j] = q[j];
+        if (std::fabs(q[j] - s.q_ref[j]) > tolerance) any_moved = true;
+    }
+    const bool forced = s.forced_mode != FORCED_NONE;
+    if (!any_moved && !forced) return 0;
+    s.flags[QUERY_CHECKED_ONCE] = 1;
+    int64_t n;
+    if (full) {
+        plan_full(c, s.q_last);
+        n = m.n_pairs;
+        if (forced) clear_forced(s, m.n_pairs);  // every pair is re-checked from scratch
+    } else {
+        n = any_moved ? plan_update(c, s.q_last) : 0;
+        if (forced) n = add_forced(c, n);
+        if (n == 0) return 0;
+    }
+    bool changed = false;
+    const int64_t rechecked = recheck_pairs(c, n, full, &changed);
+    return 2 * rechecked + (changed ? 1 : 0);
+}
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+    return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// Rows [begin, end) of a batch in context c, statuses and codes out; the first row a full
+// check when first_full.
+void run_rows(CheckContext& c, const double* Q, int64_t begin, int64_t end, bool full,
+              bool first_full, uint8_t* statuses, int64_t* codes) {
+    const int64_t J = c.model.n_joints, P = c.model.n_pairs;
+    for (int64_t i = begin; i < end; ++i) {
+        codes[i] = run_query(c, Q + J * i, full || (first_full && i == begin));
+        for (int64_t p = 0; p < P; ++p) statuses[P * i + p] = uint8_t(c.state.status[p]);
+    }
+}
+
+// The changed bit of the first row of chunks 1 .. k - 1 as one thread sets it: against the
+// row before (each chunk started from another state).
+void restate_changed(int64_t n, int64_t k, int64_t P, const uint8_t* statuses, int64_t* codes) {
+    for (int64_t c = 1; c < k; ++c) {
+        const int64_t i = chunk_of(c, k, n).begin;
+        const bool changed = std::memcmp(statuses + P * i, statuses + P * (i - 1), P) != 0;
+        codes[i] = (codes[i] & ~int64_t(1)) | (changed ? 1 : 0);
+    }
 }
 
 }  // namespace
@@ -52,7 +122,7 @@ bool is_rigid_transform(const double* T) {
 Engine::Engine(double* F, int64_t f_size, const int64_t* f_layout, int64_t* I, int64_t i_size,
                const int64_t* i_layout, const Options& options)
     : layout_(resolve_layout(F, f_size, f_layout, I, i_size, i_layout)),
-      options_(checked(options)),
+      options_(resolved(options)),
       model_(make_model(layout_)),
       state_(make_state(layout_, model_)),
       scratch_(model_, state_.fronts.capacity, layout_.i[slot::counters],
@@ -112,32 +182,23 @@ int64_t Engine::query(const double* q, bool full) {
 }
 
 int64_t Engine::run(const double* q, bool full, MotionRecord* record) {
-    const Model& m = model_;
-    State& s = state_;
-    CheckContext c = {m, s, scratch_, options_, record};
-    full = full || s.flags[QUERY_CHECKED_ONCE] == 0;
-    bool any_moved = full;
-    const double tolerance = options_.motion_tolerance;
-    for (int64_t j = 0; j < m.n_joints; ++j) {
-        s.q_last[j] = q[j];
-        if (std::fabs(q[j] - s.q_ref[j]) > tolerance) any_moved = true;
+    CheckContext c = {model_, state_, scratch_, options_, record};
+    return run_query(c, q, full);
+}
+
+void Engine::ready_workers(int64_t k) {
+    while (int64_t(workers_.size()) < k)
+        workers_.push_back(std::make_unique<Worker>(model_, state_.fronts));
+}
+
+void Engine::gather_counters(int64_t k) {
+    for (int64_t w = 0; w < k; ++w) {
+        int64_t* counters = workers_[w]->scratch.counters;
+        for (int i = 0; i < N_COUNTERS; ++i) {
+            scratch_.counters[i] += counters[i];
+            counters[i] = 0;
+        }
     }
-    const bool forced = s.forced_mode != FORCED_NONE;
-    if (!any_moved && !forced) return 0;
-    s.flags[QUERY_CHECKED_ONCE] = 1;
-    int64_t n;
-    if (full) {
-        plan_full(c, s.q_last);
-        n = m.n_pairs;
-        if (forced) clear_forced(s, m.n_pairs);  // every pair is re-checked from scratch
-    } else {
-        n = any_moved ? plan_update(c, s.q_last) : 0;
-        if (forced) n = add_forced(c, n);
-        if (n == 0) return 0;
-    }
-    bool changed = false;
-    const int64_t rechecked = recheck_pairs(c, n, full, &changed);
-    return 2 * rechecked + (changed ? 1 : 0);
 }
 
 int64_t Engine::batch(const double* Q, int64_t n, bool full, uint8_t* statuses,
@@ -147,11 +208,64 @@ int64_t Engine::batch(const double* Q, int64_t n, bool full, uint8_t* statuses,
         const int64_t bad = unusable_variable(model_.kin, Q + J * i, J);
         if (bad >= 0) return -1 - (J * i + bad);
     }
-    for (int64_t i = 0; i < n; ++i) {
-        codes[i] = run(Q + J * i, full);
-        for (int64_t p = 0; p < P; ++p) statuses[P * i + p] = uint8_t(state_.status[p]);
+    if (n == 0) return 0;
+    if (full) {
+        // Each row a full check, whose answer is its own: in the workers' copies of the
+        // carried state (a full check reads of it only the scene's poses).
+        const int64_t k = chunks(BATCH_FULL, n);
+        ready_workers(k);
+        double first_seconds = 0.0;
+        run_chunks(k, [&](int64_t w) {
+            const Clock::time_point start = Clock::now();
+            Worker& worker = *workers_[w];
+            worker.state.copy_from(state_, model_, false);
+            CheckContext c = {model_, worker.state.state(), worker.scratch, options_, nullptr};
+            const Chunk rows = chunk_of(w, k, n);
+            run_rows(c, Q, rows.begin, rows.end, true, false, statuses, codes);
+            if (w == 0) first_seconds = seconds_since(start);
+        });
+        planner_.learn(BATCH_FULL, chunk_of(0, k, n).end, first_seconds);
+        gather_counters(k);
+        restate_changed(n, k, P, statuses, codes);
+        return n;
     }
+    const int64_t k = options_.motion_tolerance > 0.0 ? 1 : chunks(BATCH_UPDATE, n);
+    if (k <= 1) {
+        const Clock::time_point start = Clock::now();
+        CheckContext c = {model_, state_, scratch_, options_, nullptr};
+        run_rows(c, Q, 0, n, false, false, statuses, codes);
+        planner_.learn(BATCH_UPDATE, n, seconds_since(start));
+        return n;
+    }
+    update_batch(Q, n, k, statuses, codes);
     return n;
+}
+
+// With motion_tolerance 0 a row's statuses are those of a full check at the row (the
+// incremental check's contract), whatever state it starts from: chunks can start afresh.
+void Engine::update_batch(const double* Q, int64_t n, int64_t k, uint8_t* statuses,
+                          int64_t* codes) {
+    const int64_t P = model_.n_pairs;
+    ready_workers(k - 1);
+    // Copied before any chunk runs: the last one runs in the engine's own state.
+    for (int64_t w = 0; w + 1 < k; ++w) workers_[w]->state.copy_from(state_, model_, w == 0);
+    double first_seconds = 0.0;
+    run_chunks(k, [&](int64_t w) {
+        const Clock::time_point start = Clock::now();
+        const Chunk rows = chunk_of(w, k, n);
+        if (w == k - 1) {
+            CheckContext c = {model_, state_, scratch_, options_, nullptr};
+            run_rows(c, Q, rows.begin, rows.end, false, true, statuses, codes);
+            return;
+        }
+        Worker& worker = *workers_[w];
+        CheckContext c = {model_, worker.state.state(), worker.scratch, options_, nullptr};
+        run_rows(c, Q, rows.begin, rows.end, false, w > 0, statuses, codes);
+        if (w == 0) first_seconds = seconds_since(start);
+    });
+    planner_.learn(BATCH_UPDATE, chunk_of(0, k, n).end, first_seconds);
+    gather_counters(k - 1);
+    restate_changed(n, k, P, statuses, codes);
 }
 
 void Engine::refresh_all_poses() {
@@ -219,13 +333,14 @@ int64_t Engine::path(const double* Q, int64_t n, int64_t* segment, double* t,
         const int64_t bad = unusable_variable(model_.kin, Q + J * i, J);
         if (bad >= 0) return -1 - (J * i + bad);
     }
-    MotionContext c = motion_context();
     *segment = -1;
     if (n == 1) {  // one waypoint: its instant
+        MotionContext c = motion_context();
         if (!check_straight_motion(c, Q, Q, nullptr, model_.n_pairs, t, pairs)) return 0;
         *segment = 0;
         return 1;
     }
+    MotionContext c = motion_context();
     double along;  // in [0, n - 1]: segment k at [k, k + 1]
     if (!check_polyline_motion(c, Q, n, &along, pairs)) return 0;
     const int64_t k = along > 0.0 ? std::min(int64_t(std::ceil(along)) - 1, n - 2) : 0;
@@ -256,15 +371,70 @@ int64_t Engine::spline(const double* coef, int64_t n, int64_t* segment, double* 
             if (unusable_variable(m.kin, q.data(), J) >= 0) return -1 - i;
         }
     }
-    MotionContext c = motion_context();
     *segment = -1;
-    for (int64_t i = 0; i < n; ++i) {
-        if (check_spline_motion(c, coef + 6 * J * i, t, pairs)) {
-            *segment = i;
-            return 1;
+    return first_contact(
+        n,
+        [coef, J](MotionContext& c, int64_t i, double* t, uint8_t* pairs) {
+            return check_spline_motion(c, coef + 6 * J * i, t, pairs);
+        },
+        segment, t, pairs);
+}
+
+// On one chunk: the segments in turn in the engine's own context, until one is not free.
+// On k >= 2: each chunk checks its segments in turn until one is not free, or until an
+// earlier chunk found one (its own answer could then only be later); the answer is the
+// earliest chunk's first, which is the first segment not free, as on one thread (every chunk
+// before it ran to its end).
+int64_t Engine::first_contact(int64_t n, const SegmentCheck& check, int64_t* segment,
+                              double* t, uint8_t* pairs) {
+    const int64_t k = chunks(BATCH_SEGMENTS, n);
+    const Clock::time_point start = Clock::now();
+    if (k <= 1) {
+        MotionContext c = motion_context();
+        for (int64_t i = 0; i < n; ++i) {
+            if (check(c, i, t, pairs)) {
+                planner_.learn(BATCH_SEGMENTS, i + 1, seconds_since(start));
+                *segment = i;
+                return 1;
+            }
         }
+        planner_.learn(BATCH_SEGMENTS, n, seconds_since(start));
+        return 0;
     }
-    return 0;
+    ready_workers(k);
+    for (int64_t w = 0; w < k; ++w) workers_[w]->motion.size_for(model_);
+    std::atomic<int64_t> first(k);  // the earliest chunk that met contact so far
+    int64_t first_done = 0;
+    double first_seconds = 0.0;
+    run_chunks(k, [&](int64_t w) {
+        Worker& worker = *workers_[w];
+        worker.segment = -1;
+        MotionContext c = {view(), worker.scratch, worker.motion};
+        const Chunk segments = chunk_of(w, k, n);
+        int64_t i = segments.begin;
+        for (; i < segments.end && first.load(std::memory_order_relaxed) > w; ++i) {
+            if (!check(c, i, &worker.t, worker.pairs.data())) continue;
+            worker.segment = i;
+            int64_t known = first.load();
+            while (known > w && !first.compare_exchange_weak(known, w)) {
+            }
+            ++i;
+            break;
+        }
+        if (w == 0) {
+            first_done = i - segments.begin;
+            first_seconds = seconds_since(start);
+        }
+    });
+    planner_.learn(BATCH_SEGMENTS, first_done, first_seconds);
+    gather_counters(k);
+    const int64_t w = first.load();
+    if (w >= k) return 0;
+    const Worker& worker = *workers_[w];
+    *segment = worker.segment;
+    *t = worker.t;
+    std::copy(worker.pairs.begin(), worker.pairs.end(), pairs);
+    return 1;
 }
 
 }  // namespace collision_sensor

@@ -27,12 +27,16 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <mutex>
+#include <vector>
 
 #include "context.hpp"
 #include "layout.hpp"
 #include "model.hpp"
 #include "motion.hpp"
+#include "workers.hpp"
 
 namespace collision_sensor {
 
@@ -63,7 +67,17 @@ class Engine {
     int64_t query(const double* q, bool full);
     // query() on each row of Q (n, J) in turn; statuses (n, P) uint8 and codes (n,) out.
     // Returns n, or -1 - (J i + j) when row i's value j is not usable: every row is validated
-    // before any is run, so nothing changed then.
+    // before any is run, so nothing changed then. On options.threads threads (workers.hpp),
+    // cut into chunks as workers.hpp's SplitPlanner says (options.min_chunk_us of work each),
+    // with the single thread's statuses and the codes' changed bits (each row's against the
+    // row before; the first's against the carried state):
+    //   full   the rows in workers' copies of the state: the carried state is left as it was;
+    //   !full  in turn from the carried state, as query(), on one thread when the motion
+    //          tolerance is not 0 (a row's statuses then depend on the rows before); else
+    //          chunk 0 goes on from a copy of the carried state, every later chunk starts with
+    //          a full check at its first row (whose statuses are any incremental check's: the
+    //          code counts every pair re-checked there), the last one in the engine's own
+    //          state, which ends at the last row as with one thread.
     int64_t batch(const double* Q, int64_t n, bool full, uint8_t* statuses, int64_t* codes);
     // Bring every link pose up to date (incremental calls compute them only on demand).
     void refresh_all_poses();
@@ -79,13 +93,15 @@ class Engine {
     // not usable (nothing changed then).
     int64_t update_motion(const double* q, double* t, uint8_t* pairs, int64_t* query_code);
     // The straight motions Q[0] -> Q[1] -> ... -> Q[n - 1] (n >= 1; one row: its instant),
-    // marched as one path (check_polyline_motion): *segment the first not free (-1: none),
-    // *t the first contact's fraction of it; -1 - (J i + j) when row i's value j is not
-    // usable.
+    // marched as one path (check_polyline_motion) on the calling thread: *segment the first
+    // not free (-1: none), *t the first contact's fraction of it; -1 - (J i + j) when row i's
+    // value j is not usable.
     int64_t path(const double* Q, int64_t n, int64_t* segment, double* t, uint8_t* pairs);
-    // The spline segments coef (n, J, 6) (SplinePath) in turn, as path: -1 - i when segment
-    // i has a coefficient that is not finite, moves a planar or floating joint, or starts or
-    // ends at a value that is not usable.
+    // The spline segments coef (n, J, 6) (SplinePath) in turn until one is not free, as path
+    // answers: -1 - i when segment i has a coefficient that is not finite, moves a planar or
+    // floating joint, or starts or ends at a value that is not usable. Segments run on
+    // options.threads threads in contiguous chunks (a chunk stops once an earlier one met
+    // contact); the answer is the first segment's, as on one thread.
     int64_t spline(const double* coef, int64_t n, int64_t* segment, double* t, uint8_t* pairs);
 
     // Run a query of another kind, query(view, scratch): over the model and the carried state
@@ -119,6 +135,8 @@ class Engine {
                                 const double* reach, const double* reach_ext);
 
     const Model& model() const { return model_; }
+    // The threads a batch runs on (options.threads resolved: >= 1).
+    int64_t threads() const { return options_.threads; }
     EngineView view() const { return {model_, state_, options_}; }
     std::mutex& lock() { return lock_; }
 
@@ -126,6 +144,23 @@ class Engine {
     int64_t run(const double* q, bool full, MotionRecord* record = nullptr);
     MotionContext motion_context() { return {view(), scratch_, motion_work_}; }
     void force(int64_t p);
+    // Chunks for n items of kind (planner_, options_).
+    int64_t chunks(BatchKind kind, int64_t n) const {
+        return planner_.chunks(kind, n, options_.threads, 1e3 * options_.min_chunk_us);
+    }
+    // Workers 0 .. k - 1, made on first use (workers.hpp).
+    void ready_workers(int64_t k);
+    // Add workers 0 .. k - 1's counters to the engine's, and zero theirs.
+    void gather_counters(int64_t k);
+    // The incremental batch on k >= 2 threads (batch()).
+    void update_batch(const double* Q, int64_t n, int64_t k, uint8_t* statuses, int64_t* codes);
+    // Segment check i in context c: 1 contact (*t, pairs), 0 free.
+    using SegmentCheck = std::function<int64_t(MotionContext& c, int64_t i, double* t,
+                                               uint8_t* pairs)>;
+    // Segments [0, n) in chunks (one: in turn, in the engine's own context), the first not
+    // free answered (path(), spline()).
+    int64_t first_contact(int64_t n, const SegmentCheck& check, int64_t* segment, double* t,
+                          uint8_t* pairs);
 
     std::mutex lock_;
     ResolvedLayout layout_;  // the buffers' slots, writable (the scene methods write the model)
@@ -134,6 +169,8 @@ class Engine {
     State state_;
     Scratch scratch_;  // the engine's own context (its work group slots packed)
     MotionWork motion_work_;  // the motion checks' own areas, sized on their first use
+    std::vector<std::unique_ptr<Worker>> workers_;  // the batches' other contexts
+    SplitPlanner planner_;                          // how many chunks a batch is cut into
 };
 
 }  // namespace collision_sensor

@@ -380,7 +380,9 @@ class CollisionChecker:
         new_engine = engine.Engine(packed.F, packed.F_layout, packed.I, packed.I_layout,
                                    box_test=config.box_test_code,
                                    expansion=config.expansion_code,
-                                   motion_tolerance=config.motion_tolerance)
+                                   motion_tolerance=config.motion_tolerance,
+                                   threads=config.threads,
+                                   min_chunk_us=config.min_chunk_us)
 
         # Nothing above changed the checker; from here on, nothing can fail.
         views = self._views = packed.views
@@ -532,16 +534,17 @@ class CollisionChecker:
         """Check many configurations from scratch, in one compiled call; return (n, P) bool
         statuses, columns in the order of :attr:`checked_pairs`.
 
-        The carried state is restored afterwards: the next :meth:`update` goes on from the
-        positions of the last single call.
+        The rows run on :attr:`threads` threads (contiguous chunks of at least the setting
+        ``min_chunk_us`` of work; the answers those of one thread), each in a copy of the
+        carried state: the carried state is left as it was,
+        and the next :meth:`update` goes on from the positions of the last single call.
 
         :param configurations: (n, J) float, rows in the order of :attr:`joint_names`.
         :raises JointStateError: on a wrong shape or a value that is not finite (naming the
             row and joint); nothing changes then.
+        :raises EngineWorkerError: a worker thread failed (memory); nothing changes then.
         """
-        saved = self._q.copy()
         statuses, _ = self._batch(configurations, full=True)
-        self._run(saved, full=True)
         return statuses
 
     def update_batch(self, configurations: np.ndarray) -> np.ndarray:
@@ -552,13 +555,29 @@ class CollisionChecker:
         The state carries over as with single calls: afterwards the checker stands at the
         last row (``update`` goes on from there, :attr:`positions` is that row).
 
+        On :attr:`threads` threads when ``motion_tolerance`` is 0 (then a row's statuses are
+        a full check's at that row, whatever the rows before): the first chunk of rows goes
+        on from the carried state, each later chunk starts with a full check at its first row.
+        The statuses are one thread's; what differs is the work (each later chunk's first
+        row re-checks every pair) and so :attr:`CheckResult.rechecked_pairs` of the next
+        answers. With a motion tolerance the rows run in turn on the calling thread.
+
         :param configurations: (n, J) float, rows in the order of :attr:`joint_names`.
         :raises JointStateError: as :meth:`check_batch`; nothing changes then.
+        :raises EngineWorkerError: a worker thread failed (memory); the state is then at some
+            row of the batch (``check`` sets it anew).
         """
         statuses, codes = self._batch(configurations, full=False)
         if len(codes):
             self._result = self._result_from_status(int(codes[-1]) >> 1)
         return statuses
+
+    @property
+    def threads(self) -> int:
+        """Threads :meth:`check_batch`, :meth:`update_batch`, :meth:`check_path` and
+        :meth:`check_spline` run on: the setting ``threads`` resolved (0 there: the machine's
+        hardware threads)."""
+        return self._engine.threads
 
     def _batch(self, configurations, full: bool) -> Tuple[np.ndarray, np.ndarray]:
         """Run the rows through the engine; return (n, P) bool statuses and (n,) codes."""
@@ -667,7 +686,8 @@ class CollisionChecker:
     def check_path(self, configurations: np.ndarray) -> PathResult:
         """Check the straight motions between consecutive waypoints, in one compiled call,
         until one is not free (a single waypoint: its instant). The carried state is left as
-        it was.
+        it was. The segments run on :attr:`threads` threads in contiguous chunks (a chunk
+        stops once an earlier one met contact); the answer is one thread's.
 
         :param configurations: (n, J) float, rows in the order of :attr:`joint_names`.
         :raises JointStateError: on a wrong shape or an unusable value (naming the row and
@@ -689,7 +709,8 @@ class CollisionChecker:
         """Check polynomial path segments in turn, in one compiled call, until one is not free:
         segment i is ``q_j(t) = sum_k coefficients[i, j, k] t^k`` for t in [0, 1] (degree at
         most 5; planar and floating joints constant). ``first_contact`` is a fraction of the
-        segment. The carried state is left as it was.
+        segment. The carried state is left as it was; segments run on :attr:`threads` threads
+        as in :meth:`check_path`.
 
         :param coefficients: (S, J, 6) float, variables in the order of :attr:`joint_names`.
         :raises JointStateError: on a wrong shape, or a segment the engine cannot take (not

@@ -35,6 +35,16 @@ padding               0.0        metres every robot link's geometry is grown by 
 link_padding          {}         ``{link: metres}``, a link's own padding instead of
                                  ``padding``; links of the robot only (scene objects are
                                  never padded)
+threads               0          threads ``check_batch``, ``update_batch``, ``check_path``
+                                 and ``check_spline`` run on (contiguous chunks of the rows,
+                                 the same answers as one thread): 0 every hardware thread of
+                                 the machine (std::thread::hardware_concurrency), 1 the
+                                 calling thread alone, at most 256
+min_chunk_us          200.0      a batch is cut into chunks of at least this much work
+                                 (microseconds, estimated from the checker's earlier
+                                 batches): a thread costs tens of microseconds to start, so a
+                                 short batch runs on fewer threads (answers never depend on
+                                 it); 0: always as many chunks as threads
 ===================== ========== ============================================================
 """
 from dataclasses import dataclass, fields, replace
@@ -47,6 +57,8 @@ from collision_sensor.engine.traversal import EXPANSION_RULES
 from collision_sensor.errors import ConfigError
 
 BOX_TESTS = {'paper': BOX_TEST_PAPER, 'sat': BOX_TEST_SAT}
+#: The most threads the setting ``threads`` may ask for (cpp/workers.hpp: MAX_THREADS).
+MAX_THREADS = 256
 OBB_FITS = {'pca': OBB_PCA, 'hull_pca': OBB_HULL_PCA, 'min_volume': OBB_MIN_VOLUME}
 
 
@@ -66,6 +78,8 @@ class CheckerConfig:
     padding: float = 0.0
     #: ``((link, metres), ...)`` sorted by link; given as a mapping, see :meth:`from_mapping`.
     link_padding: Tuple[Tuple[str, float], ...] = ()
+    threads: int = 0
+    min_chunk_us: float = 200.0
 
     @classmethod
     def from_mapping(cls, config: Optional[Mapping[str, Any]] = None) -> 'CheckerConfig':
@@ -159,8 +173,23 @@ def _converted(config):
             out[key] = _choice(key, value, OBB_FITS)
         elif key == 'padding':
             out[key] = _metres(key, value)
+        elif key == 'min_chunk_us':
+            try:
+                work = float(value)
+            except (TypeError, ValueError):
+                work = math.nan
+            if isinstance(value, bool) or not (work >= 0.0 and math.isfinite(work)):
+                raise ConfigError(f'setting min_chunk_us: expected a finite number of '
+                                  f'microseconds >= 0, got {value!r}')
+            out[key] = work
         elif key == 'link_padding':
             out[key] = _link_padding(value)
+        elif key == 'threads':
+            if isinstance(value, bool) or not isinstance(value, int) or not \
+                    0 <= value <= MAX_THREADS:
+                raise ConfigError(f'setting threads: expected an integer from 0 (every core) to '
+                                  f'{MAX_THREADS}, got {value!r}')
+            out[key] = value
         elif key in ('leaf_size', 'primitive_sections'):
             minimum = 1 if key == 'leaf_size' else 3
             if isinstance(value, bool) or not isinstance(value, int) or value < minimum:

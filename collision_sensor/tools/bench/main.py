@@ -27,7 +27,9 @@ times of scenario 1. Peers are optional: a missing one is reported as missing.
    (``check_motion`` against dense sampling confirmed by python-fcl on 10,000 segments of
    seven robots in clutter; against pinocchio+coal and ``check_batch`` on the motion
    discretized at 0.01 rad; against python-fcl's ``continuousCollide``; ``update_motion``
-   against ``update``).
+   against ``update``); 11. the batches on every core (``check_batch``, ``update_batch``,
+   ``check_path`` on one thread against two; every other scenario runs our checker on one
+   thread, as its peers run).
 """
 import argparse
 import datetime
@@ -43,7 +45,7 @@ from collision_sensor.errors import CollisionSensorError, ConfigError
 from collision_sensor.tools.bench.scenario_report import Section
 from collision_sensor.tools.bench.scenario_settings import Settings
 
-SCENARIOS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10)
+SCENARIOS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11)
 #: The scenarios that take a robot, run on the user's with --urdf.
 ROBOT_SCENARIOS = (1, 2, 8)
 PROG = 'collision_sensor_bench'
@@ -60,7 +62,7 @@ def run_scenarios(numbers: Sequence[int], settings: Settings, log=None,
     from collision_sensor.tools.bench import (
         scenario_cells, scenario_contact, scenario_dynamic, scenario_large, scenario_motion,
         scenario_paper, scenario_parts, scenario_proximity, scenario_random, scenario_scale,
-        scenario_streams)
+        scenario_streams, scenario_threads)
     log = log or (lambda message: None)
     sections = []
     with tempfile.TemporaryDirectory(prefix='collision_sensor_bench_') as workdir:
@@ -92,8 +94,10 @@ def run_scenarios(numbers: Sequence[int], settings: Settings, log=None,
                 section = scenario_proximity.run(settings, cells if robot is not None else None)
             elif number == 9:
                 section = scenario_dynamic.run(settings)
-            else:
+            elif number == 10:
                 section = scenario_motion.run(settings, workdir)
+            else:
+                section = scenario_threads.run(settings)
             section.plot['seconds'] = time.perf_counter() - start
             log(f'scenario {number} done in {section.plot["seconds"]:.0f} s')
             sections.append(section)

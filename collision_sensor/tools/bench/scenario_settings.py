@@ -23,6 +23,7 @@ class Settings:
         continuousCollide).
     :ivar motion_robots: scenario 10's certification robots (labels of
         ``motion_cells.ROBOTS``; None: all).
+    :ivar thread_rows: rows of scenario 11's batches (one thread against two).
     """
 
     seed: int = 1998
@@ -41,6 +42,7 @@ class Settings:
     motion_walk_steps: int = 3000
     ccd_cases: int = 40
     motion_robots: Optional[Tuple[str, ...]] = None
+    thread_rows: int = 10_000
 
     @classmethod
     def for_run(cls, quick: bool, seed: int) -> 'Settings':
@@ -52,4 +54,5 @@ class Settings:
                    scale_configurations=20, terrain_triangles=(1_000, 3_000, 10_000), rounds=2,
                    box_pairs=2_000, box_repeat=2, fits=('pca', 'hull_pca'),
                    motion_segments=30, motion_speed_segments=10, motion_waypoints=100,
-                   motion_walk_steps=300, ccd_cases=3, motion_robots=('panda', 'ur5', 'z1'))
+                   motion_walk_steps=300, ccd_cases=3, motion_robots=('panda', 'ur5', 'z1'),
+                   thread_rows=1000)
