@@ -25,13 +25,16 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <mutex>
+#include <vector>
 
 #include "context.hpp"
 #include "layout.hpp"
 #include "model.hpp"
 #include "motion.hpp"
 #include "proximity.hpp"
+#include "voxel_cloud.hpp"
 
 namespace collision_sensor {
 
@@ -103,6 +106,15 @@ class Engine {
     int64_t place_attached_body(int64_t b, const double* T, const int64_t* pairs, int64_t n,
                                 const double* reach, const double* reach_ext);
 
+    // Point clouds (voxel_cloud.hpp). Make world object b, a body without trees, the obstacle
+    // of `cloud` (its current grid), and force its pairs. Returns 0, or MOVE_REFUSED when b is
+    // no such body (nothing changed then).
+    int64_t attach_cloud(int64_t b, std::shared_ptr<VoxelCloud> cloud);
+    // Make build `ticket` of body b's cloud current (VoxelCloud::swap) and force the cloud's
+    // pairs only. Returns 0, or MOVE_REFUSED when b has no cloud or the ticket is not its last
+    // build still to commit (nothing changed then).
+    int64_t commit_cloud(int64_t b, int64_t ticket);
+
     const Model& model() const { return model_; }
     EngineView view() const { return {model_, state_, options_}; }
     std::mutex& lock() { return lock_; }
@@ -111,6 +123,7 @@ class Engine {
     int64_t run(const double* q, bool full, MotionRecord* record = nullptr);
     MotionContext motion_context() { return {view(), scratch_, motion_work_}; }
     void force(int64_t p);
+    void show_cloud(int64_t b);
 
     std::mutex lock_;
     ResolvedLayout layout_;  // the buffers' slots, writable (the scene methods write the model)
@@ -119,6 +132,7 @@ class Engine {
     State state_;
     Scratch scratch_;  // the engine's own context (its work group slots packed)
     MotionWork motion_work_;  // the motion checks' own areas, sized on their first use
+    std::vector<std::shared_ptr<VoxelCloud>> clouds_;  // (B,) the clouds Model::clouds show
 };
 
 }  // namespace collision_sensor

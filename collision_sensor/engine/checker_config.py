@@ -35,6 +35,13 @@ padding               0.0        metres every robot link's geometry is grown by 
 link_padding          {}         ``{link: metres}``, a link's own padding instead of
                                  ``padding``; links of the robot only (scene objects are
                                  never padded)
+voxel_size            0.02       point clouds (``set_points``): the edge (m, 0.001 to 1) of
+                                 the world-aligned cubes a cloud's points are grouped into
+self_filter_padding   0.02       point clouds: points within this (m, 0 to 1) of the robot's
+                                 collision geometry (its links and attached objects), or
+                                 inside its solids, are the robot's own and removed
+max_points            1000000    point clouds: most rows taken from one cloud; a larger one
+                                 is subsampled (every k-th row) and the rest counted
 ===================== ========== ============================================================
 """
 from dataclasses import dataclass, fields, replace
@@ -66,6 +73,9 @@ class CheckerConfig:
     padding: float = 0.0
     #: ``((link, metres), ...)`` sorted by link; given as a mapping, see :meth:`from_mapping`.
     link_padding: Tuple[Tuple[str, float], ...] = ()
+    voxel_size: float = 0.02
+    self_filter_padding: float = 0.02
+    max_points: int = 1_000_000
 
     @classmethod
     def from_mapping(cls, config: Optional[Mapping[str, Any]] = None) -> 'CheckerConfig':
@@ -161,6 +171,16 @@ def _converted(config):
             out[key] = _metres(key, value)
         elif key == 'link_padding':
             out[key] = _link_padding(value)
+        elif key in ('voxel_size', 'self_filter_padding'):
+            number = _metres(key, value)
+            low = 0.001 if key == 'voxel_size' else 0.0
+            if not low <= number <= 1.0:
+                raise ConfigError(f'setting {key}: expected {low:g} to 1.0 m, got {value!r}')
+            out[key] = number
+        elif key == 'max_points':
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ConfigError(f'setting max_points: expected an integer >= 1, got {value!r}')
+            out[key] = value
         elif key in ('leaf_size', 'primitive_sections'):
             minimum = 1 if key == 'leaf_size' else 3
             if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
