@@ -52,6 +52,12 @@ CS_ALWAYS_INLINE void apply(const double* P, const double* x, double* y) {
         y[i] = P[3 * i] * x[0] + P[3 * i + 1] * x[1] + P[3 * i + 2] * x[2] + P[9 + i];
 }
 
+// floor(g) for |g| < 2^62, without a library call (std::floor is one without SSE4.1).
+CS_ALWAYS_INLINE int64_t floor_to_int(double g) {
+    const int64_t i = int64_t(g);
+    return i - (double(i) > g ? 1 : 0);
+}
+
 int64_t next_power_of_two(int64_t n) {
     int64_t p = 1;
     while (p < n) p <<= 1;
@@ -90,27 +96,56 @@ int64_t CloudBuilder::slot_of(uint64_t key) {
     lo_.insert(lo_.end(), 3, INF);
     hi_.insert(hi_.end(), 3, -INF);
     count_.push_back(0);
+    near_count_.push_back(0);
     old_seen_.push_back(-INF);
     if (2 * n_voxels_ > mask_ + 1) rehash(2 * (mask_ + 1));
     return v;
 }
 
-// Every (voxel, body, triangle or solid) whose grown box meets the voxel's points' box: the
-// robot's trees with boxes grown by r against the filter's hierarchy (leaves: one voxel each).
-void CloudBuilder::collect_candidates(const Model& m, double r) {
+// Every (voxel, body, triangle or solid) whose tree node's box, grown by r, may come near the
+// voxel's points' box: the robot's trees against the filter's hierarchy (leaves: one voxel
+// each), both as world-aligned boxes (a node's oriented box at the cloud's state, its world
+// box grown by r: a broad phase; classify measures the distances).
+void CloudBuilder::collect_candidates(const Model& m, const double* T_links, double r) {
     candidates_.clear();
     const Forest& f = m.forest;
     const double* tree_boxes = filter_boxes_.data();
     const int64_t* tree_nodes = filter_nodes_.data();
     auto fbox = [&](int64_t n) { return tree_boxes + BOX_WIDTH * n; };
     auto fnode = [&](int64_t n) { return tree_nodes + NODE_WIDTH * n; };
-    double grown_a[BOX_WIDTH];
+    node_world_.resize(6 * m.n_nodes);
+    node_stamp_.resize(m.n_nodes, 0);
+    ++stamp_;
+    const double* root = fbox(0);
+    // A robot node's world box (centre, half extents), grown by r.
+    auto world_box = [&](int64_t b, int64_t n) {
+        double* out = node_world_.data() + 6 * n;
+        if (node_stamp_[n] == stamp_) return out;
+        node_stamp_[n] = stamp_;
+        const double* T = T_links + 16 * b;
+        const double* box = f.box(n);
+        for (int i = 0; i < 3; ++i) {
+            double c = T[4 * i + 3], e = r;
+            for (int k = 0; k < 3; ++k) {
+                c += T[4 * i + k] * box[BOX_CENTER + k];
+                const double axis = T[4 * i] * box[BOX_AXES + k] +
+                                    T[4 * i + 1] * box[BOX_AXES + 3 + k] +
+                                    T[4 * i + 2] * box[BOX_AXES + 6 + k];
+                e += std::fabs(axis) * box[BOX_HALF + k];
+            }
+            out[i] = c;
+            out[3 + i] = e * (1.0 + 1e-9) + 1e-9 * std::fabs(c);  // rounding: err wide
+        }
+        return out;
+    };
+    auto overlap = [](const double* A, const double* B) {  // world box vs a box row
+        return std::fabs(A[0] - B[0]) <= A[3] + B[BOX_HALF] &&
+               std::fabs(A[1] - B[1]) <= A[4] + B[BOX_HALF + 1] &&
+               std::fabs(A[2] - B[2]) <= A[5] + B[BOX_HALF + 2];
+    };
     for (int64_t b = 0; b < m.n_links; ++b) {
-        if (m.elements(b) == 0) continue;
-        const double* P = body_pose_.data() + 12 * b;  // world in body b's frame
-        // The body's box first: most bodies are far from most clouds' voxels.
-        if (boxes_apart(BOX_TEST_SAT, grown(m.body_box(b), r, grown_a), fbox(0), P)) continue;
         for (int64_t e = m.elem_start[b]; e < m.elem_end[b]; ++e) {
+            if (!overlap(world_box(b, m.roots[e]), root)) continue;
             const bool solid = m.elem_solid[SOLID_WIDTH * e] != SOLID_NONE;
             // The element's triangles against the voxels (its solid, with its root box).
             for (int pass = 0; pass < (solid ? 2 : 1); ++pass) {
@@ -122,12 +157,9 @@ void CloudBuilder::collect_candidates(const Model& m, double r) {
                     stack_.pop_back();
                     const int64_t na = stack_.back();
                     stack_.pop_back();
-                    const double* A = grown(f.box(na), r, grown_a);
+                    const double* A = world_box(b, na);
                     const double* B = fbox(nb);
-                    if (spheres(A, B, P).apart) continue;
-                    double T[12];
-                    box_in_frame(A, B, P, T);
-                    if (sat_axis(A, B, T) >= 0) continue;
+                    if (!overlap(A, B)) continue;
                     const int64_t* node_a = f.node(na);
                     const int64_t* node_b = fnode(nb);
                     const bool leaf_a = pass == 1 || node_a[NODE_LEFT] < 0;
@@ -143,7 +175,9 @@ void CloudBuilder::collect_candidates(const Model& m, double r) {
                         }
                         continue;
                     }
-                    if (!leaf_a && (leaf_b || A[BOX_RADIUS] >= B[BOX_RADIUS])) {
+                    const double ra = A[3] + A[4] + A[5];
+                    const double rb = B[BOX_HALF] + B[BOX_HALF + 1] + B[BOX_HALF + 2];
+                    if (!leaf_a && (leaf_b || ra >= rb)) {
                         stack_.insert(stack_.end(),
                                       {node_a[NODE_LEFT], nb, node_a[NODE_RIGHT], nb});
                     } else {
@@ -281,12 +315,40 @@ CloudStats CloudBuilder::build(const Model& m, const double* T_links, const Clou
         }
     }
 
+    // The region the robot's geometry grown by r can reach: the world box around its bodies'
+    // boxes. Points outside it are kept untested, and only voxels with points in it (near
+    // voxels) are looked at further.
+    double region_lo[3] = {INF, INF, INF}, region_hi[3] = {-INF, -INF, -INF};
+    for (int64_t b = 0; b < m.n_links; ++b) {
+        if (m.elements(b) == 0) continue;
+        const double* T = T_links + 16 * b;
+        const double* box = m.body_box(b);
+        for (int i = 0; i < 3; ++i) {
+            double c = T[4 * i + 3], e = r;
+            for (int k = 0; k < 3; ++k) {
+                c += T[4 * i + k] * box[BOX_CENTER + k];
+                const double axis = T[4 * i] * box[BOX_AXES + k] +
+                                    T[4 * i + 1] * box[BOX_AXES + 3 + k] +
+                                    T[4 * i + 2] * box[BOX_AXES + 6 + k];
+                e += std::fabs(axis) * box[BOX_HALF + k];
+            }
+            e += 1e-9 * (std::fabs(c) + e);  // rounding: err toward near
+            region_lo[i] = std::min(region_lo[i], c - e);
+            region_hi[i] = std::max(region_hi[i], c + e);
+        }
+    }
+    auto in_region = [&](const double* w) {
+        return w[0] >= region_lo[0] && w[0] <= region_hi[0] && w[1] >= region_lo[1] &&
+               w[1] <= region_hi[1] && w[2] >= region_lo[2] && w[2] <= region_hi[2];
+    };
+
     // Points into voxels (the hash table sized for the last cloud's voxels).
     n_voxels_ = 0;
     ijk_.clear();
     lo_.clear();
     hi_.clear();
     count_.clear();
+    near_count_.clear();
     old_seen_.clear();
     const int64_t expected = std::max<int64_t>(MIN_TABLE, next_power_of_two(4 * out.count + 1));
     if (int64_t(keys_.size()) != expected) {
@@ -312,13 +374,12 @@ CloudStats CloudBuilder::build(const Model& m, const double* T_links, const Clou
             continue;
         }
         apply(frame, x, w);
-        const double fi = std::floor(w[0] * inv), fj = std::floor(w[1] * inv),
-                     fk = std::floor(w[2] * inv);
-        if (!(std::fabs(fi) < limit && std::fabs(fj) < limit && std::fabs(fk) < limit)) {
+        const double gi = w[0] * inv, gj = w[1] * inv, gk = w[2] * inv;
+        if (!(std::fabs(gi) < limit && std::fabs(gj) < limit && std::fabs(gk) < limit)) {
             ++stats.out_of_range;
             continue;
         }
-        const uint64_t key = pack_key(int64_t(fi), int64_t(fj), int64_t(fk));
+        const uint64_t key = pack_key(floor_to_int(gi), floor_to_int(gj), floor_to_int(gk));
         int64_t v = last_voxel;
         if (key != last_key) {
             v = slot_of(key);
@@ -327,11 +388,14 @@ CloudStats CloudBuilder::build(const Model& m, const double* T_links, const Clou
         }
         row_voxel_[t] = int32_t(v);
         ++count_[v];
-        double* lo = lo_.data() + 3 * v;
-        double* hi = hi_.data() + 3 * v;
-        for (int k = 0; k < 3; ++k) {
-            lo[k] = std::min(lo[k], w[k]);
-            hi[k] = std::max(hi[k], w[k]);
+        if (in_region(w)) {
+            ++near_count_[v];
+            double* lo = lo_.data() + 3 * v;
+            double* hi = hi_.data() + 3 * v;
+            for (int k = 0; k < 3; ++k) {
+                lo[k] = std::min(lo[k], w[k]);
+                hi[k] = std::max(hi[k], w[k]);
+            }
         }
     }
     // Earlier voxels still within the persistence, not seen in this cloud: their centres.
@@ -342,21 +406,29 @@ CloudStats CloudBuilder::build(const Model& m, const double* T_links, const Clou
             const int64_t u = slot_of(pack_key(c[0], c[1], c[2]));
             if (count_[u] > 0) continue;
             old_seen_[u] = std::max(old_seen_[u], previous.seen[v]);
-            for (int k = 0; k < 3; ++k) lo_[3 * u + k] = hi_[3 * u + k] = size * (c[k] + 0.5);
+            double centre[3];
+            for (int k = 0; k < 3; ++k) centre[k] = size * (c[k] + 0.5);
+            if (in_region(centre)) {
+                near_count_[u] = 1;
+                for (int k = 0; k < 3; ++k) lo_[3 * u + k] = hi_[3 * u + k] = centre[k];
+            }
         }
     }
 
-    // The filter's hierarchy over the voxels, each with its points' box.
+    // The filter's hierarchy over the near voxels, each with the box of its near points.
     const int64_t V = n_voxels_;
-    sort_.keyed.resize(V);
+    sort_.keyed.clear();
     for (int64_t v = 0; v < V; ++v)
-        sort_.keyed[v] = {morton_code(ijk_[3 * v], ijk_[3 * v + 1], ijk_[3 * v + 2]), v};
+        if (near_count_[v] > 0)
+            sort_.keyed.push_back(
+                {morton_code(ijk_[3 * v], ijk_[3 * v + 1], ijk_[3 * v + 2]), v});
     sort_by_code(sort_);
-    codes_.resize(V);
-    order_.resize(V);
-    item_lo_.resize(3 * V);
-    item_hi_.resize(3 * V);
-    for (int64_t i = 0; i < V; ++i) {
+    const int64_t n_near = int64_t(sort_.keyed.size());
+    codes_.resize(n_near);
+    order_.resize(n_near);
+    item_lo_.resize(3 * n_near);
+    item_hi_.resize(3 * n_near);
+    for (int64_t i = 0; i < n_near; ++i) {
         const int64_t v = sort_.keyed[i].second;
         codes_[i] = sort_.keyed[i].first;
         order_[i] = v;
@@ -365,42 +437,44 @@ CloudStats CloudBuilder::build(const Model& m, const double* T_links, const Clou
             item_hi_[3 * i + k] = hi_[3 * v + k];
         }
     }
-    build_box_hierarchy(codes_.data(), item_lo_.data(), item_hi_.data(), V, 1, filter_nodes_,
-                        filter_boxes_);
-    if (V > 0) collect_candidates(m, r);
-    else start_.assign(1, 0);
+    build_box_hierarchy(codes_.data(), item_lo_.data(), item_hi_.data(), n_near, 1,
+                        filter_nodes_, filter_boxes_);
+    if (n_near > 0) collect_candidates(m, T_links, r);
+    else start_.assign(V + 1, 0);
 
-    // Each voxel's class; the points of the mixed ones one by one.
+    // Each near voxel's class (its near points kept, removed, or tested one by one); the
+    // others keep theirs. Points are read again only where needed.
     class_.assign(V, KEEP);
     kept_.assign(V, 0);
     near_.clear();
     near_start_.assign(V + 1, 0);
-    bool mixed = false;
+    bool again = kept && s.keep_points;
     for (int64_t v = 0; v < V; ++v) {
         near_start_[v] = near_.size();
         if (start_[v] < start_[v + 1]) class_[v] = uint8_t(classify(m, v, r));
-        mixed |= class_[v] == MIXED;
+        again |= class_[v] == MIXED || (class_[v] == DROP && near_count_[v] < count_[v]);
     }
     near_start_[V] = near_.size();
     if (kept) kept->clear();
-    if (mixed || (kept && s.keep_points)) {
+    if (again) {
         for (int64_t t = 0; t < taken; ++t) {
             const int64_t v = row_voxel_[t];
             if (v < 0) continue;
-            if (class_[v] == DROP) {
+            const uint8_t c = class_[v];
+            if (c == DROP && near_count_[v] == count_[v]) {
                 ++stats.self_filtered;
                 continue;
             }
             double x[3], w[3];
             read_row(pts, t * step, x);
             apply(frame, x, w);
-            if (class_[v] == MIXED) {
+            if (c != KEEP && in_region(w)) {
                 const double* lo = lo_.data() + 3 * v;
                 const double* hi = hi_.data() + 3 * v;
-                const double c[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]),
-                                     0.5 * (lo[2] + hi[2])};
-                if (removed(m, w, r, near_.data() + near_start_[v],
-                            near_start_[v + 1] - near_start_[v], c)) {
+                const double centre[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]),
+                                          0.5 * (lo[2] + hi[2])};
+                if (c == DROP || removed(m, w, r, near_.data() + near_start_[v],
+                                         near_start_[v + 1] - near_start_[v], centre)) {
                     ++stats.self_filtered;
                     continue;
                 }
@@ -412,7 +486,7 @@ CloudStats CloudBuilder::build(const Model& m, const double* T_links, const Clou
         }
     } else {
         for (int64_t v = 0; v < V; ++v) {
-            if (class_[v] == DROP) {
+            if (class_[v] == DROP) {  // all its points near: removed
                 stats.self_filtered += count_[v];
             } else {
                 kept_[v] = count_[v];

@@ -85,7 +85,7 @@ class CloudBuilder {
 
     int64_t slot_of(uint64_t key);
     void rehash(int64_t capacity);
-    void collect_candidates(const Model& m, double r);
+    void collect_candidates(const Model& m, const double* T_links, double r);
     int classify(const Model& m, int64_t v, double r);
     bool removed(const Model& m, const double* x, double r, const Nearby* near,
                  int64_t n_near, const double* centre);
@@ -98,7 +98,7 @@ class CloudBuilder {
     int64_t n_voxels_ = 0;
     std::vector<int32_t> ijk_;
     std::vector<double> lo_, hi_;
-    std::vector<int32_t> count_, kept_;
+    std::vector<int32_t> count_, near_count_, kept_;  // points; near the robot; kept
     std::vector<uint8_t> class_;
     std::vector<double> old_seen_;  // -INF: seen in this cloud
     // Per taken row: its voxel, -1 when not valid.
@@ -116,6 +116,9 @@ class CloudBuilder {
     std::vector<Nearby> near_;    // (V0 candidates) by voxel, nearest first
     std::vector<int64_t> near_start_;
     std::vector<double> body_pose_;  // per body: R' (row-major), -R' t: world -> body
+    std::vector<double> node_world_;     // (N, 6) robot nodes' world boxes (centre, half)
+    std::vector<int64_t> node_stamp_;    // (N,) valid where == stamp_
+    int64_t stamp_ = 0;
     // The kept voxels.
     std::vector<int32_t> out_ijk_;
     std::vector<double> out_seen_;

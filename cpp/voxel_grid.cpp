@@ -42,8 +42,10 @@ struct HierarchyBuild {
     const double* lo;
     const double* hi;
     int64_t leaf_size;
-    std::vector<int64_t>& nodes;
-    std::vector<double> node_lo, node_hi;
+    int64_t* nodes;     // (2 n, NODE_WIDTH), rows written in creation order
+    double* node_lo;    // (2 n, 3)
+    double* node_hi;
+    int64_t count = 0;  // nodes so far
     int64_t depth = 0;
 
     // The first index of [first, end) whose code has the highest bit in which the range's
@@ -65,17 +67,23 @@ struct HierarchyBuild {
     }
 
     int64_t build(int64_t first, int64_t end, int64_t level) {
-        const int64_t n = int64_t(nodes.size()) / NODE_WIDTH;
+        const int64_t n = count++;
         depth = std::max(depth, level);
-        nodes.insert(nodes.end(), {-1, -1, first, 0});
-        node_lo.insert(node_lo.end(), 3, INFINITY);
-        node_hi.insert(node_hi.end(), 3, -INFINITY);
+        int64_t* row = nodes + NODE_WIDTH * n;
+        double* nlo = node_lo + 3 * n;
+        double* nhi = node_hi + 3 * n;
         if (end - first <= leaf_size) {
-            nodes[NODE_WIDTH * n + NODE_COUNT] = end - first;
-            for (int64_t v = first; v < end; ++v) {
+            row[NODE_LEFT] = row[NODE_RIGHT] = -1;
+            row[NODE_FIRST] = first;
+            row[NODE_COUNT] = end - first;
+            for (int k = 0; k < 3; ++k) {
+                nlo[k] = lo[3 * first + k];
+                nhi[k] = hi[3 * first + k];
+            }
+            for (int64_t v = first + 1; v < end; ++v) {
                 for (int k = 0; k < 3; ++k) {
-                    node_lo[3 * n + k] = std::min(node_lo[3 * n + k], lo[3 * v + k]);
-                    node_hi[3 * n + k] = std::max(node_hi[3 * n + k], hi[3 * v + k]);
+                    nlo[k] = std::min(nlo[k], lo[3 * v + k]);
+                    nhi[k] = std::max(nhi[k], hi[3 * v + k]);
                 }
             }
             return n;
@@ -83,11 +91,14 @@ struct HierarchyBuild {
         const int64_t middle = split(first, end);
         const int64_t left = build(first, middle, level + 1);
         const int64_t right = build(middle, end, level + 1);
-        nodes[NODE_WIDTH * n + NODE_LEFT] = left;
-        nodes[NODE_WIDTH * n + NODE_RIGHT] = right;
+        row = nodes + NODE_WIDTH * n;
+        row[NODE_LEFT] = left;
+        row[NODE_RIGHT] = right;
+        row[NODE_FIRST] = first;
+        row[NODE_COUNT] = 0;
         for (int k = 0; k < 3; ++k) {
-            node_lo[3 * n + k] = std::min(node_lo[3 * left + k], node_lo[3 * right + k]);
-            node_hi[3 * n + k] = std::max(node_hi[3 * left + k], node_hi[3 * right + k]);
+            nlo[k] = std::min(node_lo[3 * left + k], node_lo[3 * right + k]);
+            nhi[k] = std::max(node_hi[3 * left + k], node_hi[3 * right + k]);
         }
         return n;
     }
@@ -117,18 +128,22 @@ void aligned_box_row(const double* lo, const double* hi, double* row) {
 int64_t build_box_hierarchy(const uint64_t* codes, const double* lo, const double* hi,
                             int64_t n, int64_t leaf_size, std::vector<int64_t>& nodes,
                             std::vector<double>& boxes) {
-    nodes.clear();
-    boxes.clear();
-    if (n == 0) return 0;
-    HierarchyBuild b{codes, lo, hi, std::max<int64_t>(leaf_size, 1), nodes, {}, {}};
-    b.node_lo.reserve(3 * 2 * n);
-    b.node_hi.reserve(3 * 2 * n);
-    nodes.reserve(NODE_WIDTH * 2 * n);
+    if (n == 0) {
+        nodes.clear();
+        boxes.clear();
+        return 0;
+    }
+    thread_local std::vector<double> node_lo, node_hi;
+    nodes.resize(NODE_WIDTH * 2 * n);
+    node_lo.resize(3 * 2 * n);
+    node_hi.resize(3 * 2 * n);
+    HierarchyBuild b{codes, lo, hi, std::max<int64_t>(leaf_size, 1), nodes.data(),
+                     node_lo.data(), node_hi.data()};
     b.build(0, n, 1);
-    const int64_t count = int64_t(nodes.size()) / NODE_WIDTH;
-    boxes.resize(BOX_WIDTH * count);
-    for (int64_t m = 0; m < count; ++m)
-        aligned_box_row(b.node_lo.data() + 3 * m, b.node_hi.data() + 3 * m,
+    nodes.resize(NODE_WIDTH * b.count);
+    boxes.resize(BOX_WIDTH * b.count);
+    for (int64_t m = 0; m < b.count; ++m)
+        aligned_box_row(node_lo.data() + 3 * m, node_hi.data() + 3 * m,
                         boxes.data() + BOX_WIDTH * m);
     return b.depth;
 }
