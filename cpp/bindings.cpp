@@ -24,6 +24,7 @@
 #include "cloud_queries.hpp"
 #include "engine.hpp"
 #include "obb_tree.hpp"
+#include "ray_cast.hpp"
 #include "triangle_box.hpp"
 #include "voxel_cloud.hpp"
 
@@ -515,7 +516,39 @@ void bind_engine(py::module_& m) {
              },
              py::arg("b"), py::arg("ticket"),
              "Make build `ticket` of body b's cloud current and force its pairs; return 0, or "
-             "MOVE_REFUSED (not its last build to commit: nothing changed then).");
+             "MOVE_REFUSED (not its last build to commit: nothing changed then).")
+        .def("cast_rays",
+             [](PyEngine& self, const Array<double>& origin, const Array<double>& dirs,
+                double max_range) {
+                 expect_shape("origin", origin, {3});
+                 expect_shape("dirs", dirs, {-1, 3});
+                 const cs::Model& m = self.engine->model();
+                 const py::ssize_t n = dirs.shape(0);
+                 Array<double> t(n);
+                 double* out = t.mutable_data();
+                 const double* o = origin.data();
+                 const double* d = dirs.data();
+                 py::gil_scoped_release release;
+                 std::vector<int64_t> roots;
+                 std::vector<double> poses;
+                 {
+                     std::lock_guard<std::mutex> hold(self.engine->lock());
+                     self.engine->refresh_all_poses();
+                     const double* T = self.engine->view().state.poses.T_world_body;
+                     for (int64_t b = 0; b < m.n_bodies; ++b) {
+                         for (int64_t e = m.elem_start[b]; e < m.elem_end[b]; ++e) {
+                             roots.push_back(m.roots[e]);
+                             poses.insert(poses.end(), T + 16 * b, T + 16 * b + 16);
+                         }
+                     }
+                 }
+                 cs::cast_rays(m.forest, roots.data(), poses.data(), int64_t(roots.size()), o,
+                               d, n, max_range, out);
+                 return t;
+             },
+             py::arg("origin"), py::arg("dirs"), py::arg("max_range"),
+             "Each ray origin + t dirs[i] (unit, world frame) against every tree at the last "
+             "checked state (point clouds have none): the nearest t (n,), inf beyond max_range.");
 
     py::class_<PyVoxelCloud>(m, "VoxelCloud",
                              "One source's point cloud obstacle (cpp/voxel_cloud.hpp): its "

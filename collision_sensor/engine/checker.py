@@ -900,6 +900,19 @@ class CollisionChecker:
             self._results[key] = result
         return result
 
+    def cast_rays(self, origin, directions, max_range: float = math.inf) -> np.ndarray:
+        """Cast rays against the robot and the scene objects at the last checked state (a
+        simulated depth sensor: point clouds are not seen): ``origin + t directions[i]``.
+
+        :param origin: (3,) world frame.
+        :param directions: (n, 3) unit vectors, world frame.
+        :return: (n,) the nearest hit's t (m), ``inf`` when nothing is hit within
+            ``max_range``.
+        """
+        origin = np.ascontiguousarray(origin, dtype=np.float64)
+        directions = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
+        return self._engine.cast_rays(origin, directions, float(max_range))
+
     # ------------------------------------------------------------------ inspection
     @property
     def positions(self) -> Dict[str, float]:
