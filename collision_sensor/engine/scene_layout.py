@@ -244,6 +244,8 @@ class SceneLayout:
         node_start, tri_start = self._node_start, self._tri_start
         for p, n0, n1, t0, t1 in zip(self._placed, node_start[:-1], node_start[1:],
                                      tri_start[:-1], tri_start[1:]):
+            if not p.block.has_tree:
+                continue    # a point cloud's: CLOUD_BLOCK itself, which names it a cloud
             block = dataclasses.replace(
                 p.block, boxes=views['boxes'][n0:n1], volume=views['volume'][n0:n1],
                 gain=views['gain'][n0:n1], tris=views['tris'][t0:t1])

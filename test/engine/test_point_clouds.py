@@ -494,3 +494,23 @@ def test_points_in_a_link_frame(panda):
     b = {tuple(v) for v in np.round(in_link, 4)}
     assert len(a ^ b) <= 0.01 * len(a)
     checker.clear_points(SOURCE)
+
+
+def test_a_cloud_is_named_a_cloud_after_scene_changes(panda):
+    """The checker knows its clouds as clouds after any scene change (a regression: the
+    layout's views once replaced the cloud's block, and the checker lost track of them)."""
+    checker, _ = panda
+    checker.set_points(SOURCE, np.random.default_rng(0).uniform(1.0, 2.0, (100, 3)))
+    (vertices, faces), solid = box_mesh([0.1, 0.1, 0.1]), box_solid([0.1, 0.1, 0.1])
+    checker.apply_scene_changes([AddObject(SceneObject(
+        name='crate', source='test', T_world_object=np.eye(4), vertices=vertices, faces=faces,
+        solid=solid))])
+    try:
+        assert checker.point_cloud_sources == (SOURCE,)
+        assert CLOUD not in [obj.name for obj in checker.scene_objects]
+        with pytest.raises(Exception, match='point cloud'):
+            checker.move_object(CLOUD, np.eye(4))
+    finally:
+        checker.remove_object('crate')
+        checker.clear_points(SOURCE)
+    assert checker.point_cloud_sources == ()
