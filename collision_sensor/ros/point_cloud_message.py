@@ -105,8 +105,7 @@ def cloud_rows(msg, topic: str = 'point cloud') -> CloudRows:
     size = len(data)
     if height == 0 or width == 0 or size == 0:
         raise CloudMessageError('empty', f'{topic}: empty cloud (height {height}, width {width}, '
-                                f'{size} bytes of data); publish clouds with points (a cloud '
-                                'of NaN points says "nothing seen")')
+                                f'{size} bytes of data); publish clouds with points')
     layout = _field_layout(msg, topic)
     if point_step <= 0 or row_step < width * point_step:
         raise CloudMessageError(

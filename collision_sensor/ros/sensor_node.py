@@ -116,6 +116,7 @@ from collision_sensor.ros.model_loading import (
 from collision_sensor.ros.node_log import WARNING_PERIOD, NodeLog  # noqa: F401
 from collision_sensor.ros.node_parameters import (
     CONTACT, NodeSettings, declare_node_parameters)
+from collision_sensor.ros.point_cloud_source import PointCloudSource
 from collision_sensor.ros.runtime_parameters import CHECKER_PARAMETERS, RuntimeParameters
 from collision_sensor.ros.scene_source import (  # noqa: F401
     MAX_SCENE_BACKLOG, SCENE_DEPTH, SCENE_QOS, SceneSource)
@@ -168,6 +169,10 @@ class CollisionSensorNode(Node):
         self._resync = False     # check the next state from scratch (after an engine error)
         self.rebuilding = False  # a parameter change waits for its new checker
         self.sources: List[InputSource] = []
+        # Sources timed out with the contact policy that must answer every verdict with their
+        # failure until they recover ({source name: Timeout}; point clouds: joint states keep
+        # coming while a camera is silent).
+        self.failing = {}
         self.joints: Optional[JointStateSource] = None
         self.verdicts = self.zone = self.markers = None
         self._loader: Optional[ModelLoader] = None
@@ -183,7 +188,8 @@ class CollisionSensorNode(Node):
 
     def _make_sources(self) -> List[InputSource]:
         """The node's inputs (see :mod:`collision_sensor.ros.input_source`): one line each."""
-        return [self.joints, SceneSource(self)]
+        return [self.joints, SceneSource(self)] + [
+            PointCloudSource(self, topic) for topic in self.settings.point_cloud_topics]
 
     def _configure(self) -> None:
         self.settings: NodeSettings = declare_node_parameters(self)
@@ -412,6 +418,10 @@ class CollisionSensorNode(Node):
         period.check_time_sum += elapsed
         if elapsed > period.check_time_max:
             period.check_time_max = elapsed
+        if self.failing:
+            timeout = next(iter(self.failing.values()))
+            self._publish_failure(header, timeout.kind, timeout.reason, timeout.policy)
+            return
         self.verdicts.publish(header, result)
         if records is not None:
             zone.publish(header, records)
