@@ -208,6 +208,9 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
                   'point_cloud_timeout entry until a cloud comes (fail safe, as nav2\'s '
                   'collision_monitor stops); "ignore" removes its last voxels and goes on',
                   'contact | ignore'),
+    ParameterSpec('point_cloud_state_window', 1.0,
+                  'seconds of joint states kept to place a cloud with the robot\'s pose at its '
+                  'stamp (interpolated); an older cloud is counted and dropped', '> 0'),
     ParameterSpec('point_cloud_persistence', 0.0,
                   'seconds a voxel seen by an earlier cloud of the topic stays an obstacle '
                   '(unless the robot now covers it); 0: only the latest cloud counts', '>= 0'),
@@ -248,6 +251,7 @@ class NodeSettings:
     :ivar point_cloud_timeout: seconds; 0 disables the timeout.
     :ivar point_cloud_on_timeout: ``contact`` or ``ignore``.
     :ivar point_cloud_persistence: seconds.
+    :ivar point_cloud_state_window: seconds of joint states kept for clouds' stamps.
     :ivar values: the parameter values these settings were made from, ``{name: value}``.
     """
 
@@ -277,6 +281,7 @@ class NodeSettings:
     point_cloud_timeout: float = 1.0
     point_cloud_on_timeout: str = CONTACT
     point_cloud_persistence: float = 0.0
+    point_cloud_state_window: float = 1.0
     values: Mapping[str, Any] = field(default_factory=dict, compare=False)
 
 
@@ -377,6 +382,13 @@ def _non_negative(values, name) -> float:
     return value
 
 
+def _positive(values, name) -> float:
+    value = float(values[name])
+    if not (math.isfinite(value) and value > 0.0):
+        raise ConfigError(f'parameter {name}: {value} is not a finite number > 0')
+    return value
+
+
 def _non_negative_int(values, name) -> int:
     return _at_least(values, name, 0)
 
@@ -459,6 +471,7 @@ def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
         point_cloud_timeout=_non_negative(merged, 'point_cloud_timeout'),
         point_cloud_on_timeout=_choice(merged, 'point_cloud_on_timeout', (CONTACT, 'ignore')),
         point_cloud_persistence=_non_negative(merged, 'point_cloud_persistence'),
+        point_cloud_state_window=_positive(merged, 'point_cloud_state_window'),
         values=merged,
         scene_limits=SceneLimits(
             max_objects=_non_negative_int(merged, 'scene_max_objects'),

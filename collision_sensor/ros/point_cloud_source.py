@@ -14,9 +14,12 @@ taken (any case of issue 29 item 4: empty, every point NaN, fields missing or no
 inconsistent steps, an unknown frame) is counted, named in one throttled log line and in the
 source's /diagnostics status, and changes nothing: the last good cloud stays the obstacle.
 
-The robot's pose used by the self-filter is the node's current joint state when the cloud is
-taken (this branch has no joint-state history to interpolate at the cloud's stamp: issue 29
-asks for it, shared with the motion checks).
+The robot's pose used by the self-filter is the one at the cloud's ``header.stamp``: the
+joint state source keeps the complete states of the last ``point_cloud_state_window`` seconds
+(:mod:`~collision_sensor.ros.joint_state_window`) and interpolates between the two around the
+stamp; a cloud stamped after the newest joint state takes the newest; a cloud older than the
+window is counted (``clouds_too_old_total``) and dropped, not filtered with the wrong pose.
+Zero stamps are the node's clock at arrival.
 
 Timeout: no cloud accepted for ``point_cloud_timeout`` s (from the start on: a camera that never
 publishes times out too) is an episode: with ``point_cloud_on_timeout: contact`` (the default,
@@ -77,7 +80,7 @@ class PointCloudSource(InputSource):
         self.stats = NO_STATS
         self.rejection = ''
         self.counts = {'received': 0, 'accepted': 0, 'rejected': 0, 'dropped': 0,
-                       'superseded': 0, 'capped': 0, 'timeouts': 0}
+                       'superseded': 0, 'capped': 0, 'timeouts': 0, 'too_old': 0}
         self._period_accepted = 0
         self._period_start = time.monotonic()
         self.started: Optional[float] = None
@@ -162,11 +165,14 @@ class PointCloudSource(InputSource):
         except CloudMessageError as error:
             self._reject(error.kind, str(error), notes)
             return
+        stamp = host.stamp_seconds(msg.header)
         with host.lock:
             checker = host.checker
-            positions = host.joints.current_positions() if host.joints is not None else None
+            positions = host.joints.positions_at(stamp)
             if isinstance(positions, np.ndarray):
                 positions = positions.copy()
+            window = host.joints.window
+            oldest, newest = window.oldest, window.newest
         frame = rows.frame
         if frame in checker.world_frames:
             frame = None
@@ -176,6 +182,13 @@ class PointCloudSource(InputSource):
                          f'link of the robot and not its world frame ({worlds}); publish the '
                          'cloud in a frame of the URDF (add the camera\'s optical frame to the '
                          'URDF as a link) or in the world frame (there is no tf2 here)', notes)
+            return
+        if isinstance(positions, str):
+            self._reject('old', f'{self.name}: stamped {newest - stamp:.3f} s before the newest '
+                         f'joint state, older than the states kept (point_cloud_state_window '
+                         f'{host.settings.point_cloud_state_window:g} s, oldest '
+                         f'{newest - oldest:.3f} s back): dropped, not filtered with a wrong '
+                         'pose; raise the window or publish clouds with less delay', notes)
             return
         if positions is None:
             self._reject('waiting', f'{self.name}: no complete joint state yet, so the robot\'s '
@@ -227,6 +240,7 @@ class PointCloudSource(InputSource):
         text = printable(reason, 1000)
         with self.host.lock:
             self.counts['rejected'] += 1
+            self.counts['too_old'] += kind == 'old'
             self.rejection = text
         notes.append(('warning', f'cloud_{kind} {self.topic}',
                       f'point cloud rejected, the last good one stays: {text}'))
@@ -310,6 +324,7 @@ class PointCloudSource(InputSource):
             'clouds_superseded_total': str(counts['superseded']),
             'clouds_dropped_total': str(counts['dropped']),
             'clouds_capped_total': str(counts['capped']),
+            'clouds_too_old_total': str(counts['too_old']),
             'last_rejection': self.rejection,
         }
         return DiagnosticStatus(

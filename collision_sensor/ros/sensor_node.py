@@ -482,6 +482,14 @@ class CollisionSensorNode(Node):
         """What the checking thread does with ``batch`` (tests call it to stage a backlog)."""
         self.joints.take_batch(batch, newest_only)
 
+    def stamp_seconds(self, header) -> float:
+        """Return ``header.stamp`` in s; a zero stamp (publishers that set none) is now on the
+        node's clock."""
+        stamp = header.stamp
+        if stamp.sec == 0 and stamp.nanosec == 0:
+            return self.get_clock().now().nanoseconds * 1e-9
+        return stamp.sec + stamp.nanosec * 1e-9
+
     def scene_changed(self) -> None:
         """The scene's objects changed: the markers show them again (lock held)."""
         if self.markers is not None:

@@ -253,3 +253,54 @@ def test_bad_point_cloud_parameters_fail_configuration(ros, panda_urdf, panda_sr
         CollisionSensorNode(namespace=ros.namespace, context=ros.context,
                             parameter_overrides=panda_parameters(
                                 panda_urdf, panda_srdf, erd_share, **{name: value}))
+
+
+def test_clouds_are_filtered_with_the_pose_at_their_stamp(ros, panda, panda_urdf, panda_srdf,
+                                                          erd_share, poses):
+    """Two joint states 0.1 s apart, the arm turned between them: the hand's own points as
+    seen at the first are removed when the cloud is stamped then, seen as an obstacle when it
+    is stamped at the second (the hand has left them), and a cloud older than the window is
+    counted and dropped."""
+    import trimesh
+    from builtin_interfaces.msg import Time
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
+                                     point_cloud_topics=[TOPIC], point_cloud_timeout=0.0,
+                                     point_cloud_state_window=0.5))
+    probe = CloudProbe(ros)
+    first = dict(poses['free'])
+    second = dict(first, panda_joint1=first['panda_joint1'] + 0.8)
+    probe.send(joint_state(first, stamp=Time(sec=1000, nanosec=0)))
+    probe.send(joint_state(second, stamp=Time(sec=1000, nanosec=100_000_000)))
+    panda.check(first)
+    T = panda.link_poses()['panda_hand']
+    hand = [e for e in panda.model.elements if e.link == 'panda_hand']
+    points = []
+    for element in hand:
+        mesh = trimesh.Trimesh(element.vertices, element.faces, process=False)
+        sample, _ = trimesh.sample.sample_surface(mesh, 2000, seed=1)
+        Te = T @ element.T_link_element
+        points.append(sample @ Te[:3, :3].T + Te[:3, 3])
+    points = np.concatenate(points)
+
+    def kept_after(stamp):
+        msg = cloud_message(points)
+        msg.header.stamp = stamp
+        probe.send_cloud(msg)
+        return probe.cloud_status(lambda v: v['clouds_accepted_total'] == str(
+            kept_after.accepted + 1))[1]
+    kept_after.accepted = 0
+    values = kept_after(Time(sec=1000, nanosec=0))
+    assert values['points_kept'] == '0'
+    kept_after.accepted = 1
+    values = kept_after(Time(sec=1000, nanosec=100_000_000))
+    assert int(values['points_kept']) > 0.9 * len(points)
+    # Between the two: the interpolated pose (half-way) keeps some, not all.
+    kept_after.accepted = 2
+    values = kept_after(Time(sec=1000, nanosec=2_000_000))
+    assert int(values['points_kept']) < 0.5 * len(points)
+    # Older than the window (0.5 s before the newest state): dropped and counted.
+    old = cloud_message(points)
+    old.header.stamp = Time(sec=999, nanosec=0)
+    probe.send_cloud(old, answered=False)
+    status, values = probe.cloud_status(lambda v: v['clouds_too_old_total'] == '1')
+    assert 'older than the states kept' in values['last_rejection']
