@@ -26,6 +26,14 @@ TOPIC = 'camera/points'
 CLOUD = 'cloud/' + TOPIC
 
 
+def parameters(panda_urdf, panda_srdf, erd_share, **overrides):
+    """The Panda with the camera topic; joint states come only when a test sends one, so the
+    joint-state staleness check is off (its answer would race the verdict a test waits for)."""
+    values = {'point_cloud_topics': [TOPIC], 'point_cloud_timeout': 0.0, 'stale_timeout': 0.0}
+    values.update(overrides)
+    return panda_parameters(panda_urdf, panda_srdf, erd_share, **values)
+
+
 def cloud_message(points, frame='panda_link0', dtype='<f4'):
     points = np.ascontiguousarray(points, dtype=dtype)
     item = points.dtype.itemsize
@@ -87,7 +95,7 @@ def near_hand(panda, positions, rng, offset):
 
 def test_clouds_are_answered_at_once_as_the_engine_says(ros, panda, panda_urdf, panda_srdf,
                                                         erd_share, poses):
-    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
+    start_node(ros, parameters(panda_urdf, panda_srdf, erd_share,
                                      point_cloud_topics=[TOPIC], point_cloud_timeout=0.0))
     probe = CloudProbe(ros)
     free = poses['free']
@@ -112,7 +120,7 @@ def test_clouds_are_answered_at_once_as_the_engine_says(ros, panda, panda_urdf, 
 
 def test_filtered_points_are_what_survived_in_the_world_frame(ros, panda, panda_urdf,
                                                               panda_srdf, erd_share, poses):
-    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
+    start_node(ros, parameters(panda_urdf, panda_srdf, erd_share,
                                      point_cloud_topics=[TOPIC], point_cloud_timeout=0.0))
     probe = CloudProbe(ros)
     free = poses['free']
@@ -164,7 +172,7 @@ def bad_clouds(good):
 def test_bad_clouds_are_refused_by_name_and_the_last_good_one_stays(
         ros, panda, panda_urdf, panda_srdf, erd_share, poses):
     # (No timeout here: a refused cloud is no data, and would time the camera out.)
-    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
+    start_node(ros, parameters(panda_urdf, panda_srdf, erd_share,
                                      point_cloud_topics=[TOPIC], point_cloud_timeout=0.0))
     probe = CloudProbe(ros)
     free = poses['free']
@@ -191,7 +199,7 @@ def test_bad_clouds_are_refused_by_name_and_the_last_good_one_stays(
 
 def test_huge_clouds_are_capped_and_counted(ros, panda, panda_urdf, panda_srdf, erd_share,
                                             poses):
-    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
+    start_node(ros, parameters(panda_urdf, panda_srdf, erd_share,
                                      point_cloud_topics=[TOPIC], point_cloud_max_points=1000,
                                      point_cloud_timeout=0.0))
     probe = CloudProbe(ros)
@@ -204,7 +212,7 @@ def test_huge_clouds_are_capped_and_counted(ros, panda, panda_urdf, panda_srdf, 
 
 def test_a_silent_camera_fails_safe_until_a_cloud_comes(ros, panda, panda_urdf, panda_srdf,
                                                         erd_share, poses):
-    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
+    start_node(ros, parameters(panda_urdf, panda_srdf, erd_share,
                                      point_cloud_topics=[TOPIC], point_cloud_timeout=0.5))
     probe = CloudProbe(ros)
     free = poses['free']
@@ -225,7 +233,7 @@ def test_a_silent_camera_fails_safe_until_a_cloud_comes(ros, panda, panda_urdf, 
 
 def test_ignore_drops_a_silent_cameras_voxels(ros, panda, panda_urdf, panda_srdf, erd_share,
                                               poses):
-    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
+    start_node(ros, parameters(panda_urdf, panda_srdf, erd_share,
                                      point_cloud_topics=[TOPIC], point_cloud_timeout=0.5,
                                      point_cloud_on_timeout='ignore'))
     probe = CloudProbe(ros)
@@ -263,7 +271,7 @@ def test_clouds_are_filtered_with_the_pose_at_their_stamp(ros, panda, panda_urdf
     counted and dropped."""
     import trimesh
     from builtin_interfaces.msg import Time
-    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
+    start_node(ros, parameters(panda_urdf, panda_srdf, erd_share,
                                      point_cloud_topics=[TOPIC], point_cloud_timeout=0.0,
                                      point_cloud_state_window=0.5))
     probe = CloudProbe(ros)
@@ -304,3 +312,40 @@ def test_clouds_are_filtered_with_the_pose_at_their_stamp(ros, panda, panda_urdf
     probe.send_cloud(old, answered=False)
     status, values = probe.cloud_status(lambda v: v['clouds_too_old_total'] == '1')
     assert 'older than the states kept' in values['last_rejection']
+
+
+def test_markers_show_the_voxels_near_the_robot(ros, panda, panda_urdf, panda_srdf, erd_share,
+                                                poses):
+    from visualization_msgs.msg import Marker, MarkerArray
+    from ros_helpers import reliable
+    start_node(ros, parameters(panda_urdf, panda_srdf, erd_share, publish_markers=True,
+                                     point_cloud_topics=[TOPIC], point_cloud_timeout=0.0))
+    probe = CloudProbe(ros)
+    markers = ros.record(MarkerArray, 'collision_sensor/markers', reliable(100))
+    free = poses['free']
+    probe.send(joint_state(free))
+    rng = np.random.default_rng(8)
+    near = near_hand(panda, free, rng, 0.12)
+    far = np.array([3.0, 3.0, 3.0]) + rng.uniform(-0.05, 0.05, (300, 3))
+    points = np.concatenate([near, far])
+    probe.send_cloud(cloud_message(points))
+    reference_verdict(panda, free, points)
+    centres, size = panda.cloud_voxels(TOPIC)
+
+    def cloud_marker():
+        for msg in reversed(markers.messages):
+            for marker in msg.markers:
+                if marker.ns == CLOUD and marker.type == Marker.CUBE_LIST:
+                    return marker
+        return None
+
+    assert ros.spin_until(lambda: cloud_marker() is not None, 5.0)
+    marker = cloud_marker()
+    drawn = np.array([[p.x, p.y, p.z] for p in marker.points])
+    assert marker.scale.x == pytest.approx(size)
+    voxels = {tuple(v) for v in np.round(centres, 6)}
+    assert {tuple(v) for v in np.round(drawn, 6)} <= voxels
+    assert np.linalg.norm(drawn - 3.0, axis=1).min() > 0.5     # the far ones are not drawn
+    near_voxels = {tuple(v) for v in np.round(np.floor(near / size) * size + size / 2, 6)}
+    assert len({tuple(v) for v in np.round(drawn, 6)} & near_voxels) > 0.5 * len(
+        near_voxels & voxels)
