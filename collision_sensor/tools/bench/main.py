@@ -23,7 +23,9 @@ times of scenario 1. Peers are optional: a missing one is reported as missing.
    many pairs (example-robot-data robots of 50k triangles and more, against pinocchio+coal);
    8. proximity (distances and nearest points against python-fcl and pinocchio+coal);
    9. the dynamic scene (one of 50 objects moving per step, ``update`` against ``check``; a
-   100k-triangle mesh added, against python-fcl's BVH build).
+   100k-triangle mesh added, against python-fcl's BVH build); 10. point clouds (a 640 x 480
+   depth camera's organised cloud self-filtered, voxelised and checked, against a pipeline of
+   python-fcl, trimesh and numpy).
 """
 import argparse
 import datetime
@@ -39,7 +41,7 @@ from collision_sensor.errors import CollisionSensorError, ConfigError
 from collision_sensor.tools.bench.scenario_report import Section
 from collision_sensor.tools.bench.scenario_settings import Settings
 
-SCENARIOS = (1, 2, 3, 4, 5, 6, 7, 8, 9)
+SCENARIOS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10)
 #: The scenarios that take a robot, run on the user's with --urdf.
 ROBOT_SCENARIOS = (1, 2, 8)
 PROG = 'collision_sensor_bench'
@@ -54,8 +56,8 @@ def run_scenarios(numbers: Sequence[int], settings: Settings, log=None,
         scenarios run on it alone.
     """
     from collision_sensor.tools.bench import (
-        scenario_cells, scenario_contact, scenario_dynamic, scenario_large, scenario_paper,
-        scenario_parts, scenario_proximity, scenario_random, scenario_scale, scenario_streams)
+        scenario_cells, scenario_clouds, scenario_contact, scenario_dynamic, scenario_large,
+        scenario_paper, scenario_parts, scenario_proximity, scenario_random, scenario_scale, scenario_streams)
     log = log or (lambda message: None)
     sections = []
     with tempfile.TemporaryDirectory(prefix='collision_sensor_bench_') as workdir:
@@ -85,8 +87,10 @@ def run_scenarios(numbers: Sequence[int], settings: Settings, log=None,
                 section = scenario_large.run(settings)
             elif number == 8:
                 section = scenario_proximity.run(settings, cells if robot is not None else None)
-            else:
+            elif number == 9:
                 section = scenario_dynamic.run(settings)
+            else:
+                section = scenario_clouds.run(settings)
             section.plot['seconds'] = time.perf_counter() - start
             log(f'scenario {number} done in {section.plot["seconds"]:.0f} s')
             sections.append(section)
