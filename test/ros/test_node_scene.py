@@ -214,7 +214,9 @@ def test_attach_and_detach_in_contact_through_the_topic(ros, robot_file):
 
 
 def test_bad_arrays_are_rejected_whole_and_named(ros, robot_file):
-    start(ros, robot_file)
+    # Rejecting 200,001 triangles takes seconds on a loaded machine: no joint state arrives
+    # meanwhile, and the sensor would rightly report them stale instead of the scene's verdict.
+    start(ros, robot_file, stale_timeout=60.0)
     probe = SceneProbe(ros, robot_file)
     probe.send_joints([0.0, 0.0, 0.0, 0.0])
     probe.send_scene([box('keep', position=(0.0, 0.0, 0.95))])
