@@ -52,6 +52,11 @@ class EngineBuildError(CollisionSensorError):
     arrays' layout included)."""
 
 
+class PointCloudError(CollisionSensorError, ValueError):
+    """A point cloud the checker cannot take: not (n, 3) numbers, a frame that is no link of
+    the robot nor the world, a bad source name or setting; the message names it and the fix."""
+
+
 class EngineInputError(CollisionSensorError, ValueError):
     """An argument the compiled engine cannot take: an array of the wrong shape, points that
     are not finite, an index out of range; the message names the argument."""

@@ -22,9 +22,13 @@
 #include <vector>
 
 #include "bounding_volumes.hpp"
+#include "cloud_queries.hpp"
 #include "engine.hpp"
 #include "obb_tree.hpp"
 #include "proximity.hpp"
+#include "ray_cast.hpp"
+#include "triangle_box.hpp"
+#include "voxel_cloud.hpp"
 
 namespace py = pybind11;
 namespace cs = collision_sensor;
@@ -261,6 +265,31 @@ struct PyEngine {
     }
 };
 
+// One source's point cloud (voxel_cloud.hpp), shared by the engines that show it: the
+// checker's, and the next one a scene change lays out.
+struct PyVoxelCloud {
+    std::shared_ptr<cs::VoxelCloud> cloud = std::make_shared<cs::VoxelCloud>();
+
+    // The current grid's voxel centres (V, 3) and their seen stamps (V,), world frame.
+    py::tuple voxels() const {
+        std::lock_guard<std::mutex> hold(cloud->building);
+        const cs::VoxelGrid& g = cloud->current();
+        Array<double> centres({py::ssize_t(g.count), py::ssize_t(3)});
+        Array<double> seen(py::ssize_t(g.count));
+        for (int64_t v = 0; v < g.count; ++v) {
+            g.centre(v, centres.mutable_data() + 3 * v);
+            seen.mutable_data()[v] = g.seen[v];
+        }
+        return py::make_tuple(centres, seen, g.size);
+    }
+};
+
+// (points, capped, invalid, out_of_range, self_filtered, kept_points, voxels, persisted).
+py::tuple stats_tuple(const cs::CloudStats& s) {
+    return py::make_tuple(s.points, s.capped, s.invalid, s.out_of_range, s.self_filtered,
+                          s.kept_points, s.voxels, s.persisted);
+}
+
 // A kinematic tree whose arrays are checked and held once, for Python callers of FK.
 struct PyKinematics {
     Array<int64_t> parent, joint_type, q_index;
@@ -422,6 +451,9 @@ void export_constants(py::module_& m) {
     CS_EXPORT(SPHERE_EPS_REL)
     // engine.hpp: the scene methods
     CS_EXPORT(MOVE_REFUSED) CS_EXPORT(MAX_COORDINATE) CS_EXPORT(ROTATION_TOLERANCE)
+    // voxel_grid.hpp, cloud_queries.hpp: point clouds
+    CS_EXPORT(VOXEL_COORD_BITS) CS_EXPORT(VOXEL_COORD_LIMIT) CS_EXPORT(VOXEL_LEAF_SIZE)
+    CS_EXPORT(MAX_CLOUD_CLEARANCE)
     m.attr("NOT_AN_ARRAY") = NOT_AN_ARRAY;
 #undef CS_EXPORT
 }
@@ -481,7 +513,119 @@ void bind_engine(py::module_& m) {
              py::arg("pairs"), py::arg("reach"), py::arg("reach_ext"),
              "Give attached object b (a link on a fixed joint) the pose T (4, 4) in its link's "
              "frame, its pairs (n,) the reach rows reach, reach_ext (n, J), and force them; "
-             "return 0, or MOVE_REFUSED (nothing changed then).");
+             "return 0, or MOVE_REFUSED (nothing changed then).")
+        .def("attach_cloud",
+             [](PyEngine& self, int64_t b, const PyVoxelCloud& cloud) {
+                 std::lock_guard<std::mutex> hold(self.engine->lock());
+                 return self.engine->attach_cloud(b, cloud.cloud);
+             },
+             py::arg("b"), py::arg("cloud"),
+             "Make world object b (a body without trees, at the identity) show cloud's current "
+             "grid and force its pairs; return 0, or MOVE_REFUSED (nothing changed then).")
+        .def("commit_cloud",
+             [](PyEngine& self, int64_t b, int64_t ticket) {
+                 std::lock_guard<std::mutex> hold(self.engine->lock());
+                 return self.engine->commit_cloud(b, ticket);
+             },
+             py::arg("b"), py::arg("ticket"),
+             "Make build `ticket` of body b's cloud current and force its pairs; return 0, or "
+             "MOVE_REFUSED (not its last build to commit: nothing changed then).")
+        .def("cast_rays",
+             [](PyEngine& self, const Array<double>& origin, const Array<double>& dirs,
+                double max_range) {
+                 expect_shape("origin", origin, {3});
+                 expect_shape("dirs", dirs, {-1, 3});
+                 const cs::Model& m = self.engine->model();
+                 const py::ssize_t n = dirs.shape(0);
+                 Array<double> t(n);
+                 double* out = t.mutable_data();
+                 const double* o = origin.data();
+                 const double* d = dirs.data();
+                 py::gil_scoped_release release;
+                 std::vector<int64_t> roots;
+                 std::vector<double> poses;
+                 {
+                     std::lock_guard<std::mutex> hold(self.engine->lock());
+                     self.engine->refresh_all_poses();
+                     const double* T = self.engine->view().state.poses.T_world_body;
+                     for (int64_t b = 0; b < m.n_bodies; ++b) {
+                         for (int64_t e = m.elem_start[b]; e < m.elem_end[b]; ++e) {
+                             roots.push_back(m.roots[e]);
+                             poses.insert(poses.end(), T + 16 * b, T + 16 * b + 16);
+                         }
+                     }
+                 }
+                 cs::cast_rays(m.forest, roots.data(), poses.data(), int64_t(roots.size()), o,
+                               d, n, max_range, out);
+                 return t;
+             },
+             py::arg("origin"), py::arg("dirs"), py::arg("max_range"),
+             "Each ray origin + t dirs[i] (unit, world frame) against every tree at the last "
+             "checked state (point clouds have none): the nearest t (n,), inf beyond max_range.");
+
+    py::class_<PyVoxelCloud>(m, "VoxelCloud",
+                             "One source's point cloud obstacle (cpp/voxel_cloud.hpp): its "
+                             "current voxels, and the next cloud built off every lock.")
+        .def(py::init<>())
+        .def("voxels", &PyVoxelCloud::voxels,
+             "(centres (V, 3), seen (V,), voxel size) of the current grid, world frame.")
+        .def("prepare",
+             [](PyVoxelCloud& self, PyEngine& owner, const py::array& points, int64_t frame,
+                const Array<double>& q, double voxel_size, double filter_padding,
+                double max_range, int64_t max_points, double stamp, double persistence,
+                bool keep_points) {
+                 const cs::Model& model = owner.engine->model();
+                 const bool f32 = py::isinstance<py::array_t<float>>(points);
+                 if (!(f32 || py::isinstance<py::array_t<double>>(points)) || points.ndim() != 2 ||
+                     points.shape(1) != 3)
+                     throw std::invalid_argument(
+                         "points: expected an (n, 3) float32 or float64 array");
+                 expect_shape("q", q, {model.n_joints});
+                 if (frame < -1 || frame >= model.n_links)
+                     throw std::invalid_argument("frame: not a link of the engine");
+                 if (!(voxel_size > 0.0 && std::isfinite(voxel_size) && filter_padding >= 0.0 &&
+                       std::isfinite(filter_padding) && max_range > 0.0 && max_points > 0 &&
+                       std::isfinite(stamp) && persistence >= 0.0 && std::isfinite(persistence)))
+                     throw std::invalid_argument(
+                         "voxel_size, filter_padding, max_range, max_points, stamp, "
+                         "persistence: out of range");
+                 const int64_t bad = cs::unusable_variable(model.kin, q.data(), model.n_joints);
+                 if (bad >= 0) raise_joint_state("joint value not usable", 0, bad);
+                 cs::CloudPoints cloud = {static_cast<const char*>(points.data()),
+                                          int64_t(points.shape(0)), int64_t(points.strides(0)),
+                                          int64_t(points.strides(1)), f32};
+                 const cs::CloudSettings settings = {voxel_size, filter_padding, max_range,
+                                                     max_points,  stamp,          persistence,
+                                                     frame,       keep_points};
+                 std::vector<double> T(16 * model.n_links);
+                 {   // the link poses at q, with the engine's joint origins as they are now
+                     std::lock_guard<std::mutex> hold(owner.engine->lock());
+                     cs::forward_kinematics(model.kin, q.data(), T.data());
+                 }
+                 std::vector<float> kept;
+                 int64_t ticket;
+                 {
+                     py::gil_scoped_release release;
+                     ticket = self.cloud->build(model, T.data(), cloud, settings,
+                                                keep_points ? &kept : nullptr);
+                 }
+                 py::object out = py::none();
+                 if (keep_points) {
+                     Array<float> array({py::ssize_t(kept.size() / 3), py::ssize_t(3)});
+                     std::copy(kept.begin(), kept.end(), array.mutable_data());
+                     out = std::move(array);
+                 }
+                 return py::make_tuple(ticket, stats_tuple(self.cloud->stats), out);
+             },
+             py::arg("engine"), py::arg("points"), py::arg("frame"), py::arg("q"),
+             py::arg("voxel_size"), py::arg("filter_padding"), py::arg("max_range"),
+             py::arg("max_points"), py::arg("stamp"), py::arg("persistence"),
+             py::arg("keep_points"),
+             "Build the next grid from points (n, 3) float32/float64 in link `frame` (-1: the "
+             "world), self-filtered at the joint values q against engine's robot "
+             "(cpp/cloud_filter.hpp); return (ticket, stats (points, capped, invalid, "
+             "out_of_range, self_filtered, kept_points, voxels, persisted), the points kept "
+             "(m, 3) float32 world frame or None). Runs without the interpreter lock.");
 
     py::class_<PyKinematics>(m, "Kinematics",
                              "A kinematic tree's arrays (kinematics.py: KinematicTree), checked "
@@ -611,6 +755,43 @@ void bind_query_kernels(py::module_& m) {
           py::arg("P"), py::arg("Q"),
           "True iff the closed triangles P and Q (3, 3: rows the vertices) touch or cross; for "
           "(n, 3, 3) arrays, one answer per row.");
+
+    m.def("triangle_box_distance",
+          [](const Array<double>& T, const Array<double>& lo, const Array<double>& hi) {
+              expect_shape("T", T, {-1, 3, 3});
+              const py::ssize_t n = T.shape(0);
+              expect_shape("lo", lo, {n, 3});
+              expect_shape("hi", hi, {n, 3});
+              Array<double> d(n), x({n, py::ssize_t(3)}), y({n, py::ssize_t(3)});
+              double *o = d.mutable_data(), *ox = x.mutable_data(), *oy = y.mutable_data();
+              for (py::ssize_t i = 0; i < n; ++i)
+                  o[i] = cs::triangle_box_distance(cs::triangle_at(T.data(), i),
+                                                   lo.data() + 3 * i, hi.data() + 3 * i,
+                                                   ox + 3 * i, oy + 3 * i);
+              return py::make_tuple(d, x, y);
+          },
+          py::arg("T"), py::arg("lo"), py::arg("hi"),
+          "Distances (n,) between the closed triangles T[i] ((n, 3, 3)) and the solid boxes "
+          "[lo[i], hi[i]] ((n, 3)), nearest points x (n, 3) on T[i], y (n, 3) in the box.");
+
+    m.def("triangle_box_within",
+          [](const Array<double>& T, const Array<double>& lo, const Array<double>& hi,
+             double pad) {
+              expect_shape("T", T, {-1, 3, 3});
+              const py::ssize_t n = T.shape(0);
+              expect_shape("lo", lo, {n, 3});
+              expect_shape("hi", hi, {n, 3});
+              Array<bool> within(n);
+              for (py::ssize_t i = 0; i < n; ++i) {
+                  double d;
+                  within.mutable_data()[i] = cs::triangle_box_within(
+                      cs::triangle_at(T.data(), i), lo.data() + 3 * i, hi.data() + 3 * i, pad, &d);
+              }
+              return within;
+          },
+          py::arg("T"), py::arg("lo"), py::arg("hi"), py::arg("pad"),
+          "True where the closed triangle T[i] comes within pad of the solid box [lo[i], hi[i]] "
+          "(pad 0: meets it, touching counts).");
 
     m.def("triangle_distance",
           [](const Array<double>& P, const Array<double>& Q) {

@@ -8,8 +8,6 @@
 
 namespace collision_sensor {
 
-namespace {
-
 // True iff point x (in element e's body frame) lies in element e's solid (closed: the
 // boundary counts, as touching does). A box, sphere or cylinder is tested as the true shape,
 // not its tessellation, which lies inside it (cylinders and spheres are inscribed): a point in
@@ -69,8 +67,6 @@ bool inside_solid(const Model& m, int64_t e, const double* x) {
             return false;
     }
 }
-
-}  // namespace
 
 bool contained(const Model& m, int64_t a, int64_t b, const double* P) {
     if (!m.body_solid[a] && !m.body_solid[b]) return false;

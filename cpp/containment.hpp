@@ -18,6 +18,10 @@ namespace collision_sensor {
 // pose in a's frame), called once their triangles are known apart: then one vertex decides
 // for the whole element (it cannot be partly inside without its surface meeting the solid's).
 // Element pairs whose spheres are apart cannot contain one another and are skipped.
+// True iff point x (in element e's body frame) lies in element e's solid: the true box, sphere
+// or cylinder, or a closed mesh by ray parity (the boundary counts). False for no solid.
+bool inside_solid(const Model& model, int64_t e, const double* x);
+
 bool contained(const Model& model, int64_t a, int64_t b, const double* pose);
 
 // Like contained(), for a pair known to collide without meeting triangles: a vertex x (in body

@@ -175,6 +175,46 @@ int64_t Engine::place_attached_body(int64_t b, const double* T, const int64_t* p
     return 0;
 }
 
+// Body b shows its cloud's current grid: Model::clouds, its body box (culling reads it), its
+// pairs forced with no witness (a voxel index is the grid's own).
+void Engine::show_cloud(int64_t b) {
+    const VoxelGrid& grid = clouds_[b]->current();
+    model_.clouds[b] = &grid;
+    double* row = layout_.f[slot::body_boxes] + BOX_WIDTH * b;
+    const double zero[3] = {0.0, 0.0, 0.0};
+    if (grid.empty())
+        aligned_box_row(zero, zero, row);
+    else
+        std::copy(grid.box(0), grid.box(0) + BOX_WIDTH, row);
+    model_.body_reach[b] = std::sqrt(row[0] * row[0] + row[1] * row[1] + row[2] * row[2]) +
+                           row[BOX_RADIUS];
+    for (int64_t k = model_.body_pairs_start[b]; k < model_.body_pairs_start[b + 1]; ++k) {
+        const int64_t p = model_.body_pairs[k];
+        state_.witness[2 * p] = state_.witness[2 * p + 1] = -1;
+        scratch_.nearest[2 * p] = scratch_.nearest[2 * p + 1] = -1;
+        force(p);
+    }
+}
+
+int64_t Engine::attach_cloud(int64_t b, std::shared_ptr<VoxelCloud> cloud) {
+    if (!cloud || !model_.is_world_object(b) || b >= model_.n_bodies || model_.elements(b) != 0)
+        return MOVE_REFUSED;
+    const double* T = state_.poses.T_world_body + 16 * b;
+    for (int k = 0; k < 16; ++k)
+        if (T[k] != (k % 5 == 0 ? 1.0 : 0.0)) return MOVE_REFUSED;  // the world's own frame
+    if (clouds_.empty()) clouds_.resize(model_.n_bodies);
+    clouds_[b] = std::move(cloud);
+    show_cloud(b);
+    return 0;
+}
+
+int64_t Engine::commit_cloud(int64_t b, int64_t ticket) {
+    if (b < 0 || b >= int64_t(clouds_.size()) || !clouds_[b] || !clouds_[b]->swap(ticket))
+        return MOVE_REFUSED;
+    show_cloud(b);
+    return 0;
+}
+
 int64_t Engine::query(const double* q, bool full) {
     const int64_t bad = unusable_variable(model_.kin, q, model_.n_joints);
     if (bad >= 0) return -1 - bad;

@@ -37,6 +37,7 @@
 #include "model.hpp"
 #include "motion.hpp"
 #include "workers.hpp"
+#include "voxel_cloud.hpp"
 
 namespace collision_sensor {
 
@@ -134,6 +135,15 @@ class Engine {
     int64_t place_attached_body(int64_t b, const double* T, const int64_t* pairs, int64_t n,
                                 const double* reach, const double* reach_ext);
 
+    // Point clouds (voxel_cloud.hpp). Make world object b, a body without trees, the obstacle
+    // of `cloud` (its current grid), and force its pairs. Returns 0, or MOVE_REFUSED when b is
+    // no such body (nothing changed then).
+    int64_t attach_cloud(int64_t b, std::shared_ptr<VoxelCloud> cloud);
+    // Make build `ticket` of body b's cloud current (VoxelCloud::swap) and force the cloud's
+    // pairs only. Returns 0, or MOVE_REFUSED when b has no cloud or the ticket is not its last
+    // build still to commit (nothing changed then).
+    int64_t commit_cloud(int64_t b, int64_t ticket);
+
     const Model& model() const { return model_; }
     // The threads a batch runs on (options.threads resolved: >= 1).
     int64_t threads() const { return options_.threads; }
@@ -161,6 +171,7 @@ class Engine {
     // free answered (path(), spline()).
     int64_t first_contact(int64_t n, const SegmentCheck& check, int64_t* segment, double* t,
                           uint8_t* pairs);
+    void show_cloud(int64_t b);
 
     std::mutex lock_;
     ResolvedLayout layout_;  // the buffers' slots, writable (the scene methods write the model)
@@ -171,6 +182,7 @@ class Engine {
     MotionWork motion_work_;  // the motion checks' own areas, sized on their first use
     std::vector<std::unique_ptr<Worker>> workers_;  // the batches' other contexts
     SplitPlanner planner_;                          // how many chunks a batch is cut into
+    std::vector<std::shared_ptr<VoxelCloud>> clouds_;  // (B,) the clouds Model::clouds show
 };
 
 }  // namespace collision_sensor

@@ -110,6 +110,7 @@ void derive_bodies(Model& m) {
     m.body_pairs.assign(m.n_pairs, 0);
     std::vector<int64_t> next(m.body_pairs_start.begin(), m.body_pairs_start.end() - 1);
     for (int64_t p = 0; p < m.n_pairs; ++p) m.body_pairs[next[m.pair_b[p]]++] = p;
+    m.clouds.assign(m.n_bodies, nullptr);
     m.most_seeds = 1;
     for (int64_t p = 0; p < m.n_pairs; ++p)
         m.most_seeds = std::max(m.most_seeds, m.elements(m.pair_a[p]) * m.elements(m.pair_b[p]));

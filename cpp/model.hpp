@@ -21,6 +21,8 @@
 
 namespace collision_sensor {
 
+struct VoxelGrid;  // voxel_grid.hpp: a point cloud's voxels
+
 struct Model {
     int64_t n_links, n_bodies, n_joints, n_pairs, n_elements, n_nodes, n_triangles;
     KinematicTree kin;          // the links' tree (kinematics.hpp)
@@ -50,10 +52,14 @@ struct Model {
     std::vector<double> body_reach;    // (B,) |body box centre| + its radius (poses.hpp)
     // Each body's pairs as pair_b: body_pairs[body_pairs_start[b]:body_pairs_start[b + 1]].
     std::vector<int64_t> body_pairs_start, body_pairs;
+    // (B,) the voxels of each body that is a point cloud (a world object without trees, its
+    // grid kept by the engine: voxel_cloud.hpp), else null; set by Engine::attach_cloud.
+    std::vector<const VoxelGrid*> clouds;
     int64_t depth;       // the deepest tree's depth (a lone leaf: 1)
     int64_t most_seeds;  // the most root pairs one pair has: elements(a) elements(b)
 
     bool is_world_object(int64_t b) const { return b >= n_links; }
+    bool is_cloud(int64_t b) const { return clouds[b] != nullptr; }
     const double* body_box(int64_t b) const { return body_boxes + BOX_WIDTH * b; }
     int64_t elements(int64_t b) const { return elem_end[b] - elem_start[b]; }
 };

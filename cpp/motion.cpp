@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "cloud_queries.hpp"
 #include "planning.hpp"
 
 namespace collision_sensor {
@@ -412,6 +413,9 @@ double MotionQuery::solid_gap(int64_t a, int64_t b, const double* P) const {
 // descent stopped), kept while it stays small and costs no more than a descent from the roots.
 WithinResult MotionQuery::pair_within(int64_t p, const double* pose, double h, double extra) {
     const int64_t a = m_.pair_a[p], b = m_.pair_b[p];
+    if (m_.is_cloud(b))  // a point cloud's voxels (cloud_queries.hpp)
+        return cloud_pair_within(m_, a, *m_.clouds[b], pose, h, extra, w_.margin,
+                                 c_.view.options.box_test, counters_);
     MotionMargin& mm = w_.margin;
     const double* A = m_.body_box(a);
     const double* B = m_.body_box(b);

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "cloud_queries.hpp"
 #include "containment.hpp"
 #include "distance.hpp"
 #include "poses.hpp"
@@ -76,6 +77,10 @@ void measure_proximity(const EngineView& view, const ProximityRequest& request,
         const double pad_a = m.padding[a], pad_b = m.padding[b], pad = pad_a + pad_b;
         result.distance[p] = INF;
         write_pair_pose(T_world_body, a, b, pose);
+        if (m.is_cloud(b)) {  // a point cloud's voxels (cloud_queries.hpp)
+            measure_cloud_pair(m, s, p, pose, max_distance, result);
+            continue;
+        }
         NearestPoints best;
         best.found = false;
         best.ia = best.ib = -1;

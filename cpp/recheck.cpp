@@ -3,6 +3,7 @@
 
 #include <algorithm>
 
+#include "cloud_queries.hpp"
 #include "containment.hpp"
 #include "culling.hpp"
 #include "planning.hpp"
@@ -122,6 +123,11 @@ int64_t recheck_pairs(CheckContext& c, int64_t n, bool full, bool* changed) {
             refresh_pose(m, s.q_ref, s.poses, chain, a);
             refresh_pose(m, s.q_ref, s.poses, chain, b);
             account_travel(c, p);
+        }
+        if (m.is_cloud(b)) {  // a point cloud's voxels (cloud_queries.hpp)
+            write_pair_pose(s.poses.T_world_body, a, b, pose);
+            recheck_cloud_pair(c, p, a, b, pose, track, changed);
+            continue;
         }
         bool hit = false;
         double gap = 0.0;

@@ -14,6 +14,7 @@ once, and names back into answers.
 """
 import dataclasses
 import math
+import time
 from typing import Dict, Iterable, List, Mapping, NamedTuple, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -22,16 +23,18 @@ from collision_sensor.engine import array_pack
 from collision_sensor.engine.checker_config import CheckerConfig
 from collision_sensor.engine.compiled import engine
 from collision_sensor.engine.dynamic_scene import (
-    AddObject, PlacedObject, PreparedSceneChanges, RemoveObject, SceneChange, SceneChangeError,
-    checked_pose, prepare_changes)
+    CLOUD_BLOCK, AddCloud, AddObject, PlacedObject, PreparedSceneChanges, RemoveObject,
+    SceneChange, SceneChangeError, checked_pose, prepare_changes)
 from collision_sensor.engine.kinematics import KinematicTree, build_kinematic_tree
 from collision_sensor.engine.motion import FREE, MotionResult, PathResult
 from collision_sensor.engine.trajectory import TrajectoryResult, check_trajectory
 from collision_sensor.engine.obb_tree import forest_view
+from collision_sensor.engine.point_clouds import (
+    NO_STATS, PointCloudStats, PreparedPoints, cloud_arguments, cloud_name, points_array)
 from collision_sensor.engine.robot_block import (
     allowed_names_to_come, build_robot_block, joint_tables, with_virtual_joint, world_frames)
 from collision_sensor.engine.scene_layout import SceneLayout, changed_objects
-from collision_sensor.errors import JointStateError, SceneError, warn_load
+from collision_sensor.errors import JointStateError, PointCloudError, SceneError, warn_load
 from collision_sensor.model.robot_model import RobotModel, load_urdf
 from collision_sensor.model.scene import SceneObject, load_scene
 from collision_sensor.model.srdf import Srdf, load_srdf_for_model
@@ -129,6 +132,7 @@ class CollisionChecker:
             warn_load(line)
         self._joints = joint_tables(model, self.kinematics)
         self.joint_names: Tuple[str, ...] = self._joints.names
+        self._link_index = {name: i for i, name in enumerate(self.kinematics.link_names)}
         self.joint_limits: Dict[str, Tuple[float, float]] = self._joints.limits
         self._scene: Optional[SceneLayout] = None
         # Counts committed scene changes and moves: prepared changes must be prepared again
@@ -136,6 +140,9 @@ class CollisionChecker:
         self._scene_version = 0
         self._result = CheckResult(False, (), 0)
         self._results: Dict[bytes, CheckResult] = {}
+        # Point clouds: {object name: the engine's VoxelCloud}, and each one's last stats.
+        self._clouds: Dict[str, object] = {}
+        self._cloud_stats: Dict[str, PointCloudStats] = {}
         try:
             prepared = self.prepare_scene_changes([AddObject(obj) for obj in scene])
         except SceneChangeError as error:
@@ -204,11 +211,13 @@ class CollisionChecker:
 
     @property
     def scene_objects(self) -> Tuple[SceneObject, ...]:
-        """The objects of :attr:`scene_object_names`, each with ``T_world_object`` its world
-        pose (an attached object's at the last checked state)."""
+        """The objects of :attr:`scene_object_names` but the point clouds, each with
+        ``T_world_object`` its world pose (an attached object's at the last checked state)."""
         poses = None
         objects = []
         for placed in self._scene.objects.values():
+            if placed.block is CLOUD_BLOCK:
+                continue    # a point cloud: its voxels, not triangles (cloud_voxels)
             T = placed.pose
             if placed.attach_to is not None:
                 poses = self._poses() if poses is None else poses
@@ -277,6 +286,9 @@ class CollisionChecker:
         if old is None:
             raise SceneError(f'no object "{name}" to move; add it first (objects: '
                              f'{", ".join(self._scene.objects) or "none"})')
+        if old.block is CLOUD_BLOCK:
+            raise SceneError(f'object "{name}" is a point cloud: it is never moved; give its '
+                             'next cloud (set_points)')
         T = None
         if old.attach_to is None:
             try:
@@ -312,6 +324,129 @@ class CollisionChecker:
         :raises SceneError: naming the change at fault; the checker is then unchanged.
         """
         self.commit_scene_changes(self.prepare_scene_changes(changes))
+    # ------------------------------------------------------------------ point clouds
+    def set_points(self, source: str, points, frame: Optional[str] = None, *,
+                   positions: Optional[Positions] = None, stamp: Optional[float] = None,
+                   persistence: float = 0.0, max_range: float = math.inf) -> int:
+        """Make ``points`` the obstacle ``cloud/<source>``: filtered, voxelised, checked
+        against every robot link and attached object from the next :meth:`update` on (see
+        :mod:`collision_sensor.engine.point_clouds`, which says what a cloud can tell).
+
+        The source's next cloud replaces this one in place (only the cloud's pairs are
+        re-checked); its first adds the object (pairs ``link:cloud/<source>``, which
+        ``allowed_collisions`` may name).
+
+        :param source: the sensor's name (a topic): the object is ``cloud/<source>``.
+        :param points: (n, 3) float, x y z rows in ``frame``; rows with NaN or inf dropped.
+            float32 and float64 arrays are read as they are (any row stride).
+        :param frame: a link of the robot (a camera's), or None (or a world frame name) for
+            the world frame.
+        :param positions: the joint values at the cloud's time, for the self-filter and
+            ``frame``'s pose (as :meth:`check` takes them); default: the current state.
+        :param stamp: the cloud's time in s (persistence; default ``time.monotonic()``).
+        :param persistence: keep voxels seen within this many seconds before ``stamp`` (by
+            earlier clouds of the source) whose centre the robot does not now cover; 0: only
+            this cloud.
+        :param max_range: drop points farther than this (m) from ``frame``'s origin.
+        :return: the number of occupied voxels kept.
+        :raises PointCloudError: points not (n, 3) numbers, an unknown frame, a bad source or
+            argument; nothing changes then.
+        :raises JointStateError: ``positions`` as :meth:`check` refuses them.
+        """
+        return self.commit_points(self.prepare_points(
+            source, points, frame, positions=positions, stamp=stamp, persistence=persistence,
+            max_range=max_range))
+
+    def prepare_points(self, source: str, points, frame: Optional[str] = None, *,
+                       positions: Optional[Positions] = None, stamp: Optional[float] = None,
+                       persistence: float = 0.0, max_range: float = math.inf,
+                       keep_points: bool = False) -> PreparedPoints:
+        """Filter and voxelise a cloud (as :meth:`set_points`) without making it the obstacle:
+        the slow part, in C++ with the interpreter released, reading only what queries never
+        change, so it may run on another thread while this checker answers queries (one
+        source's clouds one at a time). :meth:`commit_points` makes it the obstacle.
+
+        :param keep_points: also return the points kept (``PreparedPoints.kept``, world frame).
+        """
+        name = cloud_name(source)
+        try:
+            array = points_array(points)
+        except PointCloudError as error:
+            raise PointCloudError(f'{name}: {error}') from None
+        if frame is None or frame in self.world_frames:
+            frame_index = -1
+        elif frame in self._link_index:
+            frame_index = self._link_index[frame]
+        else:
+            raise PointCloudError(
+                f'{name}: frame "{frame}" is no link of robot "{self.model.name}" and not the '
+                f'world frame ({" or ".join(sorted(self.world_frames))}); give the points in a '
+                'link\'s frame (a camera frame is a link of the URDF) or in the world frame')
+        if stamp is None:
+            stamp = time.monotonic()
+        max_range, persistence, stamp = cloud_arguments(max_range, persistence, stamp)
+        q = self._q.copy() if positions is None else self._merged(positions)
+        cloud = self._clouds.get(name)
+        if cloud is None:
+            cloud = self._clouds.setdefault(name, engine.VoxelCloud())
+        config = self.config
+        try:
+            ticket, stats, kept = cloud.prepare(
+                self._engine, array, frame_index, q, config.voxel_size,
+                config.self_filter_padding, max_range, config.max_points, stamp, persistence,
+                keep_points)
+        except JointStateError as error:
+            raise JointStateError(self._unusable_message(error.variable, q)) from None
+        return PreparedPoints(self, source, cloud, ticket, PointCloudStats(*stats), kept)
+
+    def commit_points(self, prepared: PreparedPoints) -> int:
+        """Make a prepared cloud its source's obstacle, in place: only its pairs are re-checked
+        at the next query (its source's first cloud adds its object first). Return the number
+        of occupied voxels.
+
+        :raises PointCloudError: ``prepared`` was made for another checker, or another cloud
+            of the source was prepared since (nothing changes then).
+        """
+        name = cloud_name(prepared.source)
+        if prepared.checker is not self or self._clouds.get(name) is not prepared.cloud:
+            raise PointCloudError(f'{name}: this cloud was prepared for another checker, or its '
+                                  'source was cleared since; prepare it again')
+        if name not in self._scene.objects:
+            self.apply_scene_changes([AddCloud(name)])
+        if self._engine.commit_cloud(self._scene.body_index[name], prepared.ticket):
+            raise PointCloudError(f'{name}: a newer cloud of this source was prepared since this '
+                                  'one; commit that one')
+        self._cloud_stats[name] = prepared.stats
+        return prepared.stats.voxels
+
+    def clear_points(self, source: str) -> None:
+        """Remove the obstacle ``cloud/<source>`` (nothing if there is none)."""
+        name = cloud_name(source)
+        if name in self._scene.objects:
+            self.apply_scene_changes([RemoveObject(name)])
+        self._clouds.pop(name, None)
+        self._cloud_stats.pop(name, None)
+
+    @property
+    def point_cloud_sources(self) -> Tuple[str, ...]:
+        """The sources whose cloud is an obstacle, in the order they came."""
+        prefix = len(cloud_name('x')) - 1
+        return tuple(name[prefix:] for name, placed in self._scene.objects.items()
+                     if placed.block is CLOUD_BLOCK)
+
+    def point_cloud_stats(self, source: str) -> PointCloudStats:
+        """What became of the rows of ``source``'s last cloud committed (zeros before any)."""
+        return self._cloud_stats.get(cloud_name(source), NO_STATS)
+
+    def cloud_voxels(self, source: str) -> Tuple[np.ndarray, float]:
+        """Return the centres (V, 3) of the occupied voxels of ``source``'s obstacle (world
+        frame) and the voxel size; (0, 3) when it has none."""
+        cloud = self._clouds.get(cloud_name(source))
+        if cloud is None:
+            return np.zeros((0, 3)), self.config.voxel_size
+        centres, _, size = cloud.voxels()
+        return centres, (size or self.config.voxel_size)
+
     def prepare_scene_changes(self, changes: Iterable[SceneChange]) -> PreparedSceneChanges:
         """Validate ``changes`` against the current scene and build the new objects' trees,
         without changing the checker.
@@ -383,8 +518,19 @@ class CollisionChecker:
                                    motion_tolerance=config.motion_tolerance,
                                    threads=config.threads,
                                    min_chunk_us=config.min_chunk_us)
+        # Point clouds: the new engine shows each cloud's voxels (their pairs forced). A cloud
+        # whose object this change removes is dropped; one prepared for a first commit is kept.
+        removed = [name for name in self._clouds
+                   if old is not None and name in old.objects and name not in layout.objects]
+        for name, cloud in list(self._clouds.items()):
+            if name in layout.objects and new_engine.attach_cloud(layout.body_index[name], cloud):
+                raise PointCloudError(f'{name}: the engine refused the point cloud\'s body; '
+                                      'report this as a bug')
 
         # Nothing above changed the checker; from here on, nothing can fail.
+        for name in removed:
+            self._clouds.pop(name, None)
+            self._cloud_stats.pop(name, None)
         views = self._views = packed.views
         self._robot = layout.take_views(self._robot, views)
         self._scene = layout
@@ -775,6 +921,19 @@ class CollisionChecker:
         if len(self._results) < RESULT_CACHE_SIZE:
             self._results[key] = result
         return result
+
+    def cast_rays(self, origin, directions, max_range: float = math.inf) -> np.ndarray:
+        """Cast rays against the robot and the scene objects at the last checked state (a
+        simulated depth sensor: point clouds are not seen): ``origin + t directions[i]``.
+
+        :param origin: (3,) world frame.
+        :param directions: (n, 3) unit vectors, world frame.
+        :return: (n,) the nearest hit's t (m), ``inf`` when nothing is hit within
+            ``max_range``.
+        """
+        origin = np.ascontiguousarray(origin, dtype=np.float64)
+        directions = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
+        return self._engine.cast_rays(origin, directions, float(max_range))
 
     # ------------------------------------------------------------------ inspection
     @property

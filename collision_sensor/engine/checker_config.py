@@ -45,6 +45,13 @@ min_chunk_us          200.0      a batch is cut into chunks of at least this muc
                                  batches): a thread costs tens of microseconds to start, so a
                                  short batch runs on fewer threads (answers never depend on
                                  it); 0: always as many chunks as threads
+voxel_size            0.02       point clouds (``set_points``): the edge (m, 0.001 to 1) of
+                                 the world-aligned cubes a cloud's points are grouped into
+self_filter_padding   0.02       point clouds: points within this (m, 0 to 1) of the robot's
+                                 collision geometry (its links and attached objects), or
+                                 inside its solids, are the robot's own and removed
+max_points            1000000    point clouds: most rows taken from one cloud; a larger one
+                                 is subsampled (every k-th row) and the rest counted
 ===================== ========== ============================================================
 """
 from dataclasses import dataclass, fields, replace
@@ -80,6 +87,9 @@ class CheckerConfig:
     link_padding: Tuple[Tuple[str, float], ...] = ()
     threads: int = 0
     min_chunk_us: float = 200.0
+    voxel_size: float = 0.02
+    self_filter_padding: float = 0.02
+    max_points: int = 1_000_000
 
     @classmethod
     def from_mapping(cls, config: Optional[Mapping[str, Any]] = None) -> 'CheckerConfig':
@@ -189,6 +199,16 @@ def _converted(config):
                     0 <= value <= MAX_THREADS:
                 raise ConfigError(f'setting threads: expected an integer from 0 (every core) to '
                                   f'{MAX_THREADS}, got {value!r}')
+            out[key] = value
+        elif key in ('voxel_size', 'self_filter_padding'):
+            number = _metres(key, value)
+            low = 0.001 if key == 'voxel_size' else 0.0
+            if not low <= number <= 1.0:
+                raise ConfigError(f'setting {key}: expected {low:g} to 1.0 m, got {value!r}')
+            out[key] = number
+        elif key == 'max_points':
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ConfigError(f'setting max_points: expected an integer >= 1, got {value!r}')
             out[key] = value
         elif key in ('leaf_size', 'primitive_sections'):
             minimum = 1 if key == 'leaf_size' else 3

@@ -48,6 +48,9 @@ from collision_sensor.model import mesh_loading
 from collision_sensor.model.mesh_loading import Solid, is_closed_surface
 from collision_sensor.model.scene import SceneObject
 
+#: The prefix of a point cloud's object name (``point_clouds``), which no other object may use.
+CLOUD_PREFIX = 'cloud/'
+
 #: Largest |coordinate| (m) of an object's vertices and of its position: as the engine's bound
 #: on joint translations (cpp/kinematics.hpp: PRISMATIC_VALUE_MAX), every coordinate, box and
 #: gap computed from them then stays far from overflow (the engine's, cpp/engine.hpp).
@@ -99,13 +102,21 @@ class MoveObject:
 
 
 @dataclass(frozen=True, eq=False)
+class AddCloud:
+    """Add the object of a point cloud (``point_clouds``: ``cloud/<source>``), fixed in the world
+    at the identity, its voxels kept by the engine; nothing if it is there already."""
+
+    name: str
+
+
+@dataclass(frozen=True, eq=False)
 class RemoveObject:
     """Remove object ``name``."""
 
     name: str
 
 
-SceneChange = Union[AddObject, MoveObject, RemoveObject]
+SceneChange = Union[AddObject, MoveObject, RemoveObject, AddCloud]
 
 
 @dataclass(frozen=True, eq=False)
@@ -135,6 +146,19 @@ class ObjectBlock:
     def triangles(self) -> int:
         """How many triangles the object has."""
         return len(self.tris)
+
+    @property
+    def has_tree(self) -> bool:
+        """False for a point cloud's object, whose geometry the engine keeps itself."""
+        return len(self.boxes) > 0
+
+
+#: The block of a point cloud's object (``point_clouds``): no tree; the engine keeps its voxels
+#: (``cpp/voxel_cloud.hpp``) and shows them at the identity pose, in the world frame.
+CLOUD_BLOCK = ObjectBlock(
+    boxes=np.zeros((0, engine.BOX_WIDTH)), nodes=np.zeros((0, engine.NODE_WIDTH), np.int64),
+    volume=np.zeros(0), gain=np.zeros(0), tris=np.zeros((0, 3, 3)), depth=0,
+    solid_row=np.zeros(engine.SOLID_WIDTH), radius=0.0)
 
 
 class PlacedObject(NamedTuple):
@@ -277,6 +301,16 @@ def transform_from_xyz_quaternion(xyz, quaternion, owner: str = 'pose') -> np.nd
     return T
 
 
+def cloud_object(name: str) -> 'PlacedObject':
+    """The placed object of a point cloud named ``name`` (no triangles; see
+    :data:`CLOUD_BLOCK`)."""
+    pose = np.eye(4)
+    pose.setflags(write=False)
+    obj = SceneObject(name=name, source='point cloud', T_world_object=pose,
+                      vertices=np.zeros((0, 3)), faces=np.zeros((0, 3), dtype=np.int64))
+    return PlacedObject(obj, CLOUD_BLOCK, None, (), pose)
+
+
 def same_geometry(a: SceneObject, b: SceneObject) -> bool:
     """True iff the two objects have equal triangles and solid (only the pose may differ)."""
     return a is b or (a.solid == b.solid and np.array_equal(a.faces, b.faces)
@@ -334,7 +368,12 @@ def prepare_changes(changes: Iterable[SceneChange], base: Mapping[str, PlacedObj
     structural = False
     for k, change in enumerate(changes):
         try:
-            if isinstance(change, AddObject):
+            if isinstance(change, AddCloud):
+                if change.name not in objects:
+                    objects[change.name] = cloud_object(change.name)
+                    rebuilt.add(change.name)
+                    structural = True
+            elif isinstance(change, AddObject):
                 placed, same = _placed(change, objects, links, world_frames, robot, config)
                 objects[placed.name] = placed
                 (moved if same else rebuilt).add(placed.name)
@@ -347,6 +386,10 @@ def prepare_changes(changes: Iterable[SceneChange], base: Mapping[str, PlacedObj
                     raise SceneError(f'no object "{name}" to {verb}; add it first '
                                      f'(objects: {", ".join(objects) or "none"})')
                 if isinstance(change, MoveObject):
+                    if old.block is CLOUD_BLOCK:
+                        raise SceneError(f'object "{name}" is a point cloud: its points are '
+                                         'given in the world or a link frame and never moved; '
+                                         'give its next cloud (set_points)')
                     pose = checked_pose(change.pose, f'object "{name}"')
                     objects[name] = PlacedObject(old.obj, old.block, old.attach_to,
                                                  old.touch_links, pose)
@@ -372,6 +415,9 @@ def _placed(change: AddObject, objects: Mapping[str, PlacedObject], links: Colle
     if not isinstance(name, str) or not name:
         raise SceneError('the object has no name; give it a unique name')
     owner = f'object "{name}"'
+    if name.startswith(CLOUD_PREFIX):
+        raise SceneError(f'{owner}: names starting with "{CLOUD_PREFIX}" are the point clouds\'; '
+                         'rename the object')
     if name in links or name in world_frames:
         raise SceneError(f'{owner} has the name of a link or frame of robot "{robot}"; rename '
                          'the object')

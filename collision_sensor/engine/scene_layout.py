@@ -32,6 +32,9 @@ from collision_sensor.engine.robot_block import JointTables, RobotBlock
 from collision_sensor.model.exception_list import sorted_pair
 
 Pair = Tuple[str, str]
+#: The body box of an object without a tree (a point cloud's: its engine writes its own).
+EMPTY_BOX = np.zeros((1, engine.BOX_WIDTH))
+EMPTY_BOX[0, engine.BOX_AXES:engine.BOX_AXES + 9] = np.eye(3).ravel()
 #: A pair's rows: path (J,) int64, reach and reach_ext (J,) float64 (pair_reach.pair_rows).
 Rows = Tuple[np.ndarray, np.ndarray, np.ndarray]
 
@@ -67,8 +70,9 @@ class SceneLayout:
         # The forest's trees in order (the robot's, then the objects'): names and depths only,
         # no blocks (the objects' arrays are held once, by the engine's buffers: take_views).
         self._placed_names = [p.name for p in placed]
-        #: (1 + objects,) the robot's deepest tree's depth, then each object's.
-        self.depths = np.array([robot.depth] + [p.block.depth for p in placed])
+        #: (1 + objects with a tree,) the robot's deepest tree's depth, then each object's.
+        self.depths = np.array([robot.depth] + [p.block.depth for p in placed
+                                                if p.block.has_tree])
         self.body_names = tuple(kin.link_names) + tuple(p.name for p in placed)
         self.body_index = {name: b for b, name in enumerate(self.body_names)}
         self.n_links = n_links = len(kin.link_names) + len(attached)
@@ -88,16 +92,21 @@ class SceneLayout:
             [0] + [len(p.block.boxes) for p in placed], dtype=np.int64)
         self._tri_start = tri_start = len(robot.tris) + np.cumsum(
             [0] + [p.block.triangles for p in placed], dtype=np.int64)
-        self.tri_starts = {p.name: int(t0) for p, t0 in zip(placed, tri_start)}
+        # (A point cloud's object has no tree: no element, no triangle; its witness names a
+        # voxel of its own, and its pairs are forced when its engine shows it.)
+        self.tri_starts = {p.name: int(t0) for p, t0 in zip(placed, tri_start)
+                           if p.block.has_tree}
         nodes = [robot.nodes]
         for p, n0, t0 in zip(placed, node_start, tri_start):
             shifted = p.block.nodes + np.array([n0, n0, t0, 0], dtype=np.int64)
             leaf = p.block.nodes[:, NODE_LEFT] < 0
             shifted[leaf, NODE_LEFT:NODE_RIGHT + 1] = -1
             nodes.append(shifted)
-        first_object_element = len(robot.roots) + np.arange(len(placed), dtype=np.int64)
+        trees = np.array([p.block.has_tree for p in placed], dtype=np.int64)
+        first_object_element = len(robot.roots) + np.cumsum(trees) - trees
         self.elem_start = np.concatenate([robot.elem_start, first_object_element])
-        self.elem_end = np.concatenate([robot.elem_end, first_object_element + 1])
+        self.elem_end = np.concatenate([robot.elem_end, first_object_element + trees])
+        with_tree = [p for p in placed if p.block.has_tree]
         self.radius = np.concatenate([robot.radius, [p.block.radius for p in placed]])
 
         self.checked_pairs, self.excluded_pairs, self.object_pairs = scene_pairs(
@@ -139,18 +148,19 @@ class SceneLayout:
                 [kin.axis, np.tile([0.0, 0.0, 1.0], (n_attached, 1))]),
             multiplier=tree.multiplier,
             offset=np.concatenate([kin.offset, np.zeros(n_attached)]),
-            body_boxes=np.concatenate([robot.body_boxes] + [p.block.boxes[:1] for p in placed]),
+            body_boxes=np.concatenate([robot.body_boxes] + [
+                p.block.boxes[:1] if p.block.has_tree else EMPTY_BOX for p in placed]),
             padding=np.concatenate([robot.padding, np.zeros(len(placed))]),
             boxes=np.concatenate([robot.boxes] + [p.block.boxes for p in placed]),
             volume=np.concatenate([robot.volume] + [p.block.volume for p in placed]),
             gain=np.concatenate([robot.gain] + [p.block.gain for p in placed]),
             tris=np.concatenate([robot.tris] + [p.block.tris for p in placed]),
             elem_solid=np.concatenate([robot.elem_solid]
-                                      + [p.block.solid_row[None] for p in placed]),
+                                      + [p.block.solid_row[None] for p in with_tree]),
             reach=reach, reach_ext=reach_ext,
             parent=tree.parent, joint_type=tree.joint_type, q_index=tree.q_index,
             body_elem_start=self.elem_start, body_elem_end=self.elem_end,
-            roots=np.concatenate([robot.roots, node_start[:-1]]),
+            roots=np.concatenate([robot.roots, node_start[:-1][trees.astype(bool)]]),
             nodes=np.concatenate(nodes), pair_a=pair_a, pair_b=pair_b,
             joint_pairs_start=np.searchsorted(on_path[0], np.arange(n_joints + 1)),
             joint_pairs=on_path[1],
@@ -234,6 +244,8 @@ class SceneLayout:
         for name, n0, n1, t0, t1 in zip(self._placed_names, node_start[:-1], node_start[1:],
                                         tri_start[:-1], tri_start[1:]):
             p = self.objects[name]
+            if not p.block.has_tree:
+                continue    # a point cloud's: CLOUD_BLOCK itself, which names it a cloud
             block = dataclasses.replace(
                 p.block, boxes=views['boxes'][n0:n1], volume=views['volume'][n0:n1],
                 gain=views['gain'][n0:n1], tris=views['tris'][t0:t1])

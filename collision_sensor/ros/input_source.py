@@ -72,6 +72,10 @@ class SourceHost:
     :ivar settings: the node's :class:`~collision_sensor.ros.node_parameters.NodeSettings`.
     :ivar checker: the :class:`CollisionChecker` in use (None before the first robot).
     :ivar totals: ``collections.Counter`` of counts reported on /diagnostics.
+    :ivar failing: ``{source name: Timeout}``, sources whose ``contact`` timeout must answer
+        every verdict (``check``) with their failure until they recover (a source whose
+        silence does not stop the joint states, such as a camera's); the source sets and
+        clears its entry under the lock.
     """
 
     def check(self, header, positions):

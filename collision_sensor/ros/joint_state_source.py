@@ -42,6 +42,7 @@ from std_msgs.msg import Header
 from collision_sensor.errors import JointStateError
 from collision_sensor.ros.input_source import InputSource, Timeout
 from collision_sensor.ros.joint_state_merger import JointStateMerger, joints_out_of_limits
+from collision_sensor.ros.joint_state_window import JointStateWindow
 from collision_sensor.ros.verdicts import REJECTED, STALE, WAITING
 from collision_sensor.ros.work_queue import MAX_BACKLOG, NewestFirstWorker
 from collision_sensor.untrusted_text import listing, printable, quoted
@@ -127,6 +128,8 @@ class JointStateSource(InputSource):
         self._unchecked = []    # (message, outcome) merged but superseded since the last check
         self._worker: Optional[NewestFirstWorker] = None
         self.subscription = None
+        # The complete states accepted, by stamp: what a point cloud is self-filtered with.
+        self.window = JointStateWindow(host.settings.point_cloud_state_window)
 
     # -- set-up -----------------------------------------------------------------------------
 
@@ -174,6 +177,7 @@ class JointStateSource(InputSource):
             self.out_of_limits = {name: rest for name, *rest
                                   in joints_out_of_limits(merger.positions, limits)}
             self.merger, self.limits = merger, limits
+            self.window.clear()     # another robot's joints, maybe in another order
             self._unchecked = []
             self._announced_waiting = False
         return commit
@@ -214,6 +218,15 @@ class JointStateSource(InputSource):
         positions.update((name, value) for name, value in merger.positions.items()
                          if name in positions)
         return positions, ''
+
+    def positions_at(self, stamp: float):
+        """Return the state at ``stamp`` (s; interpolated in the window of recent states, the
+        newest for a later stamp), ``'old'`` when ``stamp`` is older than the window, or None
+        while no state can be checked yet (lock held)."""
+        if not len(self.window):
+            return self.current_positions()
+        q = self.window.at(stamp)
+        return 'old' if q is None else q
 
     # -- events -------------------------------------------------------------------------------
 
@@ -314,6 +327,8 @@ class JointStateSource(InputSource):
         except Exception:
             merger.undo(outcome)    # whatever failed, the state stays the one last answered
             raise
+        if merger.complete:
+            self.window.record(self.host.stamp_seconds(msg.header), merger.array)
         if not answer:
             # Overloaded: a newer state waits; this one is merged but not checked.
             self._unchecked.append((msg, outcome))

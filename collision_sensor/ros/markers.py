@@ -30,6 +30,11 @@ TRAJECTORY_COLOR = ColorRGBA(r=1.0, g=0.0, b=1.0, a=0.6)
 TRAJECTORY_NS = 'trajectory_contact'
 #: A mesh object with more triangles is drawn as its box on ~/markers.
 MARKER_MAX_TRIANGLES = 20_000
+#: A point cloud's voxels drawn: those within this (m) of a link's boxes, at most
+#: MARKER_MAX_VOXELS of them (the nearest first).
+VOXEL_MARKER_RANGE = 0.15
+MARKER_MAX_VOXELS = 5000
+CLOUD_COLOR = ColorRGBA(r=0.2, g=0.6, b=1.0, a=0.6)
 
 
 def quaternion_from_matrix(R) -> tuple:
@@ -115,6 +120,7 @@ class MarkerPublisher:
             color = (COLLIDING_OBJECT_COLOR if obj.name in colliding else
                      ATTACHED_OBJECT_COLOR if obj.name in attached else WORLD_OBJECT_COLOR)
             markers.append(self._object_marker(checker, obj, index, stamp, color))
+        markers.extend(self._cloud_markers(checker, stamp, colliding))
         markers.extend(self._proximity_markers(checker, stamp, records))
         markers.extend(self._trajectory)   # DELETEALL took them too
         self._publisher.publish(MarkerArray(markers=markers))
@@ -146,6 +152,35 @@ class MarkerPublisher:
         self._trajectory = shown
         if markers or shown:
             self._publisher.publish(MarkerArray(markers=markers + shown))
+
+    def _cloud_markers(self, checker, stamp, colliding) -> list:
+        """Each point cloud's voxels near the robot (within VOXEL_MARKER_RANGE of a link's
+        boxes), as one CUBE_LIST (ns ``cloud/<source>``; red when it is in contact)."""
+        sources = checker.point_cloud_sources
+        if not sources:
+            return []
+        boxes = checker.collision_boxes(checker.link_names)
+        markers = []
+        for index, source in enumerate(sources):
+            centres, size = checker.cloud_voxels(source)
+            if not len(centres) or not boxes:
+                continue
+            gap = np.full(len(centres), np.inf)
+            for _, T, half in boxes:
+                local = np.abs((centres - T[:3, 3]) @ T[:3, :3]) - half
+                gap = np.minimum(gap, np.linalg.norm(np.maximum(local, 0.0), axis=1))
+            near = np.flatnonzero(gap <= VOXEL_MARKER_RANGE + 0.5 * math.sqrt(3.0) * size)
+            near = near[np.argsort(gap[near], kind='stable')[:MARKER_MAX_VOXELS]]
+            if not len(near):
+                continue
+            name = f'cloud/{source}'
+            marker = self._marker(name, index, Marker.CUBE_LIST, np.eye(4), stamp,
+                                  COLLIDING_OBJECT_COLOR if name in colliding else CLOUD_COLOR)
+            marker.scale.x = marker.scale.y = marker.scale.z = float(size)
+            marker.points = [Point(x=x, y=y, z=z) for x, y, z in centres[near].tolist()]
+            marker.text = name
+            markers.append(marker)
+        return markers
 
     def _proximity_markers(self, checker, stamp, records) -> list:
         """The near pairs: nearest points joined (LINE_LIST, apart pairs), the contact points

@@ -195,6 +195,39 @@ PARAMETERS: Tuple[ParameterSpec, ...] = (
                   'answered invalid before it is decoded and never relayed. The default holds '
                   'about 5000 points of 7 joints with positions, velocities and accelerations',
                   '>= 1024'),
+    ParameterSpec('point_cloud_topics', (),
+                  'sensor_msgs/PointCloud2 topics (relative names, sensor-data QoS) whose points '
+                  'are obstacles cloud/<topic>: the robot\'s own points filtered out, the rest '
+                  'voxelised and checked against every link (docs/point_clouds.md); empty: none',
+                  'each entry a topic name, no two alike'),
+    ParameterSpec('point_cloud_voxel_size', _ENGINE.voxel_size,
+                  'edge (m) of the world-aligned cubes a cloud\'s points are grouped into',
+                  '0.001 to 1'),
+    ParameterSpec('point_cloud_self_filter_padding', _ENGINE.self_filter_padding,
+                  'points within this (m) of the robot\'s collision geometry (or inside its '
+                  'solids, or an attached object) are its own and removed; an object nearer '
+                  'a link than this is not seen', '0 to 1'),
+    ParameterSpec('point_cloud_max_points', _ENGINE.max_points,
+                  'most points taken from one cloud; a larger cloud is subsampled (every k-th '
+                  'point) and counted (points_capped on /diagnostics)', '>= 1'),
+    ParameterSpec('point_cloud_max_range', 0.0,
+                  'points farther than this (m) from the cloud frame\'s origin are dropped; 0: '
+                  'no limit', '>= 0'),
+    ParameterSpec('point_cloud_timeout', 1.0,
+                  'seconds without an accepted cloud on a topic (from the start on) before it '
+                  'times out: /diagnostics ERROR, and point_cloud_on_timeout says what '
+                  'happens; 0 turns the check off', '>= 0'),
+    ParameterSpec('point_cloud_on_timeout', 'contact',
+                  'a topic timed out: "contact" answers every verdict with contact true and a '
+                  'point_cloud_timeout entry until a cloud comes (fail safe, as nav2\'s '
+                  'collision_monitor stops); "ignore" removes its last voxels and goes on',
+                  'contact | ignore'),
+    ParameterSpec('point_cloud_state_window', 1.0,
+                  'seconds of joint states kept to place a cloud with the robot\'s pose at its '
+                  'stamp (interpolated); an older cloud is counted and dropped', '> 0'),
+    ParameterSpec('point_cloud_persistence', 0.0,
+                  'seconds a voxel seen by an earlier cloud of the topic stays an obstacle '
+                  '(unless the robot now covers it); 0: only the latest cloud counts', '>= 0'),
 )
 
 _SPECS = {spec.name: spec for spec in PARAMETERS}
@@ -229,6 +262,12 @@ class NodeSettings:
     :ivar on_rejected_input: one of :data:`FAIL_SAFE_POLICIES`.
     :ivar on_engine_error: one of :data:`FAIL_SAFE_POLICIES`.
     :ivar stale_policy: one of :data:`FAIL_SAFE_POLICIES`.
+    :ivar point_cloud_topics: the PointCloud2 topics, as given.
+    :ivar point_cloud_max_range: metres (``inf``: no limit).
+    :ivar point_cloud_timeout: seconds; 0 disables the timeout.
+    :ivar point_cloud_on_timeout: ``contact`` or ``ignore``.
+    :ivar point_cloud_persistence: seconds.
+    :ivar point_cloud_state_window: seconds of joint states kept for clouds' stamps.
     :ivar values: the parameter values these settings were made from, ``{name: value}``.
     """
 
@@ -255,6 +294,12 @@ class NodeSettings:
     on_rejected_input: str = CONTACT
     on_engine_error: str = CONTACT
     stale_policy: str = CONTACT
+    point_cloud_topics: Tuple[str, ...] = ()
+    point_cloud_max_range: float = math.inf
+    point_cloud_timeout: float = 1.0
+    point_cloud_on_timeout: str = CONTACT
+    point_cloud_persistence: float = 0.0
+    point_cloud_state_window: float = 1.0
     values: Mapping[str, Any] = field(default_factory=dict, compare=False)
 
 
@@ -328,6 +373,18 @@ def _parse_link_padding(entries: List[str]) -> Dict[str, float]:
     return padding
 
 
+def _topics(entries: List[str], name: str) -> Tuple[str, ...]:
+    topics = tuple(entry.strip() for entry in entries)
+    for topic in topics:
+        if not topic:
+            raise ConfigError(f'parameter {name}: an empty entry; give topic names such as '
+                              '"camera/depth/points"')
+        if topics.count(topic) > 1:
+            raise ConfigError(f'parameter {name}: "{printable(topic, 200)}" is listed twice; '
+                              'list each topic once')
+    return topics
+
+
 def _choice(values, name, choices) -> str:
     value = values[name]
     if value not in choices:
@@ -340,6 +397,13 @@ def _non_negative(values, name) -> float:
     value = float(values[name])
     if not (math.isfinite(value) and value >= 0.0):
         raise ConfigError(f'parameter {name}: {value} is not a finite number >= 0')
+    return value
+
+
+def _positive(values, name) -> float:
+    value = float(values[name])
+    if not (math.isfinite(value) and value > 0.0):
+        raise ConfigError(f'parameter {name}: {value} is not a finite number > 0')
     return value
 
 
@@ -382,14 +446,21 @@ def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
         'mesh_containment': bool(merged['mesh_containment']),
         'padding': _non_negative(merged, 'padding'),
         'link_padding': _parse_link_padding(merged['link_padding']),
+        'voxel_size': merged['point_cloud_voxel_size'],
+        'self_filter_padding': merged['point_cloud_self_filter_padding'],
+        'max_points': merged['point_cloud_max_points'],
     }
     try:
         # The engine validates its own settings; doing it now makes a typo fail configuration
         # at start-up even when the robot only arrives later on robot_description.
         CheckerConfig.from_mapping(checker_config)
     except ConfigError as error:
-        raise ConfigError(f'parameter {error}'.replace('parameter setting ', 'parameter ')
+        text = str(error)
+        for key in ('voxel_size', 'self_filter_padding', 'max_points'):
+            text = text.replace(f'setting {key}', f'setting point_cloud_{key}')
+        raise ConfigError(f'parameter {text}'.replace('parameter setting ', 'parameter ')
                           ) from None
+    max_range = _non_negative(merged, 'point_cloud_max_range')
     return NodeSettings(
         urdf_path=_existing_file(merged, 'urdf_path'),
         srdf_path=_existing_file(merged, 'srdf_path'),
@@ -415,6 +486,12 @@ def settings_from_values(values: Mapping[str, Any]) -> NodeSettings:
         on_rejected_input=_choice(merged, 'on_rejected_input', FAIL_SAFE_POLICIES),
         on_engine_error=_choice(merged, 'on_engine_error', FAIL_SAFE_POLICIES),
         stale_policy=_choice(merged, 'stale_policy', FAIL_SAFE_POLICIES),
+        point_cloud_topics=_topics(merged['point_cloud_topics'], 'point_cloud_topics'),
+        point_cloud_max_range=max_range if max_range > 0.0 else math.inf,
+        point_cloud_timeout=_non_negative(merged, 'point_cloud_timeout'),
+        point_cloud_on_timeout=_choice(merged, 'point_cloud_on_timeout', (CONTACT, 'ignore')),
+        point_cloud_persistence=_non_negative(merged, 'point_cloud_persistence'),
+        point_cloud_state_window=_positive(merged, 'point_cloud_state_window'),
         values=merged,
         scene_limits=SceneLimits(
             max_objects=_non_negative_int(merged, 'scene_max_objects'),

@@ -124,6 +124,7 @@ from collision_sensor.ros.motion_stream import MotionStream
 from collision_sensor.ros.node_log import WARNING_PERIOD, NodeLog  # noqa: F401
 from collision_sensor.ros.node_parameters import (
     CONTACT, NodeSettings, declare_node_parameters)
+from collision_sensor.ros.point_cloud_source import PointCloudSource
 from collision_sensor.ros.runtime_parameters import CHECKER_PARAMETERS, RuntimeParameters
 from collision_sensor.ros.scene_source import (  # noqa: F401
     MAX_SCENE_BACKLOG, SCENE_DEPTH, SCENE_QOS, SceneSource)
@@ -182,6 +183,10 @@ class CollisionSensorNode(Node):
         self.motion = MotionStream()     # check_motion: the motion's start
         self.rebuilding = False  # a parameter change waits for its new checker
         self.sources: List[InputSource] = []
+        # Sources timed out with the contact policy that must answer every verdict with their
+        # failure until they recover ({source name: Timeout}; point clouds: joint states keep
+        # coming while a camera is silent).
+        self.failing = {}
         self.joints: Optional[JointStateSource] = None
         self.verdicts = self.zone = self.markers = None
         self._loader: Optional[ModelLoader] = None
@@ -197,7 +202,8 @@ class CollisionSensorNode(Node):
 
     def _make_sources(self) -> List[InputSource]:
         """The node's inputs (see :mod:`collision_sensor.ros.input_source`): one line each."""
-        return [self.joints, SceneSource(self), TrajectorySource(self)]
+        return [self.joints, SceneSource(self), TrajectorySource(self)] + [
+            PointCloudSource(self, topic) for topic in self.settings.point_cloud_topics]
 
     def _configure(self) -> None:
         self.settings: NodeSettings = declare_node_parameters(self)
@@ -429,6 +435,10 @@ class CollisionSensorNode(Node):
         period.check_time_sum += elapsed
         if elapsed > period.check_time_max:
             period.check_time_max = elapsed
+        if self.failing:
+            timeout = next(iter(self.failing.values()))
+            self._publish_failure(header, timeout.kind, timeout.reason, timeout.policy)
+            return
         self.verdicts.publish(header, result, motion)
         if records is not None:
             zone.publish(header, records)
@@ -489,6 +499,14 @@ class CollisionSensorNode(Node):
     def _on_joint_states(self, batch: list, newest_only: bool) -> None:
         """What the checking thread does with ``batch`` (tests call it to stage a backlog)."""
         self.joints.take_batch(batch, newest_only)
+
+    def stamp_seconds(self, header) -> float:
+        """Return ``header.stamp`` in s; a zero stamp (publishers that set none) is now on the
+        node's clock."""
+        stamp = header.stamp
+        if stamp.sec == 0 and stamp.nanosec == 0:
+            return self.get_clock().now().nanoseconds * 1e-9
+        return stamp.sec + stamp.nanosec * 1e-9
 
     def scene_changed(self) -> None:
         """The scene's objects changed: the markers show them again (lock held)."""

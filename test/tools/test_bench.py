@@ -12,7 +12,8 @@ from collision_sensor.tools.bench.scenario_scale import growth_fits
 HEADERS = ('### Scenario 1: random configurations', '### Scenario 2: coherent streams',
            "### Scenario 3: the paper's experiment", '### Scenario 4: scale',
            '### Scenario 5: the parts', '### Scenario 9: the dynamic scene',
-           '### Scenario 10: motion between states')
+           '### Scenario 10: motion between states',
+           '### Scenario 12: point clouds from a depth camera')
 
 
 def _installed(module):

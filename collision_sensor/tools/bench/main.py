@@ -29,7 +29,9 @@ times of scenario 1. Peers are optional: a missing one is reported as missing.
    discretized at 0.01 rad; against python-fcl's ``continuousCollide``; ``update_motion``
    against ``update``); 11. the batches on every core (``check_batch``, ``update_batch``,
    ``check_path`` on one thread against two; every other scenario runs our checker on one
-   thread, as its peers run).
+   thread, as its peers run); 12. point clouds (a 640 x 480
+   depth camera's organised cloud self-filtered, voxelised and checked, against a pipeline of
+   python-fcl, trimesh and numpy).
 """
 import argparse
 import datetime
@@ -45,7 +47,7 @@ from collision_sensor.errors import CollisionSensorError, ConfigError
 from collision_sensor.tools.bench.scenario_report import Section
 from collision_sensor.tools.bench.scenario_settings import Settings
 
-SCENARIOS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11)
+SCENARIOS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12)
 #: The scenarios that take a robot, run on the user's with --urdf.
 ROBOT_SCENARIOS = (1, 2, 8)
 PROG = 'collision_sensor_bench'
@@ -60,9 +62,9 @@ def run_scenarios(numbers: Sequence[int], settings: Settings, log=None,
         scenarios run on it alone.
     """
     from collision_sensor.tools.bench import (
-        scenario_cells, scenario_contact, scenario_dynamic, scenario_large, scenario_motion,
-        scenario_paper, scenario_parts, scenario_proximity, scenario_random, scenario_scale,
-        scenario_streams, scenario_threads)
+        scenario_cells, scenario_clouds, scenario_contact, scenario_dynamic, scenario_large,
+        scenario_motion, scenario_paper, scenario_parts, scenario_proximity, scenario_random,
+        scenario_scale, scenario_streams, scenario_threads)
     log = log or (lambda message: None)
     sections = []
     with tempfile.TemporaryDirectory(prefix='collision_sensor_bench_') as workdir:
@@ -96,8 +98,10 @@ def run_scenarios(numbers: Sequence[int], settings: Settings, log=None,
                 section = scenario_dynamic.run(settings)
             elif number == 10:
                 section = scenario_motion.run(settings, workdir)
-            else:
+            elif number == 11:
                 section = scenario_threads.run(settings)
+            else:
+                section = scenario_clouds.run(settings)
             section.plot['seconds'] = time.perf_counter() - start
             log(f'scenario {number} done in {section.plot["seconds"]:.0f} s')
             sections.append(section)
@@ -234,7 +238,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument('--quick', action='store_true',
                         help='small counts and meshes, for a smoke run (figures are rough)')
     parser.add_argument('--scenario', type=int, action='append', choices=SCENARIOS,
-                        metavar='N', help='run scenario N (1-10); repeatable; default: all (with '
+                        metavar='N', help='run scenario N (1-12); repeatable; default: all (with '
                                           '--urdf: 1, 2 and 8)')
     robot = parser.add_argument_group(
         'your robot', 'run the robot scenarios (1 random configurations, 2 coherent streams, '

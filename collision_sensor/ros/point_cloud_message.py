@@ -1,0 +1,132 @@
+"""A ``sensor_msgs/PointCloud2``'s x, y, z as the engine reads them (issue 29, items 2 and 4).
+
+Pure numpy, no rclpy: the message is read through its fields (``height``, ``width``,
+``fields``, ``is_bigendian``, ``point_step``, ``row_step``, ``data``), so this module is tested
+without ROS and the node's point cloud source only hands messages over. Everything in a
+message is untrusted: each check below names what is wrong with the message and the fix, with
+the message's own text escaped (:mod:`collision_sensor.untrusted_text`), and nothing is
+allocated in proportion to what the message *claims* (only to the bytes it holds).
+
+Accepted: x, y and z fields of one ``FLOAT32`` or ``FLOAT64`` element each (count 1), inside
+``point_step``; ``row_step >= width * point_step``; ``len(data) == height * row_step``; either
+byte order. The points are returned as an (n, 3) view of ``data`` when the three fields are
+one contiguous triple of one type and rows are not padded (the usual case: no copy), else as
+a float64 copy. Rows with NaN or inf (an organised cloud's holes) are left for the engine to
+drop and count.
+"""
+from typing import NamedTuple
+
+import numpy as np
+
+from collision_sensor.errors import PointCloudError
+from collision_sensor.untrusted_text import printable, quoted
+
+#: ``sensor_msgs/PointField`` datatypes (the message's constants, without importing it).
+INT8, UINT8, INT16, UINT16, INT32, UINT32, FLOAT32, FLOAT64 = range(1, 9)
+_FLOAT_TYPES = {FLOAT32: 'f4', FLOAT64: 'f8'}
+_TYPE_NAMES = {INT8: 'INT8', UINT8: 'UINT8', INT16: 'INT16', UINT16: 'UINT16', INT32: 'INT32',
+               UINT32: 'UINT32', FLOAT32: 'FLOAT32', FLOAT64: 'FLOAT64'}
+#: Fields listed in a message, at most (a message may claim any number).
+MAX_FIELDS = 64
+
+
+class CloudMessageError(PointCloudError):
+    """A PointCloud2 whose layout cannot be read as points; the message says why and the fix.
+
+    :ivar kind: a short key for throttling and counting (``empty``, ``fields``, ``layout``).
+    """
+
+    def __init__(self, kind: str, message: str):
+        super().__init__(message)
+        self.kind = kind
+
+
+class CloudRows(NamedTuple):
+    """A message's points.
+
+    :ivar points: (n, 3) float32 or float64, x y z per row (a view of the message's data, or a
+        copy), n = height * width.
+    :ivar frame: ``header.frame_id``, escaped for logs is the caller's business.
+    """
+
+    points: np.ndarray
+    frame: str
+
+
+def _field_layout(msg, topic: str):
+    """Return ``{axis: (offset, numpy type)}`` of x, y, z."""
+    fields = list(msg.fields[:MAX_FIELDS + 1])
+    if len(fields) > MAX_FIELDS:
+        raise CloudMessageError('fields', f'{topic}: more than {MAX_FIELDS} fields; publish '
+                                'a cloud with x, y and z FLOAT32 fields')
+    names = [f.name for f in fields]
+    layout = {}
+    for axis in 'xyz':
+        found = [f for f in fields if f.name == axis]
+        if not found:
+            raise CloudMessageError(
+                'fields', f'{topic}: no "{axis}" field (fields: '
+                f'{", ".join(quoted(n, 40) for n in names) or "none"}); publish a cloud with '
+                'x, y and z fields (e.g. depth_image_proc/point_cloud_xyz)')
+        if len(found) > 1:
+            raise CloudMessageError('fields', f'{topic}: field "{axis}" is listed '
+                                    f'{len(found)} times; list each of x, y, z once')
+        f = found[0]
+        kind = _FLOAT_TYPES.get(f.datatype)
+        if kind is None:
+            type_name = _TYPE_NAMES.get(f.datatype, f'unknown ({printable(f.datatype, 20)})')
+            raise CloudMessageError(
+                'fields', f'{topic}: field "{axis}" is {type_name}; x, y and z must be '
+                'FLOAT32 or FLOAT64 (metres)')
+        if f.count != 1:
+            raise CloudMessageError('fields', f'{topic}: field "{axis}" has count '
+                                    f'{printable(f.count, 20)}; x, y and z must have count 1')
+        size = int(kind[1])
+        if f.offset < 0 or f.offset + size > msg.point_step:
+            raise CloudMessageError(
+                'layout', f'{topic}: field "{axis}" (offset {f.offset}, {size} bytes) does not '
+                f'fit in point_step {msg.point_step}; fix point_step or the field\'s offset')
+        layout[axis] = (int(f.offset), ('>' if msg.is_bigendian else '<') + kind)
+    return layout
+
+
+def cloud_rows(msg, topic: str = 'point cloud') -> CloudRows:
+    """Return the points of PointCloud2 ``msg``.
+
+    :param topic: names the input in messages (escaped here).
+    :raises CloudMessageError: an empty cloud, missing or non-float x/y/z fields, or a layout
+        (``point_step``, ``row_step``, data size) that does not add up; the message names the
+        field or the step and the fix.
+    """
+    topic = printable(topic, 200)
+    height, width = int(msg.height), int(msg.width)
+    point_step, row_step = int(msg.point_step), int(msg.row_step)
+    data = msg.data
+    size = len(data)
+    if height == 0 or width == 0 or size == 0:
+        raise CloudMessageError('empty', f'{topic}: empty cloud (height {height}, width {width}, '
+                                f'{size} bytes of data); publish clouds with points')
+    layout = _field_layout(msg, topic)
+    if point_step <= 0 or row_step < width * point_step:
+        raise CloudMessageError(
+            'layout', f'{topic}: row_step {row_step} is less than width {width} x point_step '
+            f'{point_step}; set row_step = width * point_step (plus any row padding)')
+    if size != height * row_step:
+        raise CloudMessageError(
+            'layout', f'{topic}: {size} bytes of data, but height {height} x row_step '
+            f'{row_step} = {height * row_step}; publish data of height * row_step bytes')
+    raw = np.frombuffer(data, dtype=np.uint8)
+    (ox, tx), (oy, ty), (oz, tz) = layout['x'], layout['y'], layout['z']
+    item = int(tx[-1])
+    rows = height * width
+    if tx == ty == tz and oy == ox + item and oz == oy + item and row_step == width * point_step:
+        # One strided view: row r's x at r * point_step + ox.
+        points = np.ndarray((rows, 3), dtype=np.dtype(tx), buffer=raw, offset=ox,
+                            strides=(point_step, item))
+        return CloudRows(points, str(msg.header.frame_id))
+    points = np.empty((rows, 3))
+    for k, (offset, kind) in enumerate((layout['x'], layout['y'], layout['z'])):
+        column = np.ndarray((height, width), dtype=np.dtype(kind), buffer=raw, offset=offset,
+                            strides=(row_step, point_step))
+        points[:, k] = column.reshape(-1)
+    return CloudRows(points, str(msg.header.frame_id))

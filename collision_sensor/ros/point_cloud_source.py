@@ -1,0 +1,334 @@
+"""The point cloud inputs: ``sensor_msgs/PointCloud2`` topics as obstacles (issue 29, item 2).
+
+One :class:`PointCloudSource` per entry of ``point_cloud_topics`` (sensor-data QoS); the source's
+name is the topic as given, its obstacle ``cloud/<topic>`` (see
+:mod:`collision_sensor.engine.point_clouds` for what a cloud becomes and what it can tell).
+
+Each cloud is handled on a thread of the source's own, newest first (clouds that arrive while
+one is filtered are superseded and counted): read (:mod:`~collision_sensor.ros.point_cloud_message`),
+its ``header.frame_id`` checked (a link of the robot or its world frame: there is no tf2, camera
+frames are links of the URDF), filtered and voxelised without the node's lock, then swapped in
+under the lock and answered at once by a verdict, like a scene change. The points kept are
+published on ``~/filtered_points`` (world frame) when someone listens. A cloud that cannot be
+taken (any case of issue 29 item 4: empty, every point NaN, fields missing or not float,
+inconsistent steps, an unknown frame) is counted, named in one throttled log line and in the
+source's /diagnostics status, and changes nothing: the last good cloud stays the obstacle.
+
+The robot's pose used by the self-filter is the one at the cloud's ``header.stamp``: the
+joint state source keeps the complete states of the last ``point_cloud_state_window`` seconds
+(:mod:`~collision_sensor.ros.joint_state_window`) and interpolates between the two around the
+stamp; a cloud stamped after the newest joint state takes the newest; a cloud older than the
+window is counted (``clouds_too_old_total``) and dropped, not filtered with the wrong pose.
+Zero stamps are the node's clock at arrival.
+
+Timeout: no cloud accepted for ``point_cloud_timeout`` s (from the start on: a camera that never
+publishes times out too) is an episode: with ``point_cloud_on_timeout: contact`` (the default,
+as nav2's collision_monitor stops when a source goes quiet) every verdict is a failure entry
+``point_cloud_timeout`` with contact true until a cloud comes; with ``ignore`` the cloud's last
+voxels are removed (stale points never linger) and verdicts go on without it. /diagnostics says
+ERROR either way.
+"""
+import threading
+import time
+from typing import Optional
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import PointCloud2, PointField
+from std_msgs.msg import Header
+
+from collision_sensor.engine.point_clouds import NO_STATS
+from collision_sensor.errors import JointStateError, PointCloudError
+from collision_sensor.ros.input_source import InputSource, Timeout
+from collision_sensor.ros.node_parameters import CONTACT
+from collision_sensor.ros.point_cloud_message import CloudMessageError, cloud_rows
+from collision_sensor.ros.work_queue import NewestFirstWorker
+from collision_sensor.untrusted_text import printable, quoted
+
+#: The ``colliding_pairs`` entry of a timed-out cloud source.
+POINT_CLOUD_TIMEOUT = 'point_cloud_timeout'
+#: The values of ``point_cloud_on_timeout``.
+IGNORE = 'ignore'
+ON_TIMEOUT_POLICIES = (CONTACT, IGNORE)
+#: Clouds that may wait for the source's thread; more are dropped and counted (each may hold
+#: megabytes).
+MAX_CLOUD_BACKLOG = 4
+#: ``~/filtered_points``: x, y, z float32.
+_XYZ_FIELDS = [PointField(name=axis, offset=4 * k, datatype=PointField.FLOAT32, count=1)
+               for k, axis in enumerate('xyz')]
+
+
+class PointCloudSource(InputSource):
+    """One PointCloud2 topic: subscription, reading, the self-filter's hand-over, the timeout,
+    ``~/filtered_points`` and its /diagnostics status.
+
+    :param topic: the topic as given in ``point_cloud_topics`` (also the source's name).
+    """
+
+    def __init__(self, host, topic: str):
+        super().__init__(host)
+        self.topic = topic
+        self.name = f'point cloud {printable(topic, 200)}'
+        self._worker: Optional[NewestFirstWorker] = None
+        self._filtered = None
+        # Held from preparing a cloud until it is committed, by the source's thread and by a
+        # new checker's preparation.
+        self._changing = threading.Lock()
+        self._last_good = None      # (points, frame or None, positions): for a new checker
+        self.stats = NO_STATS
+        self.rejection = ''
+        self.counts = {'received': 0, 'accepted': 0, 'rejected': 0, 'dropped': 0,
+                       'superseded': 0, 'capped': 0, 'timeouts': 0, 'too_old': 0}
+        self._period_accepted = 0
+        self._period_start = time.monotonic()
+        self.started: Optional[float] = None
+        self.last_accepted: Optional[float] = None
+        self.timed_out_now = False
+
+    # -- life cycle ---------------------------------------------------------------------------
+
+    def start(self) -> None:
+        host = self.host
+        self.started = time.monotonic()
+        self._worker = NewestFirstWorker(self._apply_batch, 'point cloud', 1)
+        self._filtered = host.create_publisher(PointCloud2, '~/filtered_points',
+                                               qos_profile_sensor_data)
+        host.create_subscription(PointCloud2, self.topic, self._on_cloud,
+                                 qos_profile_sensor_data,
+                                 callback_group=MutuallyExclusiveCallbackGroup())
+
+    def close(self) -> None:
+        if self._worker is not None:
+            self._worker.stop()
+            self._worker = None
+
+    def prepare_model(self, checker, stack):
+        """Filter the last good cloud again for ``checker`` (held until the swap)."""
+        stack.enter_context(self._changing)
+        if self._last_good is None:
+            return None
+        points, frame, positions = self._last_good
+        settings = self.host.settings
+        try:
+            prepared = checker.prepare_points(
+                self.topic, points, frame, positions=positions,
+                persistence=settings.point_cloud_persistence,
+                max_range=settings.point_cloud_max_range)
+        except (PointCloudError, JointStateError) as error:
+            reason = printable(error, 500)
+
+            def drop(notes: list) -> None:
+                self._last_good = None
+                notes.append(('error', None, f'{self.name}: the last cloud does not fit the new '
+                              f'robot model and is dropped: {reason}'))
+            return drop
+
+        def commit(notes: list) -> None:
+            checker.commit_points(prepared)
+        return commit
+
+    # -- the executor's thread ----------------------------------------------------------------
+
+    def _on_cloud(self, msg: PointCloud2) -> None:
+        """Hand a cloud to the source's thread (nothing slow here)."""
+        if self._worker.backlog() >= MAX_CLOUD_BACKLOG:
+            with self.host.lock:
+                self.counts['dropped'] += 1
+            self.host.log.warn(f'cloud_dropped {self.topic}', f'{self.name}: cloud dropped, '
+                               f'{MAX_CLOUD_BACKLOG} wait already (clouds_dropped_total)')
+            return
+        self._worker.put(msg)
+
+    # -- the source's thread ------------------------------------------------------------------
+
+    def _apply_batch(self, batch: list, newest_only: bool) -> None:
+        host = self.host
+        notes = []
+        with host.lock:
+            self.counts['received'] += len(batch)
+            self.counts['superseded'] += len(batch) - 1
+        try:
+            self._apply(batch[-1], notes)
+        except Exception as error:  # noqa: B902 - one cloud must never stop the node
+            if not host.context.ok():
+                return
+            notes.append(('error', None, f'{self.name}: cloud skipped after an internal error: '
+                          f'{printable(repr(error), 300)}'))
+        host.log.write(notes)
+
+    def _apply(self, msg: PointCloud2, notes: list) -> None:
+        host = self.host
+        try:
+            rows = cloud_rows(msg, self.topic)
+        except CloudMessageError as error:
+            self._reject(error.kind, str(error), notes)
+            return
+        stamp = host.stamp_seconds(msg.header)
+        with host.lock:
+            checker = host.checker
+            positions = host.joints.positions_at(stamp)
+            if isinstance(positions, np.ndarray):
+                positions = positions.copy()
+            window = host.joints.window
+            oldest, newest = window.oldest, window.newest
+        frame = rows.frame
+        if frame in checker.world_frames:
+            frame = None
+        elif frame not in checker.kinematics.link_names:
+            worlds = ' or '.join(quoted(name) for name in sorted(checker.world_frames))
+            self._reject('frame', f'{self.name}: header.frame_id {quoted(rows.frame, 100)} is no '
+                         f'link of the robot and not its world frame ({worlds}); publish the '
+                         'cloud in a frame of the URDF (add the camera\'s optical frame to the '
+                         'URDF as a link) or in the world frame (there is no tf2 here)', notes)
+            return
+        if isinstance(positions, str):
+            self._reject('old', f'{self.name}: stamped {newest - stamp:.3f} s before the newest '
+                         f'joint state, older than the states kept (point_cloud_state_window '
+                         f'{host.settings.point_cloud_state_window:g} s, oldest '
+                         f'{newest - oldest:.3f} s back): dropped, not filtered with a wrong '
+                         'pose; raise the window or publish clouds with less delay', notes)
+            return
+        if positions is None:
+            self._reject('waiting', f'{self.name}: no complete joint state yet, so the robot\'s '
+                         'own points cannot be filtered out; the cloud is dropped', notes)
+            return
+        settings = host.settings
+        listening = self._filtered.get_subscription_count() > 0
+        with self._changing:
+            if host.checker is not checker:
+                return      # a new checker came meanwhile; the next cloud goes to it
+            try:
+                prepared = checker.prepare_points(
+                    self.topic, rows.points, frame, positions=positions,
+                    persistence=settings.point_cloud_persistence,
+                    max_range=settings.point_cloud_max_range, keep_points=listening)
+            except (PointCloudError, JointStateError) as error:
+                self._reject('engine', f'{self.name}: {printable(error, 500)}', notes)
+                return
+            stats = prepared.stats
+            if stats.invalid == stats.points:
+                self._reject('invalid', f'{self.name}: every one of its {stats.points} points '
+                             'has a NaN or infinite coordinate; the last good cloud stays the '
+                             'obstacle', notes)
+                return
+            with host.lock:
+                checker.commit_points(prepared)
+                self._last_good = (rows.points, frame, positions)
+                self.stats = stats
+                self.rejection = ''
+                self.counts['accepted'] += 1
+                self.counts['capped'] += stats.capped > 0
+                self._period_accepted += 1
+                self.last_accepted = time.monotonic()
+                if self.timed_out_now:
+                    self.timed_out_now = False
+                    host.failing.pop(self.name, None)
+                    notes.append(('info', None, f'{self.name}: clouds resumed'))
+                host.scene_changed()
+                host.answer_current(notes)
+        if stats.capped:
+            notes.append(('warning', f'cloud_capped {self.topic}', f'{self.name}: '
+                          f'{stats.points} points, more than point_cloud_max_points: every '
+                          f'k-th taken, {stats.capped} left out (clouds_capped_total)'))
+        if listening and prepared.kept is not None:
+            self._publish_filtered(prepared.kept, msg.header.stamp)
+
+    def _reject(self, kind: str, reason: str, notes: list) -> None:
+        """Count a cloud that cannot be taken and log it (throttled); nothing else changes."""
+        text = printable(reason, 1000)
+        with self.host.lock:
+            self.counts['rejected'] += 1
+            self.counts['too_old'] += kind == 'old'
+            self.rejection = text
+        notes.append(('warning', f'cloud_{kind} {self.topic}',
+                      f'point cloud rejected, the last good one stays: {text}'))
+
+    def _publish_filtered(self, kept: np.ndarray, stamp) -> None:
+        kept = np.ascontiguousarray(kept, dtype=np.float32)
+        self._filtered.publish(PointCloud2(
+            header=Header(stamp=stamp, frame_id=self.host.root_frame), height=1,
+            width=len(kept), fields=_XYZ_FIELDS, is_bigendian=False, point_step=12,
+            row_step=12 * len(kept), data=kept.tobytes(), is_dense=True))
+
+    # -- timeout ------------------------------------------------------------------------------
+
+    def timeout_due(self, now: float) -> bool:
+        timeout = self.host.settings.point_cloud_timeout
+        if timeout <= 0.0 or self.timed_out_now or self.started is None:
+            return False
+        last = self.last_accepted if self.last_accepted is not None else self.started
+        return now - last > timeout
+
+    def poll_timeout(self, now: float, notes: list) -> Optional[Timeout]:
+        if not self.timeout_due(now):
+            return None
+        host, settings = self.host, self.host.settings
+        self.timed_out_now = True
+        self.counts['timeouts'] += 1
+        since = 'since the start' if self.last_accepted is None else \
+            f'for {now - self.last_accepted:.1f} s'
+        policy = settings.point_cloud_on_timeout
+        reason = (f'{self.name}: no cloud accepted {since} (point_cloud_timeout '
+                  f'{settings.point_cloud_timeout:g} s, point_cloud_on_timeout {policy})')
+        notes.append(('warning', f'cloud_timeout {self.topic}', reason))
+        if policy == CONTACT:
+            timeout = Timeout(POINT_CLOUD_TIMEOUT, reason, CONTACT)
+            host.failing[self.name] = timeout
+            return timeout
+        checker = host.checker
+        if checker is not None and self.topic in checker.point_cloud_sources:
+            checker.clear_points(self.topic)
+            self._last_good = None
+            host.scene_changed()
+            host.answer_current(notes)
+        return None
+
+    def timed_out(self) -> bool:
+        return self.timed_out_now
+
+    # -- diagnostics --------------------------------------------------------------------------
+
+    def status(self, now: float, notes: list) -> DiagnosticStatus:
+        """This source's status on /diagnostics (lock held)."""
+        host, stats, counts = self.host, self.stats, self.counts
+        elapsed = max(now - self._period_start, 1e-9)
+        rate = self._period_accepted / elapsed
+        self._period_accepted, self._period_start = 0, now
+        age = '' if self.last_accepted is None else f'{now - self.last_accepted:.3f}'
+        level, message = DiagnosticStatus.OK, f'{stats.voxels} voxels from {stats.points} points'
+        if self.rejection:
+            level, message = DiagnosticStatus.WARN, f'last cloud rejected: {self.rejection}'
+        if self.timed_out_now:
+            level = DiagnosticStatus.ERROR
+            message = (f'timed out: no cloud within point_cloud_timeout '
+                       f'({host.settings.point_cloud_on_timeout})')
+        values = {
+            'topic': printable(self.topic, 200),
+            'rate_hz': f'{rate:.2f}',
+            'points_in': str(stats.points),
+            'points_invalid': str(stats.invalid),
+            'points_capped': str(stats.capped),
+            'points_out_of_range': str(stats.out_of_range),
+            'points_self_filtered': str(stats.self_filtered),
+            'points_kept': str(stats.kept_points),
+            'voxels_kept': str(stats.voxels),
+            'voxels_persisted': str(stats.persisted),
+            'age_s': age,
+            'timed_out': str(self.timed_out_now).lower(),
+            'timeouts_total': str(counts['timeouts']),
+            'clouds_received_total': str(counts['received']),
+            'clouds_accepted_total': str(counts['accepted']),
+            'clouds_rejected_total': str(counts['rejected']),
+            'clouds_superseded_total': str(counts['superseded']),
+            'clouds_dropped_total': str(counts['dropped']),
+            'clouds_capped_total': str(counts['capped']),
+            'clouds_too_old_total': str(counts['too_old']),
+            'last_rejection': self.rejection,
+        }
+        return DiagnosticStatus(
+            level=level, name=f'{host.get_fully_qualified_name().lstrip("/")}: {self.name}',
+            message=printable(message, 1000), hardware_id=printable(host.root_frame),
+            values=[KeyValue(key=key, value=value) for key, value in values.items()])
+

@@ -1,0 +1,514 @@
+// The self-filter and the voxelisation of a point cloud (cloud_filter.hpp).
+#include "cloud_filter.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "containment.hpp"
+#include "motion.hpp"
+#include "traversal.hpp"
+#include "triangle_box.hpp"
+
+namespace collision_sensor {
+
+namespace {
+
+constexpr uint64_t EMPTY_KEY = ~uint64_t(0);
+// A voxel's class: its points kept untested, removed untested, or tested one by one.
+constexpr uint8_t KEEP = 0, DROP = 1, MIXED = 2;
+// The hash table's least capacity (slots; a power of 2).
+constexpr int64_t MIN_TABLE = 4096;
+
+uint64_t pack_key(int64_t i, int64_t j, int64_t k) {
+    return uint64_t(i + VOXEL_COORD_LIMIT) | uint64_t(j + VOXEL_COORD_LIMIT) << 21 |
+           uint64_t(k + VOXEL_COORD_LIMIT) << 42;
+}
+
+CS_ALWAYS_INLINE int64_t table_index(uint64_t key, int64_t mask) {
+    return int64_t((key * 0x9E3779B97F4A7C15ULL) >> 24) & mask;
+}
+
+// Row r's x, y, z.
+CS_ALWAYS_INLINE bool read_row(const CloudPoints& c, int64_t r, double* x) {
+    const char* row = c.data + r * c.row_stride;
+    if (c.float32) {
+        float v[3];
+        for (int k = 0; k < 3; ++k) std::memcpy(&v[k], row + k * c.column_stride, sizeof(float));
+        x[0] = v[0];
+        x[1] = v[1];
+        x[2] = v[2];
+    } else {
+        for (int k = 0; k < 3; ++k)
+            std::memcpy(&x[k], row + k * c.column_stride, sizeof(double));
+    }
+    return std::isfinite(x[0]) && std::isfinite(x[1]) && std::isfinite(x[2]);
+}
+
+// x in the frame of pose (12 numbers: R row-major, t): R x + t.
+CS_ALWAYS_INLINE void apply(const double* P, const double* x, double* y) {
+    for (int i = 0; i < 3; ++i)
+        y[i] = P[3 * i] * x[0] + P[3 * i + 1] * x[1] + P[3 * i + 2] * x[2] + P[9 + i];
+}
+
+// floor(g) for |g| < 2^62, without a library call (std::floor is one without SSE4.1).
+CS_ALWAYS_INLINE int64_t floor_to_int(double g) {
+    const int64_t i = int64_t(g);
+    return i - (double(i) > g ? 1 : 0);
+}
+
+int64_t next_power_of_two(int64_t n) {
+    int64_t p = 1;
+    while (p < n) p <<= 1;
+    return p;
+}
+
+}  // namespace
+
+void CloudBuilder::rehash(int64_t capacity) {
+    keys_.assign(capacity, EMPTY_KEY);
+    slots_.assign(capacity, -1);
+    mask_ = capacity - 1;
+    for (int64_t v = 0; v < n_voxels_; ++v) {
+        const uint64_t key = pack_key(ijk_[3 * v], ijk_[3 * v + 1], ijk_[3 * v + 2]);
+        int64_t at = table_index(key, mask_);
+        while (keys_[at] != EMPTY_KEY) at = (at + 1) & mask_;
+        keys_[at] = key;
+        slots_[at] = int32_t(v);
+    }
+}
+
+// The voxel of key, a new one (no point yet) if it has none.
+int64_t CloudBuilder::slot_of(uint64_t key) {
+    int64_t at = table_index(key, mask_);
+    while (keys_[at] != EMPTY_KEY) {
+        if (keys_[at] == key) return slots_[at];
+        at = (at + 1) & mask_;
+    }
+    const int64_t v = n_voxels_++;
+    keys_[at] = key;
+    slots_[at] = int32_t(v);
+    const int64_t L = VOXEL_COORD_LIMIT;
+    ijk_.push_back(int32_t(int64_t(key & 0x1fffff) - L));
+    ijk_.push_back(int32_t(int64_t((key >> 21) & 0x1fffff) - L));
+    ijk_.push_back(int32_t(int64_t((key >> 42) & 0x1fffff) - L));
+    lo_.insert(lo_.end(), 3, INF);
+    hi_.insert(hi_.end(), 3, -INF);
+    count_.push_back(0);
+    near_count_.push_back(0);
+    old_seen_.push_back(-INF);
+    if (2 * n_voxels_ > mask_ + 1) rehash(2 * (mask_ + 1));
+    return v;
+}
+
+// Every (voxel, body, triangle or solid) whose tree node's box, grown by r, may come near the
+// voxel's points' box: the robot's trees against the filter's hierarchy (leaves: one voxel
+// each), both as world-aligned boxes (a node's oriented box at the cloud's state, its world
+// box grown by r: a broad phase; classify measures the distances).
+void CloudBuilder::collect_candidates(const Model& m, const double* T_links, double r) {
+    candidates_.clear();
+    const Forest& f = m.forest;
+    const double* tree_boxes = filter_boxes_.data();
+    const int64_t* tree_nodes = filter_nodes_.data();
+    auto fbox = [&](int64_t n) { return tree_boxes + BOX_WIDTH * n; };
+    auto fnode = [&](int64_t n) { return tree_nodes + NODE_WIDTH * n; };
+    node_world_.resize(6 * m.n_nodes);
+    node_stamp_.resize(m.n_nodes, 0);
+    ++stamp_;
+    const double* root = fbox(0);
+    // A robot node's world box (centre, half extents), grown by r.
+    auto world_box = [&](int64_t b, int64_t n) {
+        double* out = node_world_.data() + 6 * n;
+        if (node_stamp_[n] == stamp_) return out;
+        node_stamp_[n] = stamp_;
+        const double* T = T_links + 16 * b;
+        const double* box = f.box(n);
+        for (int i = 0; i < 3; ++i) {
+            double c = T[4 * i + 3], e = r;
+            for (int k = 0; k < 3; ++k) {
+                c += T[4 * i + k] * box[BOX_CENTER + k];
+                const double axis = T[4 * i] * box[BOX_AXES + k] +
+                                    T[4 * i + 1] * box[BOX_AXES + 3 + k] +
+                                    T[4 * i + 2] * box[BOX_AXES + 6 + k];
+                e += std::fabs(axis) * box[BOX_HALF + k];
+            }
+            out[i] = c;
+            out[3 + i] = e * (1.0 + 1e-9) + 1e-9 * std::fabs(c);  // rounding: err wide
+        }
+        return out;
+    };
+    auto overlap = [](const double* A, const double* B) {  // world box vs a box row
+        return std::fabs(A[0] - B[0]) <= A[3] + B[BOX_HALF] &&
+               std::fabs(A[1] - B[1]) <= A[4] + B[BOX_HALF + 1] &&
+               std::fabs(A[2] - B[2]) <= A[5] + B[BOX_HALF + 2];
+    };
+    for (int64_t b = 0; b < m.n_links; ++b) {
+        for (int64_t e = m.elem_start[b]; e < m.elem_end[b]; ++e) {
+            if (!overlap(world_box(b, m.roots[e]), root)) continue;
+            const bool solid = m.elem_solid[SOLID_WIDTH * e] != SOLID_NONE;
+            // The element's triangles against the voxels (its solid, with its root box).
+            for (int pass = 0; pass < (solid ? 2 : 1); ++pass) {
+                stack_.clear();
+                stack_.push_back(m.roots[e]);
+                stack_.push_back(0);
+                while (!stack_.empty()) {
+                    const int64_t nb = stack_.back();
+                    stack_.pop_back();
+                    const int64_t na = stack_.back();
+                    stack_.pop_back();
+                    const double* A = world_box(b, na);
+                    const double* B = fbox(nb);
+                    if (!overlap(A, B)) continue;
+                    const int64_t* node_a = f.node(na);
+                    const int64_t* node_b = fnode(nb);
+                    const bool leaf_a = pass == 1 || node_a[NODE_LEFT] < 0;
+                    const bool leaf_b = node_b[NODE_LEFT] < 0;
+                    if (leaf_a && leaf_b) {
+                        const int64_t voxel = order_[node_b[NODE_FIRST]];
+                        if (pass == 1) {
+                            candidates_.push_back({voxel, b, -1 - e});
+                        } else {
+                            for (int64_t t = node_a[NODE_FIRST];
+                                 t < node_a[NODE_FIRST] + node_a[NODE_COUNT]; ++t)
+                                candidates_.push_back({voxel, b, t});
+                        }
+                        continue;
+                    }
+                    const double ra = A[3] + A[4] + A[5];
+                    const double rb = B[BOX_HALF] + B[BOX_HALF + 1] + B[BOX_HALF + 2];
+                    if (!leaf_a && (leaf_b || ra >= rb)) {
+                        stack_.insert(stack_.end(),
+                                      {node_a[NODE_LEFT], nb, node_a[NODE_RIGHT], nb});
+                    } else {
+                        stack_.insert(stack_.end(),
+                                      {na, node_b[NODE_LEFT], na, node_b[NODE_RIGHT]});
+                    }
+                }
+            }
+        }
+    }
+    // By voxel (counting sort).
+    start_.assign(n_voxels_ + 1, 0);
+    for (const Candidate& c : candidates_) ++start_[c.voxel + 1];
+    for (int64_t v = 0; v < n_voxels_; ++v) start_[v + 1] += start_[v];
+    sorted_.resize(candidates_.size());
+    std::vector<int64_t>& next = stack_;
+    next.assign(start_.begin(), start_.end() - 1);
+    for (const Candidate& c : candidates_) sorted_[next[c.voxel]++] = c;
+}
+
+// Voxel v's class (KEEP, DROP, MIXED) from its candidates, with its nearby list (distances
+// from its points' box centre, nearest first) for MIXED.
+int CloudBuilder::classify(const Model& m, int64_t v, double r) {
+    const double* lo = lo_.data() + 3 * v;
+    const double* hi = hi_.data() + 3 * v;
+    const double c[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
+    const double h0 = 0.5 * (hi[0] - lo[0]), h1 = 0.5 * (hi[1] - lo[1]),
+                 h2 = 0.5 * (hi[2] - lo[2]);
+    const double h = std::sqrt(h0 * h0 + h1 * h1 + h2 * h2);
+    const int64_t first = near_.size();
+    near_start_[v] = first;
+    bool far = true, closed_mesh = false;
+    for (int64_t k = start_[v]; k < start_[v + 1]; ++k) {
+        const Candidate& cand = sorted_[k];
+        double x[3], y[3];
+        apply(body_pose_.data() + 12 * cand.body, c, x);
+        double d;
+        if (cand.item >= 0) {
+            d = std::sqrt(triangle_box_detail::closest_on_triangle(
+                x, triangle_at(m.forest.tris, cand.item), y));
+        } else {
+            const double* s = m.elem_solid + SOLID_WIDTH * (-1 - cand.item);
+            if (int(s[0]) == SOLID_CLOSED_MESH) {
+                closed_mesh = true;
+                near_.push_back({INF, cand.body, cand.item});
+                continue;
+            }
+            d = solid_distance(s, x);
+        }
+        if (d + h <= r) {
+            near_.resize(first);
+            return DROP;
+        }
+        far &= d - h > r;
+        near_.push_back({d, cand.body, cand.item});
+    }
+    if (far) {
+        // No surface comes within r of the points' box: every point is on the same side of
+        // each closed mesh; the centre tells which.
+        bool inside = false;
+        if (closed_mesh) {
+            for (int64_t k = first; k < int64_t(near_.size()) && !inside; ++k) {
+                if (near_[k].distance < INF) continue;
+                double x[3];
+                apply(body_pose_.data() + 12 * near_[k].body, c, x);
+                inside = inside_solid(m, -1 - near_[k].item, x);
+            }
+        }
+        near_.resize(first);
+        return inside ? DROP : KEEP;
+    }
+    std::sort(near_.begin() + first, near_.end(),
+              [](const Nearby& a, const Nearby& b) { return a.distance < b.distance; });
+    return MIXED;
+}
+
+// True iff point x (world) of a MIXED voxel is removed: within r of a nearby triangle or
+// solid, or inside a nearby closed mesh. near: the voxel's list, distances from centre.
+bool CloudBuilder::removed(const Model& m, const double* x, double r, const Nearby* near,
+                           int64_t n_near, const double* centre) {
+    const double dx = x[0] - centre[0], dy = x[1] - centre[1], dz = x[2] - centre[2];
+    const double offset = std::sqrt(dx * dx + dy * dy + dz * dz);
+    const double r2 = r * r;
+    for (int64_t k = 0; k < n_near; ++k) {
+        const Nearby& n = near[k];
+        if (n.distance == INF) break;  // closed meshes last (sorted)
+        // |x - c| bounds how much nearer than the centre x can be (distance is 1-Lipschitz).
+        if (n.distance - offset > r) break;
+        double xb[3], y[3];
+        apply(body_pose_.data() + 12 * n.body, x, xb);
+        if (n.item >= 0) {
+            if (triangle_box_detail::closest_on_triangle(xb, triangle_at(m.forest.tris, n.item),
+                                                         y) <= r2)
+                return true;
+        } else if (solid_distance(m.elem_solid + SOLID_WIDTH * (-1 - n.item), xb) <= r) {
+            return true;
+        }
+    }
+    for (int64_t k = n_near - 1; k >= 0 && near[k].distance == INF; --k) {
+        double xb[3];
+        apply(body_pose_.data() + 12 * near[k].body, x, xb);
+        if (inside_solid(m, -1 - near[k].item, xb)) return true;
+    }
+    return false;
+}
+
+CloudStats CloudBuilder::build(const Model& m, const double* T_links, const CloudPoints& pts,
+                               const CloudSettings& s, const VoxelGrid& previous,
+                               VoxelGrid& out, std::vector<float>* kept) {
+    CloudStats stats;
+    stats.points = pts.rows;
+    const int64_t step = pts.rows > s.max_points ? (pts.rows + s.max_points - 1) / s.max_points
+                                                 : 1;
+    const int64_t taken = pts.rows > 0 ? (pts.rows + step - 1) / step : 0;
+    stats.capped = pts.rows - taken;
+    const double size = s.voxel_size, inv = 1.0 / size, r = s.filter_padding;
+    const double range2 = s.max_range * s.max_range;
+
+    // World -> body poses at the cloud's state, and the frame's pose.
+    body_pose_.resize(12 * m.n_links);
+    for (int64_t b = 0; b < m.n_links; ++b) {
+        const double* T = T_links + 16 * b;
+        double* P = body_pose_.data() + 12 * b;
+        for (int i = 0; i < 3; ++i) {
+            for (int j = 0; j < 3; ++j) P[3 * i + j] = T[4 * j + i];
+            P[9 + i] = -(T[i] * T[3] + T[4 + i] * T[7] + T[8 + i] * T[11]);
+        }
+    }
+    double frame[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
+    if (s.frame >= 0) {
+        const double* T = T_links + 16 * s.frame;
+        for (int i = 0; i < 3; ++i) {
+            for (int j = 0; j < 3; ++j) frame[3 * i + j] = T[4 * i + j];
+            frame[9 + i] = T[4 * i + 3];
+        }
+    }
+
+    // The region the robot's geometry grown by r can reach: the world box around its bodies'
+    // boxes. Points outside it are kept untested, and only voxels with points in it (near
+    // voxels) are looked at further.
+    double region_lo[3] = {INF, INF, INF}, region_hi[3] = {-INF, -INF, -INF};
+    for (int64_t b = 0; b < m.n_links; ++b) {
+        if (m.elements(b) == 0) continue;
+        const double* T = T_links + 16 * b;
+        const double* box = m.body_box(b);
+        for (int i = 0; i < 3; ++i) {
+            double c = T[4 * i + 3], e = r;
+            for (int k = 0; k < 3; ++k) {
+                c += T[4 * i + k] * box[BOX_CENTER + k];
+                const double axis = T[4 * i] * box[BOX_AXES + k] +
+                                    T[4 * i + 1] * box[BOX_AXES + 3 + k] +
+                                    T[4 * i + 2] * box[BOX_AXES + 6 + k];
+                e += std::fabs(axis) * box[BOX_HALF + k];
+            }
+            e += 1e-9 * (std::fabs(c) + e);  // rounding: err toward near
+            region_lo[i] = std::min(region_lo[i], c - e);
+            region_hi[i] = std::max(region_hi[i], c + e);
+        }
+    }
+    auto in_region = [&](const double* w) {
+        return w[0] >= region_lo[0] && w[0] <= region_hi[0] && w[1] >= region_lo[1] &&
+               w[1] <= region_hi[1] && w[2] >= region_lo[2] && w[2] <= region_hi[2];
+    };
+
+    // Points into voxels (the hash table sized for the last cloud's voxels).
+    n_voxels_ = 0;
+    ijk_.clear();
+    lo_.clear();
+    hi_.clear();
+    count_.clear();
+    near_count_.clear();
+    old_seen_.clear();
+    const int64_t expected = std::max<int64_t>(MIN_TABLE, next_power_of_two(4 * out.count + 1));
+    if (int64_t(keys_.size()) != expected) {
+        keys_.assign(expected, EMPTY_KEY);
+        slots_.assign(expected, -1);
+        mask_ = expected - 1;
+    } else {
+        std::fill(keys_.begin(), keys_.end(), EMPTY_KEY);
+    }
+    row_voxel_.resize(taken);
+    uint64_t last_key = EMPTY_KEY;
+    int64_t last_voxel = -1;
+    const double limit = double(VOXEL_COORD_LIMIT);
+    for (int64_t t = 0; t < taken; ++t) {
+        row_voxel_[t] = -1;
+        double x[3], w[3];
+        if (!read_row(pts, t * step, x)) {
+            ++stats.invalid;
+            continue;
+        }
+        if (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] > range2) {
+            ++stats.out_of_range;
+            continue;
+        }
+        apply(frame, x, w);
+        const double gi = w[0] * inv, gj = w[1] * inv, gk = w[2] * inv;
+        if (!(std::fabs(gi) < limit && std::fabs(gj) < limit && std::fabs(gk) < limit)) {
+            ++stats.out_of_range;
+            continue;
+        }
+        const uint64_t key = pack_key(floor_to_int(gi), floor_to_int(gj), floor_to_int(gk));
+        int64_t v = last_voxel;
+        if (key != last_key) {
+            v = slot_of(key);
+            last_key = key;
+            last_voxel = v;
+        }
+        row_voxel_[t] = int32_t(v);
+        ++count_[v];
+        if (in_region(w)) {
+            ++near_count_[v];
+            double* lo = lo_.data() + 3 * v;
+            double* hi = hi_.data() + 3 * v;
+            for (int k = 0; k < 3; ++k) {
+                lo[k] = std::min(lo[k], w[k]);
+                hi[k] = std::max(hi[k], w[k]);
+            }
+        }
+    }
+    // Earlier voxels still within the persistence, not seen in this cloud: their centres.
+    if (s.persistence > 0.0 && previous.size == size) {
+        for (int64_t v = 0; v < previous.count; ++v) {
+            if (!(previous.seen[v] >= s.stamp - s.persistence)) continue;
+            const int32_t* c = previous.ijk.data() + 3 * v;
+            const int64_t u = slot_of(pack_key(c[0], c[1], c[2]));
+            if (count_[u] > 0) continue;
+            old_seen_[u] = std::max(old_seen_[u], previous.seen[v]);
+            double centre[3];
+            for (int k = 0; k < 3; ++k) centre[k] = size * (c[k] + 0.5);
+            if (in_region(centre)) {
+                near_count_[u] = 1;
+                for (int k = 0; k < 3; ++k) lo_[3 * u + k] = hi_[3 * u + k] = centre[k];
+            }
+        }
+    }
+
+    // The filter's hierarchy over the near voxels, each with the box of its near points.
+    const int64_t V = n_voxels_;
+    sort_.keyed.clear();
+    for (int64_t v = 0; v < V; ++v)
+        if (near_count_[v] > 0)
+            sort_.keyed.push_back(
+                {morton_code(ijk_[3 * v], ijk_[3 * v + 1], ijk_[3 * v + 2]), v});
+    sort_by_code(sort_);
+    const int64_t n_near = int64_t(sort_.keyed.size());
+    codes_.resize(n_near);
+    order_.resize(n_near);
+    item_lo_.resize(3 * n_near);
+    item_hi_.resize(3 * n_near);
+    for (int64_t i = 0; i < n_near; ++i) {
+        const int64_t v = sort_.keyed[i].second;
+        codes_[i] = sort_.keyed[i].first;
+        order_[i] = v;
+        for (int k = 0; k < 3; ++k) {
+            item_lo_[3 * i + k] = lo_[3 * v + k];
+            item_hi_[3 * i + k] = hi_[3 * v + k];
+        }
+    }
+    build_box_hierarchy(codes_.data(), item_lo_.data(), item_hi_.data(), n_near, 1,
+                        filter_nodes_, filter_boxes_);
+    if (n_near > 0) collect_candidates(m, T_links, r);
+    else start_.assign(V + 1, 0);
+
+    // Each near voxel's class (its near points kept, removed, or tested one by one); the
+    // others keep theirs. Points are read again only where needed.
+    class_.assign(V, KEEP);
+    kept_.assign(V, 0);
+    near_.clear();
+    near_start_.assign(V + 1, 0);
+    bool again = kept && s.keep_points;
+    for (int64_t v = 0; v < V; ++v) {
+        near_start_[v] = near_.size();
+        if (start_[v] < start_[v + 1]) class_[v] = uint8_t(classify(m, v, r));
+        again |= class_[v] == MIXED || (class_[v] == DROP && near_count_[v] < count_[v]);
+    }
+    near_start_[V] = near_.size();
+    if (kept) kept->clear();
+    if (again) {
+        for (int64_t t = 0; t < taken; ++t) {
+            const int64_t v = row_voxel_[t];
+            if (v < 0) continue;
+            const uint8_t c = class_[v];
+            if (c == DROP && near_count_[v] == count_[v]) {
+                ++stats.self_filtered;
+                continue;
+            }
+            double x[3], w[3];
+            read_row(pts, t * step, x);
+            apply(frame, x, w);
+            if (c != KEEP && in_region(w)) {
+                const double* lo = lo_.data() + 3 * v;
+                const double* hi = hi_.data() + 3 * v;
+                const double centre[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]),
+                                          0.5 * (lo[2] + hi[2])};
+                if (c == DROP || removed(m, w, r, near_.data() + near_start_[v],
+                                         near_start_[v + 1] - near_start_[v], centre)) {
+                    ++stats.self_filtered;
+                    continue;
+                }
+            }
+            ++kept_[v];
+            ++stats.kept_points;
+            if (kept && s.keep_points)
+                kept->insert(kept->end(), {float(w[0]), float(w[1]), float(w[2])});
+        }
+    } else {
+        for (int64_t v = 0; v < V; ++v) {
+            if (class_[v] == DROP) {  // all its points near: removed
+                stats.self_filtered += count_[v];
+            } else {
+                kept_[v] = count_[v];
+                stats.kept_points += count_[v];
+            }
+        }
+    }
+
+    // The voxels kept: those with a point kept, and earlier ones whose centre is kept.
+    out_ijk_.clear();
+    out_seen_.clear();
+    for (int64_t v = 0; v < V; ++v) {
+        const bool earlier = count_[v] == 0;
+        if (earlier ? class_[v] != KEEP : kept_[v] == 0) continue;
+        out_ijk_.insert(out_ijk_.end(), {ijk_[3 * v], ijk_[3 * v + 1], ijk_[3 * v + 2]});
+        out_seen_.push_back(earlier ? old_seen_[v] : s.stamp);
+        stats.persisted += earlier ? 1 : 0;
+    }
+    build_voxel_grid(out_ijk_.data(), out_seen_.data(), int64_t(out_seen_.size()), size, sort_,
+                     out);
+    stats.voxels = out.count;
+    return stats;
+}
+
+}  // namespace collision_sensor

@@ -1,0 +1,127 @@
+// A point cloud made an obstacle (issue 29): points in, the robot's own points filtered out,
+// the rest grouped into voxels (voxel_grid.hpp).
+//
+// Contract, for the points p (rows of the cloud, in the frame of link `frame` or the world)
+// and the link poses T at the cloud's state:
+//     taken   = every ceil(rows / max_points)-th row (all when rows <= max_points)
+//     valid   = taken rows with finite x, y, z, within max_range of the frame's origin, whose
+//               world point T_frame p lies in the grid's reach (voxel_grid.hpp)
+//     removed = valid points x with, for some body b of the robot (its links and attached
+//               objects) and element e of b: the distance from x to e's triangles <= r, or x
+//               within r of e's solid (box, sphere, cylinder: the true shape), or inside it
+//               (a closed mesh, with the checker's mesh_containment), r = filter_padding
+//     voxels  = the cubes of the voxel_size grid holding a valid point not removed, plus
+//               (persistence > 0) the voxels of the previous grid seen within persistence
+//               of stamp whose centre is not removed (the robot may have moved into them)
+// Only the work is organised, never the answer: the points are hashed into their voxels (one
+// pass); a hierarchy over the occupied voxels, each with the box of its own points, is
+// traversed against every body's tree with boxes grown by r, which gives each voxel the
+// triangles and solids that can come within r of it; a voxel none of whose candidates comes
+// within r of its points' box keeps its points untested, one whose points' box lies within r
+// of a single triangle or solid loses them all untested (the distance to a convex set is
+// convex, so the box's farthest point from it is a corner: within r of its centre plus its half
+// diagonal), and only the points of the voxels in between are tested one by one, nearest
+// candidate first.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "model.hpp"
+#include "voxel_grid.hpp"
+
+namespace collision_sensor {
+
+// The rows of a cloud as read: x, y and z of row r at data + r row_stride + {0, 1, 2}
+// column_stride bytes, float32 or float64.
+struct CloudPoints {
+    const char* data;
+    int64_t rows;
+    int64_t row_stride;
+    int64_t column_stride;
+    bool float32;
+};
+
+struct CloudSettings {
+    double voxel_size;      // m
+    double filter_padding;  // r, m
+    double max_range;       // m from the frame's origin (INF: none)
+    int64_t max_points;     // rows taken at most
+    double stamp;           // s, the cloud's time (persistence)
+    double persistence;     // s; 0: only this cloud
+    int64_t frame;          // the engine link the points are in, -1: the world
+    bool keep_points;       // write the points not removed (world frame)
+};
+
+// What became of a cloud's rows (their sum: points = capped + invalid + out_of_range +
+// self_filtered + kept_points).
+struct CloudStats {
+    int64_t points = 0, capped = 0, invalid = 0, out_of_range = 0, self_filtered = 0,
+            kept_points = 0, voxels = 0, persisted = 0;
+};
+
+// The self-filter and the voxelisation of one source's clouds, with work areas kept from one
+// cloud to the next (the source's clouds are built one at a time).
+class CloudBuilder {
+   public:
+    // Build into `out` the grid of the cloud `points` (settings as above), filtered against
+    // the robot of `model` at the link poses T_links (L, 16), merging the voxels of `previous`
+    // (its own grid so far). The points kept go, world frame, to kept (3 per point) when
+    // settings.keep_points. Reads the model's trees and solids only.
+    CloudStats build(const Model& model, const double* T_links, const CloudPoints& points,
+                     const CloudSettings& settings, const VoxelGrid& previous, VoxelGrid& out,
+                     std::vector<float>* kept);
+
+   private:
+    struct Candidate {
+        int64_t voxel;
+        int64_t body;
+        int64_t item;  // a triangle (row of tris), or -1 - e for solid element e
+    };
+    struct Nearby {
+        double distance;  // of the voxel's points' box centre
+        int64_t body, item;
+    };
+
+    int64_t slot_of(uint64_t key);
+    void rehash(int64_t capacity);
+    void collect_candidates(const Model& m, const double* T_links, double r);
+    int classify(const Model& m, int64_t v, double r);
+    bool removed(const Model& m, const double* x, double r, const Nearby* near,
+                 int64_t n_near, const double* centre);
+
+    // The hash table: key -> voxel, open addressing.
+    std::vector<uint64_t> keys_;
+    std::vector<int32_t> slots_;
+    int64_t mask_ = 0;
+    // Per voxel of this cloud (V0): coordinates, its points' box, points, class, kept.
+    int64_t n_voxels_ = 0;
+    std::vector<int32_t> ijk_;
+    std::vector<double> lo_, hi_;
+    std::vector<int32_t> count_, near_count_, kept_;  // points; near the robot; kept
+    std::vector<uint8_t> class_;
+    std::vector<double> old_seen_;  // -INF: seen in this cloud
+    // Per taken row: its voxel, -1 when not valid.
+    std::vector<int32_t> row_voxel_;
+    // The filter's hierarchy (leaves of one voxel) and each voxel's candidates.
+    VoxelSortWork sort_;
+    std::vector<uint64_t> codes_;
+    std::vector<int64_t> order_;  // hierarchy item -> voxel
+    std::vector<double> item_lo_, item_hi_;
+    std::vector<int64_t> filter_nodes_;
+    std::vector<double> filter_boxes_;
+    std::vector<Candidate> candidates_, sorted_;
+    std::vector<int64_t> start_;  // (V0 + 1,) each voxel's candidates in sorted_
+    std::vector<int64_t> stack_;
+    std::vector<Nearby> near_;    // (V0 candidates) by voxel, nearest first
+    std::vector<int64_t> near_start_;
+    std::vector<double> body_pose_;  // per body: R' (row-major), -R' t: world -> body
+    std::vector<double> node_world_;     // (N, 6) robot nodes' world boxes (centre, half)
+    std::vector<int64_t> node_stamp_;    // (N,) valid where == stamp_
+    int64_t stamp_ = 0;
+    // The kept voxels.
+    std::vector<int32_t> out_ijk_;
+    std::vector<double> out_seen_;
+};
+
+}  // namespace collision_sensor
