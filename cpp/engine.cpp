@@ -338,6 +338,15 @@ int64_t Engine::update_motion(const double* q, double* t, uint8_t* pairs,
     const Model& m = model_;
     const int64_t bad = unusable_variable(m.kin, q, m.n_joints);
     if (bad >= 0) return -1 - bad;
+    if (state_.flags[QUERY_CHECKED_ONCE] && state_.forced_mode != FORCED_NONE) {
+        // A scene change since the last state forced pairs whose statuses are the old scene's:
+        // the last state is checked again first (only the forced pairs are re-checked), so
+        // that the motion starts from that state as the scene is now.
+        motion_work_.size_for(m);
+        std::vector<double>& q0 = motion_work_.q_prev;
+        std::copy(state_.q_last, state_.q_last + m.n_joints, q0.begin());
+        run(q0.data(), false);
+    }
     bool contact = false;
     for (int64_t p = 0; p < m.n_pairs && !contact; ++p) contact = state_.status[p] != 0;
     if (!state_.flags[QUERY_CHECKED_ONCE] || contact) {

@@ -245,6 +245,26 @@ def test_update_motion_is_check_motion_then_update(cell, request):
     assert contacts > 10
 
 
+def test_update_motion_after_a_scene_change_starts_from_the_scene_as_it_is(panda_cell):
+    """An object moved away from (or into) the robot standing still: the motion from the last
+    state is judged in the scene as it is now, as check_motion from that state says, not by
+    the pairs' statuses under the old scene."""
+    checker, _ = panda_cell
+    (q0, q1), = random_segments(checker, 1, seed=43, shortest=0.05, longest=0.1)
+    checker.check(q0)
+    T = checker.link_poses()['panda_hand']
+    part = load_scene({'objects': [{'name': 'part', 'box': {'size': [0.06, 0.06, 0.06]}}]})
+    far = T.copy()
+    far[2, 3] += 3.0
+    for pose, q in ((T, q0), (far, q0), (T, q0), (far, q1), (T, q1)):
+        last = np.array([checker.positions[name] for name in checker.joint_names])
+        checker.add_object(part[0], pose=pose)
+        expected = checker.check_motion(last, q)
+        got = checker.update_motion(q)
+        assert got == expected, (pose[2, 3], got, expected)
+        assert checker.update(q).colliding_pairs == checker.check(q).colliding_pairs
+
+
 def _excluded(checker):
     """The pairs the checker never checks, for a scratch checker built on the same model."""
     bodies = list(checker.link_names) + list(checker.scene_object_names)
