@@ -256,13 +256,16 @@ def test_update_motion_after_a_scene_change_starts_from_the_scene_as_it_is(panda
     part = load_scene({'objects': [{'name': 'part', 'box': {'size': [0.06, 0.06, 0.06]}}]})
     far = T.copy()
     far[2, 3] += 3.0
-    for pose, q in ((T, q0), (far, q0), (T, q0), (far, q1), (T, q1)):
-        last = np.array([checker.positions[name] for name in checker.joint_names])
-        checker.add_object(part[0], pose=pose)
-        expected = checker.check_motion(last, q)
-        got = checker.update_motion(q)
-        assert got == expected, (pose[2, 3], got, expected)
-        assert checker.update(q).colliding_pairs == checker.check(q).colliding_pairs
+    try:
+        for pose, q in ((T, q0), (far, q0), (T, q0), (far, q1), (T, q1)):
+            last = np.array([checker.positions[name] for name in checker.joint_names])
+            checker.add_object(part[0], pose=pose)
+            expected = checker.check_motion(last, q)
+            got = checker.update_motion(q)
+            assert got == expected, (pose[2, 3], got, expected)
+            assert checker.update(q).colliding_pairs == checker.check(q).colliding_pairs
+    finally:    # the cell is the module's: leave its scene as it was
+        checker.remove_object('part')
 
 
 def _excluded(checker):
