@@ -31,10 +31,11 @@ def fleet(tmp_path_factory):
 
 @pytest.fixture(scope='module')
 def spec():
-    return RobotSpec.load(os.path.join(CONFIG, 'demo_arm.urdf'),
-                          srdf=os.path.join(CONFIG, 'demo_arm.srdf'),
-                          scene=os.path.join(CONFIG, 'demo_scene.yaml'), label='demo arm',
-                          demo=True)
+    # The files collision_sensor_check takes without --urdf (config_path: the source tree, or
+    # under colcon the install space), so that the report's settings digest is the command's.
+    from collision_sensor.model.share import config_path
+    return RobotSpec.load(config_path('demo_arm.urdf'), srdf=config_path('demo_arm.srdf'),
+                          scene=config_path('demo_scene.yaml'), label='demo arm', demo=True)
 
 
 @pytest.fixture(scope='module')
