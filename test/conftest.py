@@ -4,7 +4,6 @@ import importlib.machinery
 import os
 import random
 import sys
-import tempfile
 
 import pytest
 
@@ -26,11 +25,9 @@ def _test_the_installed_package():
                  if os.path.abspath(entry or os.curdir) != SOURCE_ROOT]
     if importlib.machinery.PathFinder.find_spec('collision_sensor', elsewhere) is not None:
         sys.path[:] = elsewhere
-        # The processes the tests start (python -m, local workers, Ray's) would put their
-        # working directory first on their own path, and find the source tree there: they
-        # start elsewhere, and Python puts no working directory on their path at all.
+        # The Python processes the tests start (python -m ...) would put their working
+        # directory, the source tree, first on their own path: Python puts none there.
         os.environ['PYTHONSAFEPATH'] = '1'
-        os.chdir(tempfile.gettempdir())
     # else: not installed anywhere; importing the source tree says how to build the engine
 
 

@@ -22,8 +22,15 @@ def cluster(tmp_path_factory):
     """A local Ray cluster of 2 CPUs for the whole module (starting one takes ~10 s)."""
     if ray.is_initialized():
         ray.shutdown()
-    context = ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,
-                       configure_logging=False)
+    # Ray's workers start in the driver's working directory, which is the source tree under
+    # colcon test (no engine there): the cluster starts elsewhere.
+    here = os.getcwd()
+    os.chdir(str(tmp_path_factory.mktemp('ray')))
+    try:
+        context = ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,
+                           configure_logging=False)
+    finally:
+        os.chdir(here)
     yield context
     ray.shutdown()
 
@@ -56,7 +63,8 @@ def test_the_command_joins_the_running_cluster(fleet, serial, tmp_path):
         [sys.executable, '-m', 'collision_sensor.tools.offline_check', root, '--joint-map',
          os.path.join(root, 'joint_map.yaml'), '--ray', 'auto', '--report', str(path),
          '--plot', str(tmp_path / 'ray.png'), '--progress', 'never'],
-        capture_output=True, text=True, env=env, timeout=300)
+        capture_output=True, text=True, env=env, timeout=300,
+        cwd=str(tmp_path))   # not the source tree: under colcon test it has no engine
     assert done.returncode == 3, done.stderr
     lines = [json.loads(line) for line in path.read_text().splitlines()]
     assert sorted(lines, key=lambda r: r['source']) == sorted(serial, key=lambda r: r['source'])
