@@ -25,9 +25,6 @@ def _test_the_installed_package():
                  if os.path.abspath(entry or os.curdir) != SOURCE_ROOT]
     if importlib.machinery.PathFinder.find_spec('collision_sensor', elsewhere) is not None:
         sys.path[:] = elsewhere
-        # The Python processes the tests start (python -m ...) would put their working
-        # directory, the source tree, first on their own path: Python puts none there.
-        os.environ['PYTHONSAFEPATH'] = '1'
     # else: not installed anywhere; importing the source tree says how to build the engine
 
 

@@ -310,7 +310,7 @@ def test_ctrl_c_keeps_a_valid_report_that_resume_completes(fleet, serial_records
             '--joint-map', os.path.join(root, 'joint_map.yaml'), '--report', str(path),
             '--jobs', '2', '--progress', 'never']
     process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                               text=True)
+                               text=True, cwd=str(tmp_path))  # not the source tree: see below
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and (not path.exists()
                                            or path.read_text().count('\n') < 3):
@@ -321,7 +321,9 @@ def test_ctrl_c_keeps_a_valid_report_that_resume_completes(fleet, serial_records
     assert 'stopped; the report' in err and '--resume continues it' in err
     before = [json.loads(line) for line in path.read_text().splitlines()]
     assert 3 <= len(before) < len(serial_records.records) + len(heavy)
-    done = subprocess.run(argv + ['--resume'], capture_output=True, text=True, timeout=300)
+    # Under colcon test the source tree (the working directory) has no engine.
+    done = subprocess.run(argv + ['--resume'], capture_output=True, text=True, timeout=300,
+                          cwd=str(tmp_path))
     assert done.returncode == 3, done.stderr
     after = [json.loads(line) for line in path.read_text().splitlines()]
     assert after[:len(before)] == before
