@@ -31,6 +31,19 @@ motion checks). ``--trajectories RATE`` publishes, during each run, planned traj
 ``trajectory`` topic, to measure the joint states' latency while trajectories are checked;
 their results' count and latency are printed.
 
+``--clouds RATE`` measures the joint states beside a depth camera (issue 29's target: their
+p99 within 10 % of the same run without clouds): the node subscribes to ``points``
+(``point_cloud_topics``), and each rate runs ``--repeat`` times without clouds, then with
+organised clouds (``--cloud-size``, 640 x 480 by default, NaN holes) published at RATE Hz from
+this process. The clouds are rendered here by ray casting (:mod:`collision_sensor.tools.depth_camera`)
+of bench scenario 12's cell (a table, a wall and a box nobody modelled: the node knows none of
+them) with the robot at ``--cloud-renders`` of the configurations sent, spread over the cycle;
+each tick publishes the one whose configuration was sent last, stamped with that joint
+state's stamp, so the node's self-filter finds the robot where the camera saw it. The verdicts'
+pairs with ``cloud/points`` are left out of the comparison with this process's checker (which
+has no cloud); the runs without clouds come after a pause that lets the cloud time out
+(``point_cloud_on_timeout: ignore``: its voxels are removed), so they check no cloud either.
+
 ``--per-call`` only times ``update`` against ``update_motion`` on the same configurations in
 this process (the engine's part of a verdict, without the node).
 
@@ -69,13 +82,22 @@ def _node_command(params_file: str, namespace: str):
         '--log-level', 'warn']
 
 
-def _write_params(directory: str, robot, check_motion: Optional[bool] = None) -> str:
+CLOUD_TOPIC = 'points'
+#: s without a cloud after which the node drops the cloud's voxels (--clouds runs).
+CLOUD_TIMEOUT = 0.5
+
+
+def _write_params(directory: str, robot, check_motion: Optional[bool] = None,
+                  clouds: bool = False) -> str:
     import yaml
     values = {'urdf_path': robot.urdf, 'srdf_path': robot.srdf,
               'package_paths': [f'{name}={path}' for name, path in robot.package_paths.items()],
               'joint_states_qos': 'reliable', 'stale_timeout': 0.0}
     if check_motion is not None:
         values['check_motion'] = check_motion
+    if clouds:
+        values.update(point_cloud_topics=[CLOUD_TOPIC], point_cloud_timeout=CLOUD_TIMEOUT,
+                      point_cloud_on_timeout='ignore')
     path = os.path.join(directory, 'node_latency.yaml')
     with open(path, 'w') as stream:
         yaml.safe_dump({'/**': {'ros__parameters': values}}, stream)
@@ -87,7 +109,7 @@ class Driver:
     recorder on rclpy's public API (the recorder spun by an executor on a thread of its own)."""
 
     def __init__(self, namespace: str, joint_names, configurations, expected,
-                 trajectories=None):
+                 trajectories=None, clouds=None):
         import rclpy
         from diagnostic_msgs.msg import DiagnosticArray
         from rclpy.node import Node
@@ -135,6 +157,16 @@ class Driver:
             self.node.create_subscription(
                 DiagnosticArray, 'trajectory_result', self._on_trajectory_result,
                 QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                           durability=DurabilityPolicy.VOLATILE))
+        # Depth camera clouds: ({configuration index: PointCloud2}, rate) or None; published
+        # only by runs asked to (run(..., clouds=True)).
+        self.clouds = clouds
+        self.clouds_sent = 0
+        if clouds is not None:
+            from sensor_msgs.msg import PointCloud2
+            self.cloud_publisher = self.node.create_publisher(
+                PointCloud2, CLOUD_TOPIC,
+                QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE,
                            durability=DurabilityPolicy.VOLATILE))
         self._msg_type = JointState
         self.received = []      # (receive wall ns, stamp ns, pair names "a:b")
@@ -187,14 +219,20 @@ class Driver:
             and self.publisher.get_subscription_count() > 0
             and self.node.count_publishers(f'{self.namespace}/colliding_pairs') > 0, timeout)
 
-    def run(self, rate: float, duration: float, first_index: int = 0) -> dict:
-        """Publish at ``rate`` for ``duration`` seconds; return the figures."""
+    def run(self, rate: float, duration: float, first_index: int = 0,
+            clouds: bool = False) -> dict:
+        """Publish at ``rate`` for ``duration`` seconds (and the clouds, if ``clouds``);
+        return the figures."""
         self.received = []
         self.sent = {}
         self.trajectory_results = []
         trajectories_sent = 0
         trajectory_period_ns = (int(1e9 / self.trajectories[1]) if self.trajectories
                                 else None)
+        cloud_period_ns = int(1e9 / self.clouds[1]) if clouds and self.clouds else None
+        rendered = self.clouds[0] if cloud_period_ns else {}
+        last_sent = {}      # rendered configuration index -> stamp (ns) it was last sent with
+        self.clouds_sent = 0
         count = int(round(rate * duration))
         period_ns = int(1e9 / rate)
         late = 0
@@ -218,6 +256,16 @@ class Driver:
             stamp.sec, stamp.nanosec = divmod(now, 1_000_000_000)
             self.sent[now] = index
             self.publisher.publish(msg)
+            if index in rendered:
+                last_sent[index] = now
+            if cloud_period_ns and last_sent and target - start >= self.clouds_sent * \
+                    cloud_period_ns:
+                seen = max(last_sent, key=last_sent.get)
+                cloud = rendered[seen]
+                cloud.header.stamp.sec, cloud.header.stamp.nanosec = divmod(
+                    last_sent[seen], 1_000_000_000)
+                self.cloud_publisher.publish(cloud)
+                self.clouds_sent += 1
             if trajectory_period_ns and target - start >= trajectories_sent * \
                     trajectory_period_ns:
                 trajectory = self.trajectories[0]
@@ -230,6 +278,8 @@ class Driver:
         # Stragglers: up to 2 s after the last publication.
         self.spin_until(lambda: len(self.received) >= count, 2.0)
         figures = self._figures(rate, count, publish_seconds, late)
+        if cloud_period_ns:
+            figures['clouds'] = self.clouds_sent
         if trajectory_period_ns:
             self.spin_until(lambda: len(self.trajectory_results) >= trajectories_sent, 60.0)
             waits = np.array([(received - stamp) / 1e6
@@ -251,6 +301,8 @@ class Driver:
                 continue
             seen.add(stamp_ns)
             latencies.append((received_ns - stamp_ns) / 1e6)
+            if self.clouds is not None:
+                names = tuple(name for name in names if f'cloud/{CLOUD_TOPIC}' not in name)
             if names != self.expected(previous, index):
                 wrong += 1
             previous = index
@@ -377,8 +429,58 @@ def planned_trajectory(checker, points: int, seed: int):
     return msg
 
 
+def rendered_clouds(robot, checker, configurations, renders: int, size: str, seed: int):
+    """Return {configuration index: PointCloud2}: bench scenario 12's cell seen by a depth
+    camera (``size`` 'WxH', 2 mm noise) with the robot at ``renders`` configurations spread over
+    ``configurations``, organised, float32 x, y, z in 16-byte points (NaN where nothing is
+    seen), in the robot's world frame."""
+    from sensor_msgs.msg import PointCloud2, PointField
+
+    from collision_sensor import CollisionChecker
+    from collision_sensor.engine.dynamic_scene import AddObject
+    from collision_sensor.model.mesh_loading import box_mesh, box_solid
+    from collision_sensor.model.scene import SceneObject
+    from collision_sensor.tools.bench.scenario_clouds import cell_objects
+    from collision_sensor.tools.depth_camera import DepthCamera, look_at
+
+    width, height = (int(v) for v in size.lower().split('x'))
+    world = CollisionChecker.from_urdf(robot.urdf, srdf=robot.srdf,
+                                       package_paths=robot.package_paths)
+    changes = []
+    for name, extent, centre in cell_objects():
+        T = np.eye(4)
+        T[:3, 3] = centre
+        vertices, faces = box_mesh(extent)
+        changes.append(AddObject(SceneObject(name=name, source='node_latency', T_world_object=T,
+                                             vertices=vertices, faces=faces,
+                                             solid=box_solid(extent))))
+    world.apply_scene_changes(changes)
+    camera = DepthCamera(width=width, height=height, noise=0.002)
+    T_world_camera = look_at([1.4, 0.9, 1.0], [0.3, 0.0, 0.3])
+    R, t = T_world_camera[:3, :3].T, T_world_camera[:3, 3]
+    rng = np.random.default_rng(seed)
+    fields = [PointField(name=axis, offset=4 * k, datatype=PointField.FLOAT32, count=1)
+              for k, axis in enumerate('xyz')]
+    frame = sorted(checker.world_frames)[0]
+    out = {}
+    step = max(1, len(configurations) // max(1, renders))
+    for index in range(0, len(configurations), step)[:renders]:
+        world.check(configurations[index])
+        points = camera.points(world, T_world_camera, rng) @ R.astype(np.float32) + t
+        data = np.zeros((len(points), 4), dtype=np.float32)
+        data[:, :3] = points
+        msg = PointCloud2(height=height, width=width, fields=fields, is_bigendian=False,
+                          point_step=16, row_step=16 * width, is_dense=False)
+        msg.header.frame_id = frame
+        msg.data = data.tobytes()
+        out[index] = msg
+    return out
+
+
 def _print_figures(label: str, figures: dict, rss: Optional[int] = None):
     memory = f'  node RSS {rss / 1024:6.1f} MiB' if rss is not None else ''
+    if 'clouds' in figures:
+        memory += f'  clouds {figures["clouds"]}'
     if 'cpu_us' in figures:
         memory += f'  node CPU {figures["cpu_us"]:6.1f} us per message'
     if 'trajectories' in figures:
@@ -416,6 +518,32 @@ def _soak(driver, rate: float, duration: float, window: float, pid: int) -> None
           f'{np.nanpercentile(every, 99):.3f} ms  max {np.nanmax(every):.3f} ms  node RSS '
           f'{rss_start / 1024:.1f} -> {rss_end / 1024:.1f} MiB '
           f'({100.0 * (rss_end - rss_start) / rss_start:+.1f} %)', flush=True)
+
+
+def _with_and_without_clouds(driver, rates, duration: float, repeat: int, pid: int) -> None:
+    """Per rate, ``repeat`` times: a run without clouds, then one with; print each and the
+    medians' ratios (the target: p99 with clouds within 10 % of without)."""
+    for rate in rates:
+        p99 = {False: [], True: []}
+        p50 = {False: [], True: []}
+        for _ in range(repeat):
+            for with_clouds in (False, True):
+                if not with_clouds:
+                    time.sleep(3 * CLOUD_TIMEOUT)   # the last run's cloud times out: removed
+                cpu = cpu_seconds(pid)
+                figures = driver.run(rate, duration, first_index=200, clouds=with_clouds)
+                if cpu is not None and cpu_seconds(pid) is not None:
+                    figures['cpu_us'] = 1e6 * (cpu_seconds(pid) - cpu) / figures['published']
+                _print_figures('clouds' if with_clouds else 'no clouds', figures, rss_kib(pid))
+                p99[with_clouds].append(figures['p99_ms'])
+                p50[with_clouds].append(figures['p50_ms'])
+        ratio = float(np.median(p99[True]) / np.median(p99[False]))
+        print(f'{rate:g} Hz joint states, {repeat} runs each: p99 without clouds '
+              f'{min(p99[False]):.3f} / {np.median(p99[False]):.3f} / {max(p99[False]):.3f} ms '
+              f'(min / median / max), with clouds {min(p99[True]):.3f} / '
+              f'{np.median(p99[True]):.3f} / {max(p99[True]):.3f} ms: with / without '
+              f'{ratio:.2f}x (target <= 1.10x); p50 {np.median(p50[False]):.3f} -> '
+              f'{np.median(p50[True]):.3f} ms', flush=True)
 
 
 def _per_call(checker, configurations, passes: int = 5) -> None:
@@ -463,6 +591,14 @@ def main(argv=None) -> int:
     parser.add_argument('--trajectories', type=float, default=None, metavar='RATE',
                         help='also publish planned trajectories at RATE Hz during each run')
     parser.add_argument('--trajectory-points', type=int, default=1000)
+    parser.add_argument('--clouds', type=float, default=None, metavar='RATE',
+                        help='also run each rate with depth-camera clouds at RATE Hz on the '
+                        'node\'s point_cloud_topics, after --repeat runs without')
+    parser.add_argument('--cloud-size', default='640x480', metavar='WxH')
+    parser.add_argument('--cloud-renders', type=int, default=40,
+                        help='configurations the clouds are rendered at (default 40)')
+    parser.add_argument('--repeat', type=int, default=1,
+                        help='with --clouds: runs without and with clouds, alternated, per rate')
     parser.add_argument('--per-call', action='store_true',
                         help='only time update and update_motion per configuration on this '
                         'process\'s checker (no node), 5 passes each, and exit')
@@ -507,16 +643,26 @@ def main(argv=None) -> int:
         trajectories = (planned_trajectory(checker, args.trajectory_points, args.seed),
                         args.trajectories)
 
+    clouds = None
+    if args.clouds:
+        started = time.monotonic()
+        clouds = (rendered_clouds(robot, checker, configurations, args.cloud_renders,
+                                  args.cloud_size, args.seed), args.clouds)
+        print(f'{len(clouds[0])} clouds of {args.cloud_size} rendered in '
+              f'{time.monotonic() - started:.0f} s; each run with clouds publishes one at '
+              f'{args.clouds:g} Hz', flush=True)
+
     directory = tempfile.mkdtemp(prefix='node_latency_')
     namespace = f'/node_latency_{uuid.uuid4().hex[:8]}'
-    command = _node_command(_write_params(directory, robot, motion), namespace)
+    command = _node_command(_write_params(directory, robot, motion, clouds is not None),
+                            namespace)
     log_path = os.path.join(directory, 'node.log')
     log = open(log_path, 'w')
     node = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=environment)
     driver = None
     try:
         driver = Driver(namespace, checker.joint_names, configurations, expected,
-                        trajectories)
+                        trajectories, clouds)
         if not driver.wait_for_node(120.0):
             print(f'the node did not come up; its log: {log_path}', file=sys.stderr)
             return 1
@@ -525,6 +671,8 @@ def main(argv=None) -> int:
         _print_figures('warm-up', warm, rss_kib(node.pid))
         if args.soak:
             _soak(driver, rates[0], duration, args.window, node.pid)
+        elif clouds is not None:
+            _with_and_without_clouds(driver, rates, duration, max(1, args.repeat), node.pid)
         else:
             best = None
             for rate in rates:

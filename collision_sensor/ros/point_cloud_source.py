@@ -44,7 +44,7 @@ from collision_sensor.errors import JointStateError, PointCloudError
 from collision_sensor.ros.input_source import InputSource, Timeout
 from collision_sensor.ros.node_parameters import CONTACT
 from collision_sensor.ros.point_cloud_message import CloudMessageError, cloud_rows
-from collision_sensor.ros.work_queue import NewestFirstWorker
+from collision_sensor.ros.work_queue import BACKGROUND_NICE, NewestFirstWorker
 from collision_sensor.untrusted_text import printable, quoted
 
 #: The ``colliding_pairs`` entry of a timed-out cloud source.
@@ -92,7 +92,8 @@ class PointCloudSource(InputSource):
     def start(self) -> None:
         host = self.host
         self.started = time.monotonic()
-        self._worker = NewestFirstWorker(self._apply_batch, 'point cloud', 1)
+        self._worker = NewestFirstWorker(self._apply_batch, 'point cloud', 1,
+                                         nice=BACKGROUND_NICE)
         self._filtered = host.create_publisher(PointCloud2, '~/filtered_points',
                                                qos_profile_sensor_data)
         host.create_subscription(PointCloud2, self.topic, self._on_cloud,

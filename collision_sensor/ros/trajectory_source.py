@@ -53,7 +53,7 @@ from collision_sensor.engine.trajectory import (
 from collision_sensor.ros.input_source import InputSource
 from collision_sensor.ros.joint_state_source import Oversized, header_of
 from collision_sensor.ros.verdicts import VERDICT_QOS
-from collision_sensor.ros.work_queue import NewestFirstWorker
+from collision_sensor.ros.work_queue import BACKGROUND_NICE, NewestFirstWorker
 from collision_sensor.untrusted_text import listing, printable
 
 #: ``trajectory``: reliable, volatile (a trajectory is not for late joiners), keep last 100: a
@@ -144,7 +144,8 @@ class TrajectorySource(InputSource):
         self._result_pub = host.create_publisher(DiagnosticArray, 'trajectory_result',
                                                  VERDICT_QOS)
         self._relay_pub = host.create_publisher(JointTrajectory, 'trajectory_out', RELAY_QOS)
-        self._worker = NewestFirstWorker(self._check_batch, 'trajectory checker', None)
+        self._worker = NewestFirstWorker(self._check_batch, 'trajectory checker', None,
+                                         nice=BACKGROUND_NICE)
         host.create_subscription(
             JointTrajectory, 'trajectory', self._take, TRAJECTORY_QOS, raw=True,
             callback_group=MutuallyExclusiveCallbackGroup(),

@@ -1,5 +1,6 @@
 """A thread of the node's own that takes work handed over by a subscription's callback, in
 order, and under overload answers the newest instead of queueing old ones."""
+import os
 import queue
 import threading
 from typing import Callable, Optional
@@ -9,6 +10,8 @@ MAX_INPUT_RATE = 1000.0
 #: Joint states that may wait for the checking thread before it answers only the newest: 0.1 s
 #: at :data:`MAX_INPUT_RATE`, as the verdict history (``verdicts.VERDICT_DEPTH``).
 MAX_BACKLOG = 100
+#: The niceness added to the threads of work that yields to the joint states' verdicts.
+BACKGROUND_NICE = 10
 
 
 class NewestFirstWorker:
@@ -29,20 +32,26 @@ class NewestFirstWorker:
     :param handle: called with ``(messages, newest_only)`` on this thread.
     :param name: the thread's name.
     :param max_backlog: ``None``: every message answered, however many wait.
+    :param nice: added to the thread's scheduling niceness (Linux: a thread's own; elsewhere
+        nothing): work that must not delay the joint states' verdicts (point clouds, planned
+        trajectories) yields the cores to them when both want one.
     """
 
     _STOP = object()
 
     def __init__(self, handle: Callable[[list, bool], None], name: str,
-                 max_backlog: Optional[int] = MAX_BACKLOG):
+                 max_backlog: Optional[int] = MAX_BACKLOG, nice: int = 0):
         self._handle = handle
         self._max_backlog = max_backlog
+        self._nice = nice
         self._queue = queue.SimpleQueue()
         self.put = self._queue.put      # the subscription's callback
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self._thread.start()
 
     def _run(self) -> None:
+        if self._nice:
+            lower_priority(self._nice)
         get, get_nowait, stop = self._queue.get, self._queue.get_nowait, self._STOP
         while True:
             batch = [get()]
@@ -65,3 +74,17 @@ class NewestFirstWorker:
         self._queue.put(self._STOP)
         if threading.current_thread() is not self._thread:
             self._thread.join(timeout=2.0)
+
+
+def lower_priority(nice: int) -> bool:
+    """Add ``nice`` to the calling thread's niceness (Linux schedules threads one by one: the
+    thread's id is a process id to ``setpriority``); return False where that cannot be done."""
+    native_id = getattr(threading, 'get_native_id', None)
+    if native_id is None or not hasattr(os, 'setpriority') or not os.path.isdir('/proc/self/task'):
+        return False
+    try:
+        tid = native_id()
+        os.setpriority(os.PRIO_PROCESS, tid, os.getpriority(os.PRIO_PROCESS, tid) + nice)
+    except OSError:
+        return False
+    return True

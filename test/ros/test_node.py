@@ -465,6 +465,41 @@ def test_checking_thread_answers_each_message_unless_the_backlog_is_long():
                      (['alone'], False)]
 
 
+@pytest.mark.skipif(not os.path.isdir('/proc/self/task'), reason='Linux schedules threads')
+def test_background_work_yields_the_cores_to_the_joint_states():
+    """Point clouds and planned trajectories run on threads of lower priority (niceness +10),
+    read back from the kernel's own record of each thread; the joint states' thread is not
+    lowered."""
+    import threading
+    from collision_sensor.ros.work_queue import BACKGROUND_NICE, NewestFirstWorker
+
+    def niceness(tid):
+        with open(f'/proc/self/task/{tid}/stat') as stat:
+            return int(stat.read().rsplit(')', 1)[1].split()[16])
+
+    seen = {}
+
+    def handle(batch, newest_only):
+        tid = threading.get_native_id()
+        seen[batch[0]] = (tid, niceness(tid))
+
+    base = niceness(threading.get_native_id())
+    workers = [NewestFirstWorker(handle, 'background', 1, nice=BACKGROUND_NICE),
+               NewestFirstWorker(handle, 'joint states')]
+    try:
+        workers[0].put('background')
+        workers[1].put('joint states')
+        deadline = time.monotonic() + 5.0
+        while len(seen) < 2 and time.monotonic() < deadline:
+            time.sleep(0.01)
+    finally:
+        for worker in workers:
+            worker.stop()
+    assert seen['background'][1] == min(19, base + BACKGROUND_NICE)
+    assert seen['joint states'][1] == base
+    assert niceness(threading.get_native_id()) == base     # the caller's thread untouched
+
+
 def test_node_uses_only_public_rclpy():
     """No private rclpy layer (``_rclpy``, ``take_message``): it changes between releases.
     Every module of the node, since it is split by concern; the one private read (the names
