@@ -456,6 +456,7 @@ CloudStats CloudBuilder::build(const Model& m, const double* T_links, const Clou
     }
     near_start_[V] = near_.size();
     if (kept) kept->clear();
+    const bool keep_rows = kept && s.keep_points;
     if (again) {
         for (int64_t t = 0; t < taken; ++t) {
             const int64_t v = row_voxel_[t];
@@ -463,6 +464,11 @@ CloudStats CloudBuilder::build(const Model& m, const double* T_links, const Clou
             const uint8_t c = class_[v];
             if (c == DROP && near_count_[v] == count_[v]) {
                 ++stats.self_filtered;
+                continue;
+            }
+            if (c == KEEP && !keep_rows) {  // kept untested: nothing to read
+                ++kept_[v];
+                ++stats.kept_points;
                 continue;
             }
             double x[3], w[3];
@@ -481,7 +487,7 @@ CloudStats CloudBuilder::build(const Model& m, const double* T_links, const Clou
             }
             ++kept_[v];
             ++stats.kept_points;
-            if (kept && s.keep_points)
+            if (keep_rows)
                 kept->insert(kept->end(), {float(w[0]), float(w[1]), float(w[2])});
         }
     } else {
