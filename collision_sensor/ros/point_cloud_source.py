@@ -36,14 +36,14 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.qos import qos_profile_sensor_data
-from sensor_msgs.msg import PointCloud2, PointField
-from std_msgs.msg import Header
+from sensor_msgs.msg import PointCloud2
 
 from collision_sensor.engine.point_clouds import NO_STATS
 from collision_sensor.errors import JointStateError, PointCloudError
 from collision_sensor.ros.input_source import InputSource, Timeout
 from collision_sensor.ros.node_parameters import CONTACT
-from collision_sensor.ros.point_cloud_message import CloudMessageError, cloud_rows
+from collision_sensor.ros.point_cloud_message import (
+    CloudMessageError, cdr_from_points, cloud_from_cdr, cloud_rows)
 from collision_sensor.ros.work_queue import BACKGROUND_NICE, NewestFirstWorker
 from collision_sensor.untrusted_text import printable, quoted
 
@@ -55,9 +55,6 @@ ON_TIMEOUT_POLICIES = (CONTACT, IGNORE)
 #: Clouds that may wait for the source's thread; more are dropped and counted (each may hold
 #: megabytes).
 MAX_CLOUD_BACKLOG = 4
-#: ``~/filtered_points``: x, y, z float32.
-_XYZ_FIELDS = [PointField(name=axis, offset=4 * k, datatype=PointField.FLOAT32, count=1)
-               for k, axis in enumerate('xyz')]
 
 
 class PointCloudSource(InputSource):
@@ -96,8 +93,10 @@ class PointCloudSource(InputSource):
                                          nice=BACKGROUND_NICE)
         self._filtered = host.create_publisher(PointCloud2, '~/filtered_points',
                                                qos_profile_sensor_data)
+        # Serialized: read on the source's thread without copying the points
+        # (point_cloud_message.cloud_from_cdr), not converted by rclpy on the executor's.
         host.create_subscription(PointCloud2, self.topic, self._on_cloud,
-                                 qos_profile_sensor_data,
+                                 qos_profile_sensor_data, raw=True,
                                  callback_group=MutuallyExclusiveCallbackGroup())
 
     def close(self) -> None:
@@ -132,7 +131,7 @@ class PointCloudSource(InputSource):
 
     # -- the executor's thread ----------------------------------------------------------------
 
-    def _on_cloud(self, msg: PointCloud2) -> None:
+    def _on_cloud(self, msg: bytes) -> None:
         """Hand a cloud to the source's thread (nothing slow here)."""
         if self._worker.backlog() >= MAX_CLOUD_BACKLOG:
             with self.host.lock:
@@ -159,9 +158,10 @@ class PointCloudSource(InputSource):
                           f'{printable(repr(error), 300)}'))
         host.log.write(notes)
 
-    def _apply(self, msg: PointCloud2, notes: list) -> None:
+    def _apply(self, data: bytes, notes: list) -> None:
         host = self.host
         try:
+            msg = cloud_from_cdr(data, self.topic)
             rows = cloud_rows(msg, self.topic)
         except CloudMessageError as error:
             self._reject(error.kind, str(error), notes)
@@ -247,11 +247,8 @@ class PointCloudSource(InputSource):
                       f'point cloud rejected, the last good one stays: {text}'))
 
     def _publish_filtered(self, kept: np.ndarray, stamp) -> None:
-        kept = np.ascontiguousarray(kept, dtype=np.float32)
-        self._filtered.publish(PointCloud2(
-            header=Header(stamp=stamp, frame_id=self.host.root_frame), height=1,
-            width=len(kept), fields=_XYZ_FIELDS, is_bigendian=False, point_step=12,
-            row_step=12 * len(kept), data=kept.tobytes(), is_dense=True))
+        self._filtered.publish(cdr_from_points(kept, stamp.sec, stamp.nanosec,
+                                               self.host.root_frame))
 
     # -- timeout ------------------------------------------------------------------------------
 

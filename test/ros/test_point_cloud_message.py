@@ -120,3 +120,72 @@ def test_untrusted_text_is_escaped():
 def test_all_nan_cloud_is_read_and_left_to_the_engine_to_count():
     rows = cloud_rows(_message(np.full((12, 3), np.nan), '<f4', 4, height=3))
     assert np.isnan(rows.points).all()
+
+
+# -- the serialized form: what the node's raw subscription reads --------------------------------
+
+@pytest.mark.parametrize('dtype,extra,row_pad,height,order', [
+    ('<f4', 4, 0, 6, 'xyz'), ('<f8', 0, 0, 4, 'xyz'), ('>f4', 0, 0, 2, 'xyz'),
+    ('<f4', 12, 8, 4, 'zyx')])
+@pytest.mark.parametrize('frame', ['', 'c', 'cam', 'camera_depth_optical_frame'])
+def test_serialized_clouds_read_as_rclpy_reads_them(dtype, extra, row_pad, height, order, frame):
+    """cloud_from_cdr against rclpy's own deserializer (every field), on frame names of every
+    length modulo 4 (CDR's alignment); the points are a view of the bytes."""
+    from rclpy.serialization import deserialize_message, serialize_message
+    from collision_sensor.ros.point_cloud_message import cloud_from_cdr
+    msg = _message(POINTS, dtype, extra, row_pad, height, order, frame)
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 1764115200, 123456789
+    data = serialize_message(msg)
+    mine, theirs = cloud_from_cdr(data, 'cam/points'), deserialize_message(data, PointCloud2)
+    assert mine.header.frame_id == theirs.header.frame_id == frame
+    assert (mine.header.stamp.sec, mine.header.stamp.nanosec) == (1764115200, 123456789)
+    assert [tuple(f) for f in mine.fields] == [
+        (f.name, f.offset, f.datatype, f.count) for f in theirs.fields]
+    for key in ('height', 'width', 'is_bigendian', 'point_step', 'row_step', 'is_dense'):
+        assert getattr(mine, key) == getattr(theirs, key), key
+    assert bytes(mine.data) == bytes(theirs.data)
+    rows = cloud_rows(mine, 'cam/points')
+    np.testing.assert_array_equal(rows.points, cloud_rows(theirs).points)
+    if extra == 4 and row_pad == 0:
+        assert not rows.points.flags.owndata
+
+
+def test_truncated_or_foreign_bytes_are_refused_as_a_layout_error():
+    """Every prefix of a serialized cloud, and bytes of another message type, give a
+    CloudMessageError (never an IndexError or a read past the end)."""
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import JointState
+    from collision_sensor.ros.point_cloud_message import cloud_from_cdr
+    data = serialize_message(_message(POINTS[:8], '<f4', 4, 0, 2, 'xyz', 'cam'))
+    for end in range(len(data) - 1):     # the last byte (is_dense) is the only one optional
+        with pytest.raises(CloudMessageError) as error:
+            cloud_from_cdr(data[:end], 'cam/points')
+        assert 'cam/points' in str(error.value)
+    names = serialize_message(JointState(name=['a' * 40] * 3, position=[1.0, 2.0, 3.0]))
+    with pytest.raises(CloudMessageError):
+        rows = cloud_from_cdr(names, 'cam/points')
+        cloud_rows(rows, 'cam/points')
+    with pytest.raises(CloudMessageError, match='more than 64 fields'):
+        msg = _message(POINTS[:4])
+        msg.fields = [PointField(name=f'f{k}', offset=0, datatype=7, count=1)
+                      for k in range(65)]
+        cloud_from_cdr(serialize_message(msg), 'cam/points')
+
+
+def test_filtered_points_serialize_as_rclpy_serializes_them():
+    """cdr_from_points writes what rclpy reads back as the same PointCloud2 (and as long as
+    rclpy's own serialization: CDR's padding bytes are unspecified, so not byte for byte)."""
+    from rclpy.serialization import deserialize_message, serialize_message
+    from collision_sensor.ros.point_cloud_message import cdr_from_points
+    for n, frame in [(0, 'world'), (1, 'map'), (37, 'panda_link0'), (5, '')]:
+        points = np.random.default_rng(n).normal(size=(n, 3)).astype(np.float32)
+        msg = PointCloud2(header=Header(frame_id=frame), height=1, width=n, fields=[
+            PointField(name=axis, offset=4 * k, datatype=PointField.FLOAT32, count=1)
+            for k, axis in enumerate('xyz')], is_bigendian=False, point_step=12,
+            row_step=12 * n, data=points.tobytes(), is_dense=True)
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 7, 8
+        data = cdr_from_points(points, 7, 8, frame)
+        assert len(data) == len(serialize_message(msg))
+        back = deserialize_message(data, PointCloud2)
+        assert back == msg
+        assert bytes(back.data) == points.tobytes()
