@@ -559,7 +559,9 @@ class CollisionChecker:
         """
         if (isinstance(positions, np.ndarray) and positions.shape == self._q.shape
                 and positions.dtype == np.float64):
-            return np.ascontiguousarray(positions)  # the engine copies it before keeping it
+            # As the engine reads in place (a misaligned or strided one is copied); the engine
+            # copies it before keeping it.
+            return np.require(positions, requirements=['C_CONTIGUOUS', 'ALIGNED'])
         q = self._q.copy()
         if isinstance(positions, Mapping):
             unknown = [name for name in positions

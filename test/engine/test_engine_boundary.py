@@ -248,3 +248,72 @@ def test_scene_methods_change_nothing_they_refuse(panda_cell):
     np.testing.assert_array_equal(views['T_parent_joint'][part], moved)
     np.testing.assert_array_equal(views['reach_ext'][pairs], 2 * reach)
     assert views['stale'][part] == 1 and views['forced'][pairs].all()
+
+
+def test_every_array_form_of_a_configuration_gets_the_same_answer(panda_cell):
+    """The engine reads a configuration in place only when it is C-contiguous, aligned,
+    native float64 of the right length; any other form (another byte order or type, a strided
+    view, a misaligned buffer, a list) is converted first. Each form gets the answer of the
+    plain list, from check and update alike, and the engine's own query refuses the forms it
+    cannot read rather than misreading them."""
+    checker = panda_cell
+    rng = np.random.default_rng(7)
+    lower = np.array([checker.joint_limits[n][0] for n in checker.joint_names])
+    upper = np.array([checker.joint_limits[n][1] for n in checker.joint_names])
+    J = len(lower)
+    for _ in range(20):
+        q = rng.uniform(lower, upper)
+        expected = checker.check(q.tolist())
+        wide = np.zeros(2 * J)
+        wide[::2] = q
+        raw = bytearray(8 * J + 1)
+        misaligned = np.frombuffer(raw, dtype=np.float64, count=J, offset=1)
+        misaligned[...] = q
+        forms = {'native': q.copy(), 'big-endian': q.astype('>f8'), 'strided': wide[::2],
+                 'float32 exact': q.astype(np.float32).astype(np.float64),
+                 'misaligned': misaligned, 'read-only': q.copy()}
+        forms['read-only'].setflags(write=False)
+        for name, form in forms.items():
+            want = expected if name != 'float32 exact' else checker.check(
+                q.astype(np.float32).tolist())
+            for method in (checker.check, checker.update):
+                got = method(form)
+                assert (got.in_collision, got.colliding_pairs) == (
+                    want.in_collision, want.colliding_pairs), (name, method.__name__)
+            assert [checker.positions[n] for n in checker.joint_names] == \
+                np.asarray(form, dtype=np.float64).tolist(), name
+        engine_query = checker._engine.query
+        for name in ('big-endian', 'strided', 'misaligned'):
+            assert engine_query(forms[name], True) == engine.NOT_AN_ARRAY, name
+        for other in (q[:-1].copy(), q.astype(np.float32), q.astype(np.longdouble),
+                      q.reshape(1, J), q.tolist()):
+            assert engine_query(other, True) == engine.NOT_AN_ARRAY
+
+
+def test_batches_and_motions_read_every_array_form_alike(panda_cell):
+    """check_batch, check_motion and update_motion on big-endian, strided and misaligned
+    arrays answer as on plain ones."""
+    checker = panda_cell
+    rng = np.random.default_rng(8)
+    lower = np.array([checker.joint_limits[n][0] for n in checker.joint_names])
+    upper = np.array([checker.joint_limits[n][1] for n in checker.joint_names])
+    Q = rng.uniform(lower, upper, (12, len(lower)))
+    raw = bytearray(Q.nbytes + 1)
+    misaligned = np.frombuffer(raw, dtype=np.float64, count=Q.size, offset=1).reshape(Q.shape)
+    misaligned[...] = Q
+    wide = np.zeros((12, 2 * len(lower)))
+    wide[:, ::2] = Q
+    expected = checker.check_batch(Q)
+    for form in (Q.astype('>f8'), wide[:, ::2], misaligned):
+        np.testing.assert_array_equal(checker.check_batch(form), expected)
+        for k in range(len(Q) - 1):
+            want = checker.check_motion(Q[k], Q[k + 1])
+            got = checker.check_motion(form[k], form[k + 1])
+            assert (got.in_collision, got.first_contact, got.colliding_pairs) == (
+                want.in_collision, want.first_contact, want.colliding_pairs)
+        checker.check(Q[0])
+        mine = [checker.update_motion(row) for row in form[1:]]
+        checker.check(Q[0])
+        plain = [checker.update_motion(row) for row in Q[1:]]
+        assert [(r.in_collision, r.first_contact) for r in mine] == \
+            [(r.in_collision, r.first_contact) for r in plain]
