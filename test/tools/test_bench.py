@@ -51,6 +51,33 @@ def test_missing_peers_are_reported_not_faked(tmp_path, monkeypatch):
         'installed (fcl) | **n/a** |' in targets  # a target against a missing peer: not judged
 
 
+def test_runs_are_merged_figure_by_figure_with_their_range():
+    """--runs N: each figure the median run's with the range; other differences side by side;
+    words, times, dates and names with digits untouched."""
+    from collision_sensor.tools.bench.runs import merge_line, merge_reports
+    rows = ['| S1 panda_link0 at 11:10 | 0.07x (2.32 vs 1,033.5 us) | **PASS** |',
+            '| S1 panda_link0 at 11:10 | 0.09x (2.41 vs 1,031.5 us) | **PASS** |',
+            '| S1 panda_link0 at 11:10 | 0.08x (2.30 vs 1,033.9 us) | **PASS** |']
+    assert merge_line(rows) == ('| S1 panda_link0 at 11:10 | 0.08x [0.07x-0.09x] (2.32 '
+                                '[2.30-2.41] vs 1,033.5 [1,031.5-1,033.9] us) | **PASS** |')
+    verdicts = [row.replace('PASS', word) for row, word in zip(rows, ('PASS', 'MISS', 'PASS'))]
+    assert merge_line(verdicts).endswith('| **PASS** / **MISS** / **PASS** |')
+    assert merge_line([rows[0]] * 3) == rows[0]
+    reports = ['# R\n\nRun 2026-11-26 01:00 UTC on cpu; x.\n\n' + row + '\n' for row in rows]
+    merged = merge_reports(reports, ['2026-11-26 01:00 UTC', '01:03 UTC', '01:06 UTC'])
+    assert merged.startswith('# R\n\nRuns 2026-11-26 01:00 UTC, 01:03 UTC, 01:06 UTC on cpu')
+    assert '**3 runs**' in merged and '0.08x [0.07x-0.09x]' in merged
+    uneven = merge_reports([reports[0], reports[1] + 'more\n'], ['a', 'b'])
+    assert '#### Run 1 (a)' in uneven and '#### Run 2 (b)' in uneven and 'more' in uneven
+
+
+def test_several_runs_make_one_report(tmp_path):
+    table = tmp_path / 'bench.md'
+    assert bench.main(['--quick', '--scenario', '3', '--runs', '2', '--markdown', str(table)]) == 0
+    text = table.read_text()
+    assert '**2 runs**' in text and text.count(HEADERS[2]) == 1
+
+
 def test_scenario_selection_runs_only_those(tmp_path):
     table = tmp_path / 'bench.md'
     bench.main(['--quick', '--scenario', '5', '--markdown', str(table)])
@@ -177,7 +204,10 @@ def test_motion_cells_segments_and_path_are_as_drawn():
     (['--rate', '200', '--duration', '2', '--walk', '0.01', '--seed', '2', '--check-motion',
       'true', '--trajectories', '1', '--trajectory-points', '20'],
      'trajectories sent 2 answered 2'),
-], ids=['rates', 'soak', 'motion'])
+    # a depth camera's clouds beside the joint states: runs without, then with
+    (['--rate', '200', '--duration', '1', '--clouds', '10', '--cloud-size', '64x48',
+      '--cloud-renders', '4'], 'with / without'),
+], ids=['rates', 'soak', 'motion', 'clouds'])
 def test_node_latency_drives_the_console_script_from_another_process(args, line, tmp_path):
     """The node as a process of its own; the figures printed, the node's counters read back."""
     pytest.importorskip('rclpy')

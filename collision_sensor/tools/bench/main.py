@@ -44,6 +44,7 @@ import time
 from typing import List, Optional, Sequence
 
 from collision_sensor.errors import CollisionSensorError, ConfigError
+from collision_sensor.tools.bench.runs import merge_reports
 from collision_sensor.tools.bench.scenario_report import Section
 from collision_sensor.tools.bench.scenario_settings import Settings
 
@@ -253,6 +254,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                        help='argument of a .xacro robot description (repeatable)')
     parser.add_argument('--seed', type=int, default=Settings.seed,
                         help=f'seed of every random input (default {Settings.seed})')
+    parser.add_argument('--runs', type=int, default=1, metavar='N',
+                        help='run the scenarios N times and report each figure as the median '
+                        'run\'s with the range over the runs (default 1)')
     parser.add_argument('--markdown', metavar='FILE', help='also write the table here')
     parser.add_argument('--plot', metavar='FILE.png', help='write the plot here')
     args = parser.parse_args(argv)
@@ -266,11 +270,19 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     def log(message):
         print(f'[{PROG}] {message}', file=sys.stderr, flush=True)
 
+    if args.runs < 1:
+        return _error(f'--runs {args.runs}: give at least 1')
+    reports, times = [], []
     try:
-        sections = run_scenarios(numbers, settings, log, robot)
+        for run in range(args.runs):
+            if args.runs > 1:
+                log(f'run {run + 1} of {args.runs}')
+            times.append(datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC'))
+            sections = run_scenarios(numbers, settings, log, robot)
+            reports.append(markdown(settings, numbers, sections, robot))
     except CollisionSensorError as err:   # the user's robot did not load: the file, the fix
         return _error(str(err))
-    text = markdown(settings, numbers, sections, robot)
+    text = merge_reports(reports, times)
     print(text)
     if args.markdown:
         with open(args.markdown, 'w', encoding='utf-8') as stream:
