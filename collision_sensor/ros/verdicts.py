@@ -25,12 +25,14 @@ level ERROR, the reason as its message, values ``kind``, ``reason`` and ``policy
   an input it could not take changed nothing), ``colliding_pairs`` the failure entry, then that
   verdict's pairs. With no state checked yet there is nothing to hold: as ``contact``.
 """
+import struct
 from typing import Optional, Tuple
 
 from collision_sensor.ros.motion_stream import NO_MOTION, MotionVerdict
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 from std_msgs.msg import Bool
 
 # The values of on_rejected_input, on_engine_error and stale_policy.
@@ -88,10 +90,14 @@ class VerdictPublisher:
     def __init__(self, node):
         self._contact_pub = node.create_publisher(Bool, 'contact', VERDICT_QOS)
         self._pairs_pub = node.create_publisher(DiagnosticArray, 'colliding_pairs', VERDICT_QOS)
-        # The messages, reused: the pair statuses are rebuilt only when the colliding set
-        # changes, the header is the answered input's.
-        self._contact_msgs = (Bool(data=False), Bool(data=True))
+        # Published serialized (rclpy converts a message from Python on every publish: 15 us
+        # for an empty DiagnosticArray, 38 us with three pairs; the bytes take 5 us): the
+        # contacts once and for all, the pairs' message when the colliding set or the
+        # header's frame changes, the stamp written in place for each verdict.
+        self._contact_raw = tuple(serialize_message(Bool(data=v)) for v in (False, True))
         self._pairs_msg = DiagnosticArray()
+        self._pairs_raw = None      # bytearray of _pairs_msg, serialized with _raw_frame
+        self._raw_frame = None
         self._last_pairs = None
         self.root_frame = ''
         self.held: Optional[Tuple[bool, tuple, MotionVerdict]] = None
@@ -107,15 +113,14 @@ class VerdictPublisher:
         what the motion to it met on the way (see the module docstring)."""
         pairs = result.colliding_pairs
         in_collision = bool(result.in_collision) or motion.in_collision
-        self._contact_pub.publish(self._contact_msgs[in_collision])
-        verdict = self._pairs_msg
+        self._contact_pub.publish(self._contact_raw[in_collision])
         key = (pairs, motion.met and motion)
         if key != self._last_pairs:
             self._last_pairs = key
-            verdict.status = self._pair_statuses(pairs, motion)
+            self._pairs_msg.status = self._pair_statuses(pairs, motion)
+            self._pairs_raw = None
             self.held = (in_collision, pairs, motion)
-        verdict.header = header
-        self._pairs_pub.publish(verdict)
+        self._publish_pairs(header)
 
     def publish_held(self, header) -> bool:
         """Publish the held verdict again, answering ``header``; return False (nothing
@@ -123,10 +128,21 @@ class VerdictPublisher:
         if self.held is None:
             return False
         in_collision = self.held[0]
-        self._contact_pub.publish(self._contact_msgs[in_collision])
-        self._pairs_msg.header = header
-        self._pairs_pub.publish(self._pairs_msg)
+        self._contact_pub.publish(self._contact_raw[in_collision])
+        self._publish_pairs(header)
         return True
+
+    def _publish_pairs(self, header) -> None:
+        """Publish ``_pairs_msg`` answering ``header``."""
+        if self._pairs_raw is None or header.frame_id != self._raw_frame:
+            self._pairs_msg.header = header
+            self._pairs_raw = bytearray(serialize_message(self._pairs_msg))
+            self._raw_frame = header.frame_id
+        raw = self._pairs_raw
+        # CDR: 4 bytes of encapsulation (byte 1: 1 little-endian), then the stamp.
+        struct.pack_into('<iI' if raw[1] == 1 else '>iI', raw, 4, header.stamp.sec,
+                         header.stamp.nanosec)
+        self._pairs_pub.publish(bytes(raw))
 
     def publish_failure(self, header, entry: DiagnosticStatus, policy: str) -> bool:
         """Answer ``header`` with the failure ``entry`` by ``policy``; return the ``contact``
@@ -136,7 +152,7 @@ class VerdictPublisher:
             statuses = [entry] + self._pair_statuses(pairs, motion)
         else:
             in_collision, statuses = True, [entry]
-        self._contact_pub.publish(self._contact_msgs[in_collision])
+        self._contact_pub.publish(self._contact_raw[in_collision])
         self._pairs_pub.publish(DiagnosticArray(header=header, status=statuses))
         return in_collision
 

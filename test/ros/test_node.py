@@ -465,6 +465,47 @@ def test_checking_thread_answers_each_message_unless_the_backlog_is_long():
                      (['alone'], False)]
 
 
+def test_verdicts_published_serialized_are_the_messages_they_stand_for(ros):
+    """VerdictPublisher writes its messages serialized, the stamp in place: each verdict read
+    back by a plain subscriber is the DiagnosticArray built from scratch for that header and
+    those pairs (header frames of every length modulo 4, pairs that come and go, a motion's
+    pairs met on the way, the held verdict repeated)."""
+    from collision_sensor.engine.checker import CheckResult
+    from collision_sensor.ros.motion_stream import MotionVerdict
+    from collision_sensor.ros.verdicts import VERDICT_QOS, VerdictPublisher
+    from std_msgs.msg import Header
+    from rclpy.node import Node
+    host = ros.add(Node('verdicts', namespace=ros.namespace, context=ros.context))
+    verdicts = VerdictPublisher(host)
+    verdicts.forget('world')
+    contacts = ros.record(Bool, 'contact', VERDICT_QOS)
+    pairs = ros.record(DiagnosticArray, 'colliding_pairs', VERDICT_QOS)
+    assert ros.spin_until(lambda: host.count_subscribers(f'{ros.namespace}/colliding_pairs'), 5)
+    reference = VerdictPublisher.__new__(VerdictPublisher)   # its status builder, nothing sent
+    reference.root_frame = 'world'
+    cases = []
+    sets = [(), (('hand', 'table'),), (('hand', 'table'), ('link3', 'link7')), ()]
+    for k in range(12):
+        header = Header(frame_id=['', 'a', 'ab', 'abc', 'base_link'][k % 5])
+        header.stamp.sec, header.stamp.nanosec = 1700000000 + k, 1000 * k + 7
+        colliding = sets[k % len(sets)]
+        motion = (MotionVerdict(True, 0.25, (('elbow', 'shelf'),)) if k % 3 == 2
+                  else MotionVerdict(False, None, ()))
+        if k == 7:
+            assert verdicts.publish_held(header)
+            colliding, motion = cases[-1][1], cases[-1][2]
+        else:
+            verdicts.publish(header, CheckResult(bool(colliding), colliding, 0), motion)
+        cases.append((header, colliding, motion))
+    assert ros.spin_until(lambda: len(pairs) >= len(cases) and len(contacts) >= len(cases), 5)
+    for (header, colliding, motion), got, contact in zip(cases, pairs.messages,
+                                                        contacts.messages):
+        want = DiagnosticArray(header=header,
+                               status=reference._pair_statuses(colliding, motion))
+        assert got == want
+        assert contact.data == (bool(colliding) or motion.in_collision)
+
+
 @pytest.mark.skipif(not os.path.isdir('/proc/self/task'), reason='Linux schedules threads')
 def test_background_work_yields_the_cores_to_the_joint_states():
     """Point clouds and planned trajectories run on threads of lower priority (niceness +10),
