@@ -34,12 +34,14 @@ their results' count and latency are printed.
 ``--clouds RATE`` measures the joint states beside a depth camera (issue 29's target: their
 p99 within 10 % of the same run without clouds): the node subscribes to ``points``
 (``point_cloud_topics``), and each rate runs ``--repeat`` times without clouds, then with
-organised clouds (``--cloud-size``, 640 x 480 by default, NaN holes) published at RATE Hz from
-this process. The clouds are rendered here by ray casting (:mod:`collision_sensor.tools.depth_camera`)
+organised clouds (``--cloud-size``, 640 x 480 by default, NaN holes) published at RATE Hz by a
+camera process (a DDS participant of its own, as a camera driver is; in this process the
+clouds would queue the joint states behind them in the shared memory transport). The clouds
+are rendered here by ray casting (:mod:`collision_sensor.tools.depth_camera`)
 of bench scenario 12's cell (a table, a wall and a box nobody modelled: the node knows none of
 them) with the robot at ``--cloud-renders`` of the configurations sent, spread over the cycle;
-each tick publishes the one whose configuration was sent last, stamped with that joint
-state's stamp, so the node's self-filter finds the robot where the camera saw it. The verdicts'
+each tick the camera publishes the one whose configuration the driver sent last, stamped
+with that joint state's stamp (which the driver writes to a small shared file), so the node's self-filter finds the robot where the camera saw it. The verdicts'
 pairs with ``cloud/points`` are left out of the comparison with this process's checker (which
 has no cloud); the runs without clouds come after a pause that lets the cloud time out
 (``point_cloud_on_timeout: ignore``: its voxels are removed), so they check no cloud either.
@@ -110,7 +112,7 @@ class Driver:
     recorder on rclpy's public API (the recorder spun by an executor on a thread of its own)."""
 
     def __init__(self, namespace: str, joint_names, configurations, expected,
-                 trajectories=None, clouds=None):
+                 trajectories=None, clouds: bool = False):
         import rclpy
         from diagnostic_msgs.msg import DiagnosticArray
         from rclpy.node import Node
@@ -159,16 +161,11 @@ class Driver:
                 DiagnosticArray, 'trajectory_result', self._on_trajectory_result,
                 QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
                            durability=DurabilityPolicy.VOLATILE))
-        # Depth camera clouds: ({configuration index: PointCloud2}, rate) or None; published
-        # only by runs asked to (run(..., clouds=True)).
+        # A camera process publishes clouds meanwhile: its pairs are left out of the comparison,
+        # and the rendered configurations' stamps are written to its slot (set_camera).
         self.clouds = clouds
-        self.clouds_sent = 0
-        if clouds is not None:
-            from sensor_msgs.msg import PointCloud2
-            self.cloud_publisher = self.node.create_publisher(
-                PointCloud2, CLOUD_TOPIC,
-                QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE,
-                           durability=DurabilityPolicy.VOLATILE))
+        self.camera_slot = None
+        self.rendered = frozenset()
         self._msg_type = JointState
         self.received = []      # (receive wall ns, stamp ns, pair names "a:b")
         self.sent = {}          # stamp ns -> configuration index
@@ -220,20 +217,19 @@ class Driver:
             and self.publisher.get_subscription_count() > 0
             and self.node.count_publishers(f'{self.namespace}/colliding_pairs') > 0, timeout)
 
-    def run(self, rate: float, duration: float, first_index: int = 0,
-            clouds: bool = False) -> dict:
-        """Publish at ``rate`` for ``duration`` seconds (and the clouds, if ``clouds``);
-        return the figures."""
+    def set_camera(self, slot: 'StampSlot', rendered) -> None:
+        """Write the stamp of each configuration of ``rendered`` sent to ``slot``."""
+        self.camera_slot, self.rendered = slot, frozenset(rendered)
+
+    def run(self, rate: float, duration: float, first_index: int = 0) -> dict:
+        """Publish at ``rate`` for ``duration`` seconds; return the figures."""
         self.received = []
         self.sent = {}
         self.trajectory_results = []
         trajectories_sent = 0
         trajectory_period_ns = (int(1e9 / self.trajectories[1]) if self.trajectories
                                 else None)
-        cloud_period_ns = int(1e9 / self.clouds[1]) if clouds and self.clouds else None
-        rendered = self.clouds[0] if cloud_period_ns else {}
-        last_sent = {}      # rendered configuration index -> stamp (ns) it was last sent with
-        self.clouds_sent = 0
+        rendered, slot = self.rendered, self.camera_slot
         count = int(round(rate * duration))
         period_ns = int(1e9 / rate)
         late = 0
@@ -258,14 +254,7 @@ class Driver:
             self.sent[now] = index
             self.publisher.publish(msg)
             if index in rendered:
-                last_sent[index] = now
-            if cloud_period_ns and last_sent and target - start >= self.clouds_sent * \
-                    cloud_period_ns:
-                seen = max(last_sent, key=last_sent.get)
-                cloud = rendered[seen]      # serialized: the stamp is written in place
-                struct.pack_into('<iI', cloud, 4, *divmod(last_sent[seen], 1_000_000_000))
-                self.cloud_publisher.publish(bytes(cloud))
-                self.clouds_sent += 1
+                slot.write(index, now)
             if trajectory_period_ns and target - start >= trajectories_sent * \
                     trajectory_period_ns:
                 trajectory = self.trajectories[0]
@@ -278,8 +267,6 @@ class Driver:
         # Stragglers: up to 2 s after the last publication.
         self.spin_until(lambda: len(self.received) >= count, 2.0)
         figures = self._figures(rate, count, publish_seconds, late)
-        if cloud_period_ns:
-            figures['clouds'] = self.clouds_sent
         if trajectory_period_ns:
             self.spin_until(lambda: len(self.trajectory_results) >= trajectories_sent, 60.0)
             waits = np.array([(received - stamp) / 1e6
@@ -301,7 +288,7 @@ class Driver:
                 continue
             seen.add(stamp_ns)
             latencies.append((received_ns - stamp_ns) / 1e6)
-            if self.clouds is not None:
+            if self.clouds:
                 names = tuple(name for name in names if f'cloud/{CLOUD_TOPIC}' not in name)
             if names != self.expected(previous, index):
                 wrong += 1
@@ -482,6 +469,128 @@ def rendered_clouds(robot, checker, configurations, renders: int, size: str, see
     return out
 
 
+def save_clouds(path: str, clouds: dict) -> None:
+    """Write the rendered clouds for the camera process: their configurations' indices and the
+    serialized clouds, back to back."""
+    indices = sorted(clouds)
+    blobs = [bytes(clouds[index]) for index in indices]
+    np.savez(path, indices=np.asarray(indices, dtype=np.int64),
+             sizes=np.array([len(b) for b in blobs], dtype=np.int64),
+             data=np.frombuffer(b''.join(blobs), dtype=np.uint8))
+
+
+class StampSlot:
+    """The last rendered configuration sent and its stamp, from the driver to the camera
+    process through a shared 24-byte file (a sequence number around the two values: a read
+    that overlaps a write is retried)."""
+
+    def __init__(self, path: str, create: bool = False):
+        import mmap
+        if create:
+            with open(path, 'wb') as stream:
+                stream.write(bytes(24))
+        self._file = open(path, 'r+b')
+        self._map = mmap.mmap(self._file.fileno(), 24)
+        self._sequence = 0
+
+    def write(self, index: int, stamp_ns: int) -> None:
+        self._sequence += 1
+        struct.pack_into('<q', self._map, 0, self._sequence)       # odd: being written
+        struct.pack_into('<qq', self._map, 8, index, stamp_ns)
+        self._sequence += 1
+        struct.pack_into('<q', self._map, 0, self._sequence)
+
+    def read(self):
+        """Return (index, stamp ns), or None before the first write."""
+        while True:
+            before, index, stamp, = struct.unpack_from('<qqq', self._map, 0)
+            if before == 0:
+                return None
+            if not before & 1 and struct.unpack_from('<q', self._map, 0)[0] == before:
+                return index, stamp
+
+
+class CameraProcess:
+    """A depth camera as a process of its own (its own DDS participant, as a camera driver
+    is): ``python -m collision_sensor.ros.node_latency --camera FILE`` publishes the clouds of
+    FILE (:func:`save_clouds`) on the node's ``points`` at ``rate`` Hz, each the one whose
+    configuration the driver sent last, stamped with that joint state's stamp
+    (:class:`StampSlot`)."""
+
+    def __init__(self, path: str, slot_path: str, namespace: str, rate: float):
+        self.command = [sys.executable, '-m', 'collision_sensor.ros.node_latency', '--camera',
+                        path, '--camera-slot', slot_path, '--camera-namespace', namespace,
+                        '--clouds', str(rate)]
+        self.process = None
+        self.sent = None
+
+    def start(self, timeout: float = 120.0) -> None:
+        self.process = subprocess.Popen(self.command, stdout=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + timeout
+        line = self.process.stdout.readline()
+        if not line.startswith('ready') or time.monotonic() > deadline:
+            self.stop()
+            raise RuntimeError(f'the camera process did not start: {line!r}')
+
+    def stop(self) -> Optional[int]:
+        """Stop the camera; return the clouds it published."""
+        if self.process is None:
+            return None
+        self.process.send_signal(signal.SIGINT)
+        try:
+            out, _ = self.process.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            out, _ = self.process.communicate()
+        self.process = None
+        sent = [int(line.split()[1]) for line in out.splitlines() if line.startswith('sent ')]
+        return sent[-1] if sent else None
+
+
+def camera_main(path: str, slot_path: str, namespace: str, rate: float) -> int:
+    """The camera process (see :class:`CameraProcess`)."""
+    import rclpy
+    from rclpy.node import Node
+    from rclpy.qos import qos_profile_sensor_data
+    from sensor_msgs.msg import PointCloud2
+
+    saved = np.load(path)
+    offsets = np.concatenate([[0], np.cumsum(saved['sizes'])])
+    data = saved['data']
+    clouds = {int(index): bytearray(data[offsets[k]:offsets[k + 1]].tobytes())
+              for k, index in enumerate(saved['indices'])}
+    slot = StampSlot(slot_path)
+    rclpy.init(args=[])
+    node = Node('node_latency_camera', namespace=namespace, enable_rosout=False,
+                start_parameter_services=False)
+    publisher = node.create_publisher(PointCloud2, CLOUD_TOPIC, qos_profile_sensor_data)
+    sent = 0
+    try:
+        deadline = time.monotonic() + 60.0
+        while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        print('ready', flush=True)
+        period = 1.0 / rate
+        tick = time.monotonic()
+        while True:
+            tick += period
+            time.sleep(max(0.0, tick - time.monotonic()))
+            last = slot.read()
+            if last is None:
+                continue
+            cloud = clouds[last[0]]
+            struct.pack_into('<iI', cloud, 4, *divmod(last[1], 1_000_000_000))
+            publisher.publish(bytes(cloud))
+            sent += 1
+    except KeyboardInterrupt:
+        pass
+    finally:
+        print(f'sent {sent}', flush=True)
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
 def _print_figures(label: str, figures: dict, rss: Optional[int] = None):
     memory = f'  node RSS {rss / 1024:6.1f} MiB' if rss is not None else ''
     if 'clouds' in figures:
@@ -525,20 +634,29 @@ def _soak(driver, rate: float, duration: float, window: float, pid: int) -> None
           f'({100.0 * (rss_end - rss_start) / rss_start:+.1f} %)', flush=True)
 
 
-def _with_and_without_clouds(driver, rates, duration: float, repeat: int, pid: int) -> None:
-    """Per rate, ``repeat`` times: a run without clouds, then one with; print each and the
-    medians' ratios (the target: p99 with clouds within 10 % of without)."""
+def _with_and_without_clouds(driver, camera: CameraProcess, rates, duration: float,
+                             repeat: int, pid: int) -> None:
+    """Per rate, ``repeat`` times: a run without clouds, then one with the camera process
+    publishing; print each and the medians' ratios (the target: p99 with clouds within 10 % of
+    without)."""
     for rate in rates:
         p99 = {False: [], True: []}
         p50 = {False: [], True: []}
         for _ in range(repeat):
             for with_clouds in (False, True):
-                if not with_clouds:
+                if with_clouds:
+                    camera.start()
+                else:
                     time.sleep(3 * CLOUD_TIMEOUT)   # the last run's cloud times out: removed
                 cpu = cpu_seconds(pid)
-                figures = driver.run(rate, duration, first_index=200, clouds=with_clouds)
+                try:
+                    figures = driver.run(rate, duration, first_index=200)
+                finally:
+                    sent = camera.stop() if with_clouds else None
                 if cpu is not None and cpu_seconds(pid) is not None:
                     figures['cpu_us'] = 1e6 * (cpu_seconds(pid) - cpu) / figures['published']
+                if with_clouds:
+                    figures['clouds'] = sent
                 _print_figures('clouds' if with_clouds else 'no clouds', figures, rss_kib(pid))
                 p99[with_clouds].append(figures['p99_ms'])
                 p50[with_clouds].append(figures['p50_ms'])
@@ -604,10 +722,15 @@ def main(argv=None) -> int:
                         help='configurations the clouds are rendered at (default 40)')
     parser.add_argument('--repeat', type=int, default=1,
                         help='with --clouds: runs without and with clouds, alternated, per rate')
+    parser.add_argument('--camera', default=None, help=argparse.SUPPRESS)
+    parser.add_argument('--camera-namespace', default=None, help=argparse.SUPPRESS)
+    parser.add_argument('--camera-slot', default=None, help=argparse.SUPPRESS)
     parser.add_argument('--per-call', action='store_true',
                         help='only time update and update_motion per configuration on this '
                         'process\'s checker (no node), 5 passes each, and exit')
     args = parser.parse_args(argv)
+    if args.camera:     # the camera process of a --clouds run
+        return camera_main(args.camera, args.camera_slot, args.camera_namespace, args.clouds)
     rates = [float(rate) for rate in args.rate.split(',') if rate.strip()]
     duration = args.duration if args.duration is not None else (600.0 if args.soak else 30.0)
 
@@ -648,18 +771,24 @@ def main(argv=None) -> int:
         trajectories = (planned_trajectory(checker, args.trajectory_points, args.seed),
                         args.trajectories)
 
-    clouds = None
-    if args.clouds:
-        started = time.monotonic()
-        clouds = (rendered_clouds(robot, checker, configurations, args.cloud_renders,
-                                  args.cloud_size, args.seed), args.clouds)
-        print(f'{len(clouds[0])} clouds of {args.cloud_size} rendered in '
-              f'{time.monotonic() - started:.0f} s; each run with clouds publishes one at '
-              f'{args.clouds:g} Hz', flush=True)
-
     directory = tempfile.mkdtemp(prefix='node_latency_')
     namespace = f'/node_latency_{uuid.uuid4().hex[:8]}'
-    command = _node_command(_write_params(directory, robot, motion, clouds is not None),
+    camera = None
+    if args.clouds:
+        started = time.monotonic()
+        rendered = rendered_clouds(robot, checker, configurations, args.cloud_renders,
+                                   args.cloud_size, args.seed)
+        path = os.path.join(directory, 'clouds.npz')
+        save_clouds(path, rendered)
+        slot_path = os.path.join(directory, 'camera_slot')
+        slot = StampSlot(slot_path, create=True)
+        camera = CameraProcess(path, slot_path, namespace, args.clouds)
+        camera_rendered = sorted(rendered)
+        print(f'{len(rendered)} clouds of {args.cloud_size} rendered in '
+              f'{time.monotonic() - started:.0f} s; in each run with clouds a camera process '
+              f'publishes one at {args.clouds:g} Hz', flush=True)
+        del rendered
+    command = _node_command(_write_params(directory, robot, motion, camera is not None),
                             namespace)
     log_path = os.path.join(directory, 'node.log')
     log = open(log_path, 'w')
@@ -667,7 +796,9 @@ def main(argv=None) -> int:
     driver = None
     try:
         driver = Driver(namespace, checker.joint_names, configurations, expected,
-                        trajectories, clouds)
+                        trajectories, camera is not None)
+        if camera is not None:
+            driver.set_camera(slot, camera_rendered)
         if not driver.wait_for_node(120.0):
             print(f'the node did not come up; its log: {log_path}', file=sys.stderr)
             return 1
@@ -676,8 +807,9 @@ def main(argv=None) -> int:
         _print_figures('warm-up', warm, rss_kib(node.pid))
         if args.soak:
             _soak(driver, rates[0], duration, args.window, node.pid)
-        elif clouds is not None:
-            _with_and_without_clouds(driver, rates, duration, max(1, args.repeat), node.pid)
+        elif camera is not None:
+            _with_and_without_clouds(driver, camera, rates, duration, max(1, args.repeat),
+                                     node.pid)
         else:
             best = None
             for rate in rates:
