@@ -1,5 +1,6 @@
 # The two commands: `make demo` and `make test` (`make demo DEMO_ARGS=--dynamic`: the dynamic
-# scene; `--motion`: motions checked between frames; DEMO_ARGS go to collision_sensor_demo).
+# scene; `--motion`: motions checked between frames; `--camera`: a depth camera's clouds, a
+# person no scene file holds; DEMO_ARGS go to collision_sensor_demo).
 # Each creates .venv when it is missing and installs the package with its `ros` and `test`
 # extras (editable, so tests run this tree); the stamp makes a second run reinstall nothing
 # until setup.py, setup.cfg, package.xml or the engine's C++ sources (cpp/, compiled into the

@@ -40,11 +40,30 @@ frame alone says (the pairs in contact at the state, what an instant check repor
 the motion into it says (the pairs met on the way, with where), then how many motions in
 contact lay between two clear frames.
 
+``--camera`` adds a depth camera to the cell and a person to the world: the camera is a fixed
+link of the arm's URDF (``camera_optical_frame``, above and behind the base), the person a
+cylinder standing in the arm's path that is in no scene file. The demo renders what the camera
+sees by ray casting (:class:`~collision_sensor.tools.demo_camera.CameraCell`: the arm at its
+state, the washer, the floor and the person; 160 x 120 at 15 Hz of the recording unless
+``--camera-size`` and ``--camera-rate`` say otherwise) and publishes each organised cloud
+(``sensor_msgs/PointCloud2``, x y z float32, NaN where nothing is within 4 m) in the camera's
+frame on ``camera/depth/points``, the node's ``point_cloud_topics``, stamped with the time it
+shows, while the arm plays ``person_in_path``
+(:func:`~collision_sensor.tools.demo_cell.person_in_path`, or ``--sequence``). A cloud at time
+t is published once the joint states up to t are answered (the node places it with the state at
+its stamp) and the next frame waits for the node's verdict on it. The lines say when pairs with
+``cloud/camera/depth/points`` come and go, with how far the arm truly is from the person (the
+rendering world's distance); the summary adds the clouds, the node's filter figures from
+/diagnostics, the first contact with the cloud and what the sensor said while the arm was
+farther from the person than a voxel's diagonal (where a contact with the cloud could only come
+from the arm's own points, had the self-filter let them through).
+
 Exit status: 0 done, 1 the node failed (did not come up, died, gave no verdict), 2 bad
 arguments or sequence, 130 interrupted. ``--describe-panda`` keeps the first demo: the Panda's
 kinematic tree, collision elements and a few link poses (needs example-robot-data).
 """
 import argparse
+import math
 import os
 import random
 import signal
@@ -63,6 +82,7 @@ PROG = 'collision_sensor_demo'
 DEFAULT_SEQUENCE = 'paper_experiment'
 DYNAMIC_SEQUENCE = 'moving_part'
 MOTION_SEQUENCE = 'guard_rail_5hz'
+CAMERA_SEQUENCE = 'person_in_path'    # generated (tools.demo_cell.person_in_path), no file
 NAMESPACE = '/collision_sensor_demo'
 NODE_NAME = 'collision_sensor'          # the node's default name
 START_TIMEOUT = None    # s for the node to be ready; None: as long as the node process lives
@@ -106,15 +126,20 @@ def node_command() -> List[str]:
     return console_command('collision_sensor_node')
 
 
-def demo_cell_parameters(motion: bool = False) -> Dict[str, object]:
+def demo_cell_parameters(motion: bool = False, camera: bool = False) -> Dict[str, object]:
     """Return the node parameters that load the bundled demo cell, with reliable input and
     instant verdicts unless ``motion`` (``check_motion`` off: the demo's summary is compared
-    with the offline check's, which checks each frame's instant)."""
+    with the offline check's, which checks each frame's instant); ``camera``: the node takes
+    the demo camera's clouds (``point_cloud_topics``)."""
     from collision_sensor.model.share import config_path
-    return {'urdf_path': config_path('demo_arm.urdf'),
-            'srdf_path': config_path('demo_arm.srdf'),
-            'scene_path': config_path('demo_scene.yaml'),
-            'joint_states_qos': 'reliable', 'check_motion': motion}
+    parameters = {'urdf_path': config_path('demo_arm.urdf'),
+                  'srdf_path': config_path('demo_arm.srdf'),
+                  'scene_path': config_path('demo_scene.yaml'),
+                  'joint_states_qos': 'reliable', 'check_motion': motion}
+    if camera:
+        from collision_sensor.tools.demo_camera import CLOUD_TOPIC
+        parameters['point_cloud_topics'] = f'[{CLOUD_TOPIC}]'
+    return parameters
 
 
 # -- the node process -------------------------------------------------------------------------
@@ -197,22 +222,34 @@ class Verdicts:
     ``pairs`` holds the verdicts on frames (their header is the frame's, frame_id empty): the
     pairs in contact at the frame, and (with ``check_motion``) ``met`` those met on the way into
     it, with the fraction of the motion where (``first_contact``; ``None`` when none);
-    ``scene_verdicts`` counts those the node gives on applying a scene array (header frame_id:
-    the robot's root frame).
+    ``scene_verdicts`` counts those the node gives on applying a scene array or a cloud
+    (header frame_id: the robot's root frame), whose pairs are in ``root_pairs``. A failure
+    entry (no pair: ``kind`` names it, e.g. ``point_cloud_timeout``) is not a pair: each
+    verdict's are counted in ``failures``; a verdict of failures only on the root frame (a
+    source timed out) is no answer to a scene array or cloud.
+    ``cloud_status``: the values of the node's /diagnostics status named ``cloud_status_name``
+    (a point cloud source), the last period's.
     """
 
     status_name: str
+    cloud_status_name: str = ''
     pairs: List[Tuple[int, Tuple[Pair, ...]]] = field(default_factory=list)
     met: List[Tuple[Tuple[Pair, ...], Optional[float]]] = field(default_factory=list)
     scene_verdicts: int = 0
+    root_pairs: List[Tuple[Pair, ...]] = field(default_factory=list)
+    failures: Dict[str, int] = field(default_factory=dict)
     check_time: CheckTime = field(default_factory=CheckTime)
+    cloud_status: Dict[str, str] = field(default_factory=dict)
     condition: threading.Condition = field(default_factory=threading.Condition)
 
     def on_colliding_pairs(self, msg) -> None:
         stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-        now, met, at = [], [], None
+        now, met, at, failed = [], [], None, []
         for status in msg.status:
             values = {kv.key: kv.value for kv in status.values}
+            if ':' not in status.name:
+                failed.append(status.name)
+                continue
             pair = tuple(status.name.split(':', 1))
             if 'first_contact' in values:
                 met.append(pair)
@@ -220,8 +257,12 @@ class Verdicts:
             else:
                 now.append(pair)
         with self.condition:
+            for kind in failed:
+                self.failures[kind] = self.failures.get(kind, 0) + 1
             if msg.header.frame_id:
-                self.scene_verdicts += 1
+                if now or not failed:
+                    self.scene_verdicts += 1
+                    self.root_pairs.append(tuple(now))
             else:
                 self.pairs.append((stamp_ns, tuple(now)))
                 self.met.append((tuple(met), at))
@@ -232,6 +273,10 @@ class Verdicts:
             if status.name == self.status_name:
                 with self.condition:
                     self.check_time.add({kv.key: kv.value for kv in status.values})
+                    self.condition.notify_all()
+            elif self.cloud_status_name and status.name == self.cloud_status_name:
+                with self.condition:
+                    self.cloud_status = {kv.key: kv.value for kv in status.values}
                     self.condition.notify_all()
 
     def wait(self, predicate, timeout: float) -> bool:
@@ -324,6 +369,182 @@ def motion_summary_lines(seq, verdicts: 'Verdicts') -> List[str]:
     return lines
 
 
+# -- the camera (--camera) ---------------------------------------------------------------------
+
+CLOUD_VERDICT_TIMEOUT = 10.0   # s for the node's verdict on one cloud (a lost or refused cloud)
+
+
+@dataclass
+class CameraRecord:
+    """One verdict in camera mode: at ``t`` (s from the first frame), on the arm's state then,
+    answering a frame (``cloud`` None) or cloud number ``cloud``; ``person``: how far the arm
+    truly is from the person (m, <= 0 in contact; inf: more than 10 cm)."""
+
+    t: float
+    pairs: Tuple[Pair, ...]
+    cloud: Optional[int]
+    person: float
+
+
+class CameraFeed:
+    """The demo's depth camera: renders the cell (:class:`CameraCell`) at a cloud's time and
+    publishes it as ``sensor_msgs/PointCloud2``; keeps what the sensor said beside the truth.
+
+    :param seq: the sequence the arm plays (the clouds' times span it, ``rate`` per second).
+    :param size: ``(width, height)`` pixels.
+    :param rate: clouds per second of the recording.
+    """
+
+    def __init__(self, seq, size: Tuple[int, int], rate: float):
+        from collision_sensor.tools.demo_camera import CLOUD_TOPIC, CameraCell
+        from collision_sensor.tools.demo_cell import CAMERA_OPTICAL_FRAME
+        self.cell = CameraCell(size)
+        self.seq, self.rate, self.size = seq, float(rate), (int(size[0]), int(size[1]))
+        self.topic, self.frame = CLOUD_TOPIC, CAMERA_OPTICAL_FRAME
+        self.source = f'cloud/{CLOUD_TOPIC}'
+        t0, t1 = float(seq.times[0]), float(seq.times[-1])
+        self.times = t0 + np.arange(int(math.floor((t1 - t0) * self.rate + 1e-9)) + 1) / self.rate
+        self.sent = 0
+        self.render_seconds = 0.0
+        self.valid_points = 0
+        self.records: List[CameraRecord] = []
+        self.publisher = None
+
+    def start(self, node) -> None:
+        """Create the publisher on ``node`` (sensor-data QoS, as the node subscribes)."""
+        from rclpy.qos import qos_profile_sensor_data
+        from sensor_msgs.msg import PointCloud2
+        self.publisher = node.create_publisher(PointCloud2, self.topic, qos_profile_sensor_data)
+
+    def due(self, t: float) -> List[int]:
+        """The clouds not sent yet whose time is at most ``t`` (s, recorded time)."""
+        end = int(np.searchsorted(self.times, t + 1e-9, side='right'))
+        return list(range(self.sent, max(end, self.sent)))
+
+    def state_at(self, t: float) -> np.ndarray:
+        """The arm's joint values at ``t`` (linear between frames, as the node places a
+        cloud)."""
+        seq = self.seq
+        return np.array([np.interp(t, seq.times, seq.positions[:, j])
+                         for j in range(len(seq.joint_names))])
+
+    def publish(self, k: int) -> None:
+        """Render cloud ``k`` and publish it, stamped with its time."""
+        from sensor_msgs.msg import PointCloud2, PointField
+        from std_msgs.msg import Header
+        t = float(self.times[k])
+        started = time.perf_counter()
+        points = self.cell.render(self.seq.joint_names, self.state_at(t))
+        self.render_seconds += time.perf_counter() - started
+        self.valid_points += int(np.isfinite(points).all(axis=1).sum())
+        width, height = self.size
+        stamp_ns = _stamp_ns(t)
+        header = Header(frame_id=self.frame)
+        header.stamp.sec, header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+        fields = [PointField(name=axis, offset=4 * i, datatype=PointField.FLOAT32, count=1)
+                  for i, axis in enumerate('xyz')]
+        self.publisher.publish(PointCloud2(
+            header=header, height=height, width=width, fields=fields, is_bigendian=False,
+            point_step=12, row_step=12 * width,
+            data=np.ascontiguousarray(points, dtype='<f4').tobytes(), is_dense=False))
+        self.sent = k + 1
+
+    def record(self, t: float, pairs: Tuple[Pair, ...], cloud: Optional[int], q,
+               previous: Tuple[Pair, ...]) -> List[str]:
+        """Keep one verdict at state ``q``; return the lines of its change of pairs."""
+        person = self.cell.clearance(self.seq.joint_names, q).person
+        self.records.append(CameraRecord(t, pairs, cloud, person))
+        if pairs == previous:
+            return []
+        lines = change_lines(t, previous, pairs)
+        by = 'frame' if cloud is None else f'cloud {cloud}'
+        lines[0] += f'   ({by}; the arm {_person_text(person)})'
+        return lines
+
+    def summary_lines(self, played: float, verdicts: 'Verdicts', diagonal: float) -> List[str]:
+        """The camera summary: clouds, the node's filter, contacts against the truth."""
+        seq, records, n = self.seq, self.records, len(self.seq)
+        frames = [r for r in records if r.cloud is None]
+        clouds = [r for r in records if r.cloud is not None]
+        width, height = self.size
+        lines = [f'summary of {seq.source} (camera {width} x {height} at {self.rate:g} Hz in '
+                 f'{self.frame}, clouds on {self.topic})',
+                 f'  frames:              {n} played in {played:.2f} s, {len(frames)} verdicts',
+                 f'  clouds:              {self.sent} rendered by ray casting (mean '
+                 f'{1e3 * self.render_seconds / max(self.sent, 1):.1f} ms each, '
+                 f'{self.valid_points / max(self.sent, 1):.0f} of {width * height} points, '
+                 f'the rest NaN), sent, {len(clouds)} answered by a verdict at once']
+        status = verdicts.cloud_status
+        if status:
+            lines.append(f'  the node\'s filter (/diagnostics, a cloud of the last period): '
+                         f'{status.get("points_in")} points in, {status.get("points_invalid")} '
+                         f'NaN, {status.get("points_self_filtered")} self-filtered (the arm\'s), '
+                         f'{status.get("points_kept")} kept in {status.get("voxels_kept")} voxels'
+                         f'; clouds accepted {status.get("clouds_accepted_total")}, rejected '
+                         f'{status.get("clouds_rejected_total")}')
+        spans: Dict[Pair, List[float]] = {}
+        for r in records:
+            for pair in r.pairs:
+                span = spans.setdefault(pair, [r.t, r.t, 0])
+                span[1], span[2] = r.t, span[2] + 1
+        if spans:
+            width_ = max(len(f'{a} -- {b}') for a, b in spans)
+            lines.append('  pairs in contact (times from the first frame):')
+            for (a, b), (first, last, count) in sorted(spans.items(), key=lambda s: s[1][0]):
+                lines.append(f'    {a + " -- " + b:<{width_}}  first {first:7.3f} s  '
+                             f'last {last:7.3f} s  {count:4d} verdicts')
+        else:
+            lines.append('  pairs in contact:    none')
+        hits = [r for r in records if any(self.source in pair for pair in r.pairs)]
+        touching = [r for r in frames if r.person <= 0.0]
+        if touching:
+            inside = [r for r in records if r.person <= 0.0]
+            seen = sum(any(self.source in pair for pair in r.pairs) for r in inside)
+            lines.append(f'  the person (in no scene file): the arm in contact at '
+                         f'{len(touching)} frames, {touching[0].t:.3f} s to {touching[-1].t:.3f} s'
+                         f'; contact with the cloud in {seen} of the {len(inside)} verdicts '
+                         'meanwhile (the person\'s points within the self-filter\'s padding of '
+                         'the arm go with the arm\'s: docs/point_clouds.md, what a cloud can '
+                         'tell)')
+        else:
+            lines.append('  the person (in no scene file): the arm never touches it')
+        if hits:
+            first = hits[0]
+            by = 'a frame' if first.cloud is None else f'cloud {first.cloud}'
+            lines.append(f'  first contact with the cloud: {first.t:.3f} s ({by}\'s verdict), '
+                         f'{pairs_text([p for p in first.pairs if self.source in p])}; the arm '
+                         f'{_person_text(first.person)}')
+        else:
+            lines.append('  first contact with the cloud: none')
+        away = [r for r in records if r.person > diagonal]
+        false = [r for r in away if any(self.source in pair for pair in r.pairs)]
+        lines.append(f'  the arm farther than {1e3 * diagonal:.0f} mm (a voxel\'s diagonal) from '
+                     f'the person: {sum(r.cloud is None for r in away)} frame and '
+                     f'{sum(r.cloud is not None for r in away)} cloud verdicts, '
+                     f'{len(false)} of them with contact with the cloud'
+                     + (': the self-filter kept the arm\'s own points out' if not false else
+                        ' (points that are not the person\'s were kept)'))
+        for kind, count in sorted(verdicts.failures.items()):
+            lines.append(f'  fail-safe entries {kind}: {count} verdicts')
+        if verdicts.check_time.checks:
+            check = verdicts.check_time
+            lines.append(f'  node check time (/diagnostics): mean '
+                         f'{check.total_ms / check.checks:.3f} ms, max {check.max_ms:.3f} ms '
+                         f'over {check.checks} checks')
+        lines.append('  result: ' + ('COLLISION' if spans else 'clear')
+                     + (' (with the camera\'s cloud only: no scene file holds the person)'
+                        if spans and all(self.source in pair for pair in spans) else ''))
+        return lines
+
+
+def _person_text(distance: float) -> str:
+    if distance <= 0.0:
+        return 'touches the person'
+    if math.isinf(distance):
+        return 'more than 10 cm from the person'
+    return f'{1e3 * distance:.0f} mm from the person'
+
+
 # -- the run ----------------------------------------------------------------------------------
 
 def summary_lines(seq, verdicts: Sequence[Tuple[Pair, ...]], played: float,
@@ -408,7 +629,8 @@ def _stamp_ns(seconds: float) -> int:
 
 def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast: bool = False,
              start_timeout: float = START_TIMEOUT, verdict_timeout: float = VERDICT_TIMEOUT,
-             out=sys.stdout, motion: bool = False) -> int:
+             out=sys.stdout, motion: bool = False,
+             camera: Optional[CameraFeed] = None) -> int:
     """Start the node, play ``seq`` into it, print contacts and the summary; return 0.
 
     :param seq: the :class:`~collision_sensor.model.sequences.JointSequence` to play.
@@ -416,6 +638,8 @@ def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast
     :param fast: no timing: each frame as soon as the previous verdict is in.
     :param motion: the node checks the motion into each frame (``check_motion``); each frame
         is printed with the instant's verdict beside the motion's.
+    :param camera: the depth camera (``--camera``): its clouds go to the node between the
+        frames, each answered before the next frame.
     :raises DemoError: the node did not come up, died or gave no verdict in time.
     """
     import rclpy
@@ -430,8 +654,11 @@ def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast
 
     n = len(seq)
     t0 = float(seq.times[0]) if n else 0.0
-    verdicts = Verdicts(status_name=f'{namespace.strip("/")}/{NODE_NAME}: collision sensor'
-                        if namespace.strip('/') else f'{NODE_NAME}: collision sensor')
+    node_status = (f'{namespace.strip("/")}/{NODE_NAME}' if namespace.strip('/')
+                   else NODE_NAME)
+    verdicts = Verdicts(status_name=f'{node_status}: collision sensor',
+                        cloud_status_name=(f'{node_status}: point cloud {camera.topic}'
+                                           if camera is not None else ''))
     every_verdict = QoSProfile(history=HistoryPolicy.KEEP_ALL,
                                reliability=ReliabilityPolicy.RELIABLE,
                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -439,7 +666,7 @@ def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast
                                  reliability=ReliabilityPolicy.RELIABLE)
 
     say(f'starting collision_sensor_node on the demo cell (namespace {namespace}) ...')
-    node = NodeProcess(demo_cell_parameters(motion), namespace, echo=out)
+    node = NodeProcess(demo_cell_parameters(motion, camera is not None), namespace, echo=out)
     context = rclpy.Context()
     rclpy.init(args=['--ros-args', '-r', f'__ns:={namespace}'], context=context)
     executor = SingleThreadedExecutor(context=context)
@@ -460,14 +687,23 @@ def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast
         spinner = threading.Thread(target=spin, name='demo executor', daemon=True)
         spinner.start()
         player = SequencePlayer(seq, context=context, stamp='recorded')
+        if camera is not None:
+            camera.start(listener)
 
         started = time.monotonic()
         wait_until_ready(node, player.publisher, pairs_sub, start_timeout, say)
+        if camera is not None:
+            wait_until_ready(node, camera.publisher, pairs_sub, start_timeout, say)
         timing = ('as fast as the node answers' if fast else f'{rate:g} frames/s' if rate
                   else 'recorded timing')
         say(f'node up after {time.monotonic() - started:.1f} s; playing '
             f'{os.path.basename(seq.source)} ({n} frames, {seq.duration:.2f} s, {timing})')
         say()
+        if camera is not None:
+            width, height = camera.size
+            say(f'camera: {width} x {height} depth image at {camera.rate:g} Hz from '
+                f'{camera.frame}, clouds on {listener.resolve_topic_name(camera.topic)}; '
+                'a person the scene file does not hold stands in the arm\'s path')
         if motion:
             say('     time  the frame alone (instant)  the motion into it (check_motion)')
         else:
@@ -498,7 +734,31 @@ def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast
             if stamp_ns != _stamp_ns(float(seq.times[index])):
                 raise DemoError(f'verdict {index} answers the frame stamped {stamp_ns * 1e-9:.9f}'
                                 f' s, expected {seq.times[index]:.9f} s: verdicts out of order')
-            if motion:
+            if camera is not None:
+                t = float(seq.times[index])
+                for line in camera.record(t - t0, pairs, None, seq.positions[index], previous):
+                    say(line)
+                previous = pairs
+                for k in camera.due(t):
+                    # The cloud of time times[k] <= t: the node has the states around it.
+                    answered = len(verdicts.root_pairs)
+                    camera.publish(k)
+                    if not verdicts.wait(lambda: len(verdicts.root_pairs) > answered,
+                                         CLOUD_VERDICT_TIMEOUT):
+                        status = node.exited()
+                        if status is not None:
+                            raise DemoError(f'collision_sensor_node exited with status '
+                                            f'{status} on cloud {k}')
+                        say(f'  {t - t0:7.3f} s  cloud {k}: no verdict within '
+                            f'{CLOUD_VERDICT_TIMEOUT:g} s (lost or refused: see the node\'s '
+                            'lines above)')
+                        continue
+                    pairs = verdicts.root_pairs[answered]
+                    for line in camera.record(t - t0, pairs, k, seq.positions[index],
+                                              previous):
+                        say(line)
+                    previous = pairs
+            elif motion:
                 met, at = verdicts.met[index]
                 say(motion_line(float(seq.times[index]) - t0, pairs, met, at))
             elif pairs != previous:
@@ -510,7 +770,12 @@ def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast
         verdicts.wait(lambda: verdicts.check_time.checks >= n, DIAGNOSTICS_WAIT)
 
         say()
-        lines = (motion_summary_lines(seq, verdicts) if motion else
+        # A cloud's contact reaches at most a voxel's diagonal beyond its points (the node's
+        # default point_cloud_voxel_size).
+        from collision_sensor.engine.checker_config import CheckerConfig
+        diagonal = math.sqrt(3.0) * CheckerConfig().voxel_size
+        lines = (camera.summary_lines(played, verdicts, diagonal) if camera is not None else
+                 motion_summary_lines(seq, verdicts) if motion else
                  summary_lines(seq, [pairs for _, pairs in verdicts.pairs[:n]], played,
                                verdicts.check_time))
         for line in lines:
@@ -547,7 +812,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help='a bundled sequence (paper_experiment, into_drum_clear, random, '
                              'moving_part, guard_rail_5hz) or a CSV file or bag of the demo '
                              f'arm (default {DEFAULT_SEQUENCE}, with --dynamic '
-                             f'{DYNAMIC_SEQUENCE}, with --motion {MOTION_SEQUENCE})')
+                             f'{DYNAMIC_SEQUENCE}, with --motion {MOTION_SEQUENCE}, with '
+                             f'--camera {CAMERA_SEQUENCE})')
     parser.add_argument('--dynamic', action='store_true',
                         help='the dynamic scene: a crate on a conveyor picked up, carried and '
                              'dropped, a fixture in the way (objects on the node\'s scene '
@@ -557,6 +823,17 @@ def build_parser() -> argparse.ArgumentParser:
                              "frame's instant verdict beside the motion's; plays "
                              f'{MOTION_SEQUENCE}, a 5 Hz recording whose frames are all clear '
                              'while one motion goes through a guard rail')
+    parser.add_argument('--camera', action='store_true',
+                        help='a depth camera on a link of the arm renders the cell, a person '
+                             'the scene file does not hold among it; its clouds go to the '
+                             'node (point_cloud_topics): contact with cloud/... when the arm '
+                             f'reaches the person, its own points filtered out; plays '
+                             f'{CAMERA_SEQUENCE}')
+    parser.add_argument('--camera-size', default='160x120', metavar='WxH',
+                        help='the camera\'s image in pixels (default %(default)s; ray casting '
+                             '320x240 costs about four times as much)')
+    parser.add_argument('--camera-rate', type=float, default=15.0, metavar='HZ',
+                        help='clouds per second of the recording (default %(default)g)')
     timing = parser.add_mutually_exclusive_group()
     timing.add_argument('--rate', type=float, metavar='HZ',
                         help='publish at a fixed rate instead of the recorded timing')
@@ -571,6 +848,15 @@ def build_parser() -> argparse.ArgumentParser:
                         help='instead: print the Panda of example-robot-data as the robot '
                              'model layer reads it (tree, collision elements, poses)')
     return parser
+
+
+def _camera_size(text: str) -> Optional[Tuple[int, int]]:
+    """``'160x120'`` -> (160, 120); None when it is no size of 8 to 1280 pixels a side."""
+    parts = text.lower().split('x')
+    if len(parts) != 2 or not all(part.strip().isdigit() for part in parts):
+        return None
+    width, height = (int(part) for part in parts)
+    return (width, height) if 8 <= width <= 1280 and 8 <= height <= 1280 else None
 
 
 def _error(message: str, status: int) -> int:
@@ -589,13 +875,27 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return describe_panda()
     if args.rate is not None and not args.rate > 0.0:
         return _error(f'--rate {args.rate}: must be a positive number of frames per second', 2)
+    if sum((args.dynamic, args.motion, args.camera)) > 1:
+        return _error('--dynamic, --motion and --camera are demos of their own: give one', 2)
+    size = _camera_size(args.camera_size)
+    if size is None:
+        return _error(f'--camera-size {args.camera_size!r}: give width x height in pixels, '
+                      'each 8 to 1280, e.g. 160x120', 2)
+    if not 0.0 < args.camera_rate <= 100.0:
+        return _error(f'--camera-rate {args.camera_rate:g}: give clouds per second, more than '
+                      '0 and at most 100', 2)
 
     from collision_sensor.model.sequences import read_sequence
     from collision_sensor.tools.offline_check import bundled_sequence_path
     try:
-        name = args.sequence or (DYNAMIC_SEQUENCE if args.dynamic else
-                                 MOTION_SEQUENCE if args.motion else DEFAULT_SEQUENCE)
-        seq = read_sequence(bundled_sequence_path(name))
+        if args.camera and not args.sequence:
+            from collision_sensor.tools.demo_cell import person_in_path
+            seq = person_in_path()
+            seq = type(seq)(seq.joint_names, seq.times, seq.positions, CAMERA_SEQUENCE)
+        else:
+            name = args.sequence or (DYNAMIC_SEQUENCE if args.dynamic else
+                                     MOTION_SEQUENCE if args.motion else DEFAULT_SEQUENCE)
+            seq = read_sequence(bundled_sequence_path(name))
     except CollisionSensorError as err:
         return _error(str(err), 2)
     if len(seq) == 0:
@@ -606,9 +906,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
           f'FASTDDS_BUILTIN_TRANSPORTS={os.environ["FASTDDS_BUILTIN_TRANSPORTS"]}'
           + (f' (set here: {", ".join(chosen)})' if chosen else ''), flush=True)
     try:
+        camera = CameraFeed(seq, size, args.camera_rate) if args.camera else None
+    except CollisionSensorError as err:
+        return _error(str(err), 2)
+    try:
         return run_demo(seq, namespace=args.namespace, rate=args.rate,
                         fast=args.as_fast_as_possible, start_timeout=args.timeout,
-                        motion=args.motion)
+                        motion=args.motion, camera=camera)
     except DemoError as err:
         return _error(str(err), 1)
     except KeyboardInterrupt:

@@ -60,6 +60,17 @@ ARM_LINKS = ('base_link', 'shoulder_link', 'upper_arm_link', 'forearm_link', 'wr
              'wrist_pitch_link', 'tool_link')
 ARM_JOINT_NAMES = tuple(joint[0] for joint in ARM_JOINTS)
 
+# --- the depth camera (collision_sensor_demo --camera): two fixed links of the arm's URDF --------
+# Mounted above and behind the base (its mast is not modelled), looking over the arm at the
+# space between the arm and the washer. ``camera_link`` follows REP 103 (x forward, z up), its
+# child ``camera_optical_frame`` the optical convention (z along the view, x right, y down): the
+# frame a depth camera's driver stamps its clouds with.
+CAMERA_LINK, CAMERA_OPTICAL_FRAME = 'camera_link', 'camera_optical_frame'
+CAMERA_EYE = (-0.8, 0.7, 1.7)        # the optical frame's origin in the base frame (m)
+CAMERA_TARGET = (0.35, -0.4, 0.45)   # the point on its optical axis it looks at (m)
+#: camera_link -> camera_optical_frame (the usual rotation of depth camera drivers' URDFs)
+OPTICAL_RPY = (-math.pi / 2.0, 0.0, -math.pi / 2.0)
+
 # --- the washer (washer frame, m) -------------------------------------------------------------
 WASHER_XYZ = (0.75, 0.0, 0.0)
 CABINET_DEPTH, CABINET_WIDTH, CABINET_HEIGHT = 0.60, 0.60, 0.85
@@ -426,6 +437,11 @@ def arm_urdf() -> str:
                   f'    <visual>{geometry}</visual>',
                   f'    <collision>{geometry}</collision>',
                   '  </link>']
+    # The camera: frames without geometry (nothing to check), a box to draw in its link.
+    lines += [f'  <link name="{CAMERA_LINK}">',
+              '    <visual><geometry><box size="0.03 0.12 0.03"/></geometry></visual>',
+              '  </link>',
+              f'  <link name="{CAMERA_OPTICAL_FRAME}"/>']
     for name, parent, child, xyz, axis, (lower, upper) in ARM_JOINTS:
         lines += [f'  <joint name="{name}" type="revolute">',
                   f'    <parent link="{parent}"/>',
@@ -435,8 +451,30 @@ def arm_urdf() -> str:
                   f'    <limit lower="{lower!r}" upper="{upper!r}" effort="100.0" '
                   'velocity="2.0"/>',
                   '  </joint>']
+    mount_xyz, mount_rpy = camera_mount()
+    for name, parent, child, xyz, rpy in (
+            ('camera_mount', 'base_link', CAMERA_LINK, mount_xyz, mount_rpy),
+            ('camera_optical_joint', CAMERA_LINK, CAMERA_OPTICAL_FRAME, (0.0, 0.0, 0.0),
+             OPTICAL_RPY)):
+        lines += [f'  <joint name="{name}" type="fixed">',
+                  f'    <parent link="{parent}"/>',
+                  f'    <child link="{child}"/>',
+                  f'    <origin xyz="{_fmt(xyz)}" rpy="{_fmt(np.round(rpy, SEQUENCE_DECIMALS))}"/>',
+                  '  </joint>']
     lines.append('</robot>')
     return '\n'.join(lines) + '\n'
+
+
+def camera_mount():
+    """Return ``camera_link``'s origin in ``base_link``: ``(xyz, rpy)``, the optical frame at
+    ``CAMERA_EYE`` looking at ``CAMERA_TARGET`` (URDF rpy: ``R = Rz(yaw) Ry(pitch) Rx(roll)``).
+    """
+    from collision_sensor.tools.depth_camera import look_at
+    T_optical = look_at(CAMERA_EYE, CAMERA_TARGET)
+    x_opt, y_opt, z_opt = T_optical[:3, 0], T_optical[:3, 1], T_optical[:3, 2]
+    R = np.column_stack([z_opt, -x_opt, -y_opt])    # camera_link: x forward, y left, z up
+    rpy = (math.atan2(R[2, 1], R[2, 2]), -math.asin(R[2, 0]), math.atan2(R[1, 0], R[0, 0]))
+    return CAMERA_EYE, rpy
 
 
 def arm_srdf() -> str:
@@ -745,6 +783,42 @@ def guard_rail_5hz() -> JointSequence:
                          scale=(2 * GUARD_RAIL[0], 2 * GUARD_RAIL[0], GUARD_RAIL[1]))
     return JointSequence(seq.joint_names, seq.times, seq.positions, seq.source,
                          (SceneEvent(0.0, (rail,)),))
+
+
+# --- what only a camera sees: a person in the arm's path (collision_sensor_demo --camera) ----
+
+PERSON = (0.18, 1.7)        # radius and height (m) of the person-sized cylinder on the floor
+PERSON_AT = (0.8, -1.1)     # its axis: distance from the base axis (m), bearing (rad)
+PERSON_NAME = 'person'
+
+
+def person():
+    """The person standing in the arm's path: in no scene file (the sensor knows it only from
+    the camera's clouds); a :class:`~collision_sensor.model.scene.SceneObject` for the world
+    the camera renders."""
+    from collision_sensor.model.mesh_loading import cylinder_mesh, cylinder_solid
+    from collision_sensor.model.scene import SceneObject
+    radius, height = PERSON
+    distance, bearing = PERSON_AT
+    T = np.eye(4)
+    T[:3, 3] = (distance * math.cos(bearing), distance * math.sin(bearing), height / 2.0)
+    vertices, faces = cylinder_mesh(radius, height, 48)
+    return SceneObject(PERSON_NAME, 'collision_sensor_demo --camera', T, vertices, faces,
+                       cylinder_solid(radius, height))
+
+
+def person_in_path() -> JointSequence:
+    """The arm's task in ``collision_sensor_demo --camera``: it turns aside, stretches out and
+    sweeps its tool through the place where a person stands (:func:`person`), folds back and
+    returns home below the person's reach. Clear of the washer and of itself at every frame:
+    only the camera's cloud can show the contact (the scene file does not hold the person)."""
+    turned = (-0.5, 0.0, 0.0, 0.0, 0.0, 0.0)
+    stretched = (-0.5, 0.3, -0.3, 0.0, 0.0, 0.0)      # the forearm level, reaching 0.79 m
+    through = (-1.7, 0.3, -0.3, 0.0, 0.0, 0.0)
+    folded = (-1.7, -0.3, 0.3, 0.0, 0.0, 0.0)         # reaching 0.52 m, short of the person
+    home_folded = (0.0, -0.3, 0.3, 0.0, 0.0, 0.0)
+    return _path(HOME, [(0.5, [HOME]), (1.0, [turned]), (0.8, [stretched]), (2.0, [through]),
+                        (0.8, [folded]), (1.6, [home_folded]), (0.8, [HOME]), (0.3, [HOME])])
 
 
 def bundled_sequences() -> Dict[str, JointSequence]:

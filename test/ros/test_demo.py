@@ -198,3 +198,114 @@ def test_the_motion_demo_shows_what_instant_checks_miss(tmp_path, capsys):
     for index in missed:
         assert f'frames {index - 1} -> {index}: ' in out
     assert 'result: COLLISION (on the way only)' in out
+
+
+def test_the_camera_demo_sees_the_person_and_keeps_the_arm_out_of_its_cloud():
+    """``make demo DEMO_ARGS=--camera``: a camera on a link of the arm renders the cell with a
+    person in no scene file; the node reports contact with the cloud when the arm reaches the
+    person, never while the arm is away. Oracle: python-fcl's distance from each link to the
+    person at every frame (yourdfpy's poses of the URDF's meshes)."""
+    import math
+
+    import fcl
+    import numpy as np
+    import trimesh
+    import yourdfpy
+
+    from collision_sensor.model.share import SOURCE_ROOT, config_path
+    from collision_sensor.tools import demo_cell
+    from collision_sensor.tools.demo_camera import CLOUD_TOPIC
+
+    run = run_demo('--camera', '--as-fast-as-possible')
+    assert run.returncode == 0, run.stdout + run.stderr
+    out = run.stdout
+    assert 'Traceback' not in out + run.stderr and 'no verdict within' not in out
+    source = f'cloud/{CLOUD_TOPIC}'
+
+    # The oracle: each link's distance to the person at every frame.
+    robot = yourdfpy.URDF.load(config_path('demo_arm.urdf'), load_meshes=False,
+                               build_collision_scene_graph=False,
+                               filename_handler=lambda uri: os.path.join(
+                                   SOURCE_ROOT, uri[len('package://collision_sensor/'):]))
+    models = {}
+    for link in robot.robot.links:
+        for collision in link.collisions:
+            mesh = trimesh.load(robot._filename_handler(collision.geometry.mesh.filename),
+                                force='mesh')
+            model = fcl.BVHModel()
+            model.beginModel(len(mesh.vertices), len(mesh.faces))
+            model.addSubModel(np.asarray(mesh.vertices, dtype=np.float64),
+                              np.asarray(mesh.faces, dtype=np.int32))
+            model.endModel()
+            models[link.name] = model
+    radius, height = demo_cell.PERSON
+    T = demo_cell.person().T_world_object
+    person = fcl.CollisionObject(fcl.Cylinder(radius, height), fcl.Transform(T[:3, :3], T[:3, 3]))
+    seq = demo_cell.person_in_path()
+
+    def distances(q):
+        robot.update_cfg(dict(zip(seq.joint_names, q)))
+        out = {}
+        for link, model in models.items():
+            P = robot.get_transform(link)
+            obj = fcl.CollisionObject(model, fcl.Transform(P[:3, :3], P[:3, 3]))
+            hit = fcl.collide(obj, person, fcl.CollisionRequest(), fcl.CollisionResult())
+            out[link] = 0.0 if hit else fcl.distance(obj, person, fcl.DistanceRequest(),
+                                                     fcl.DistanceResult())
+        return out
+    truth = [distances(q) for q in seq.positions]
+
+    # What the node reported, frame by frame: every set of pairs it reported at the frame's
+    # state (the frame's verdict, then the verdicts on the clouds sent after it). Each change
+    # starts with a line saying whose verdict it is.
+    groups = []     # (time, 'frame' or 'cloud', [(sign, pair)])
+    for t, sign, a, b, by in re.findall(r'^\s+(\d+\.\d+) s\s+(?:CONTACT|clear)?\s*([+-]) '
+                                        r'(\S+) -- (\S+)(?:\s+\((frame|cloud)[^)]*\))?$',
+                                        out, re.MULTILINE):
+        if by:
+            groups.append((float(t), by, []))
+        assert groups and groups[-1][0] == float(t), out
+        groups[-1][2].append((sign, (a, b)))
+    assert groups, out
+    reported, current, k = [], set(), 0
+    for t in seq.times - seq.times[0]:
+        sets = []
+        if not (k < len(groups) and abs(groups[k][0] - t) < 5e-4 and groups[k][1] == 'frame'):
+            sets.append(set(current))       # the frame's verdict changed nothing
+        while k < len(groups) and groups[k][0] <= t + 5e-4:
+            for sign, pair in groups[k][2]:
+                (current.add if sign == '+' else current.discard)(pair)
+            sets.append(set(current))
+            k += 1
+        reported.append(set().union(*sets))
+    assert k == len(groups)
+    diagonal = math.sqrt(3.0) * 0.02       # a voxel's reach beyond its points
+    cloud_links = [{a if b == source else b for a, b in pairs if source in (a, b)}
+                   for pairs in reported]
+    # Every link in contact with the cloud is within a voxel's diagonal of the person: the
+    # cloud's voxels are the person's (the arm keeps 7 cm from the washer throughout).
+    for links, distance, t in zip(cloud_links, truth, seq.times):
+        for link in links:
+            assert distance[link] <= diagonal + 1e-3, (t, link, distance[link])
+    # Away from the person, no contact at all (the arm's own points never reach the node).
+    away = [i for i, d in enumerate(truth) if min(d.values()) > diagonal + 1e-3]
+    assert len(away) > 300 and not any(reported[i] for i in away)
+    # In the person: the sensor says so.
+    inside = [i for i, d in enumerate(truth) if min(d.values()) == 0.0]
+    assert inside and sum(bool(cloud_links[i]) for i in inside) >= len(inside) // 2
+    first = next(i for i, links in enumerate(cloud_links) if links)
+    assert min(truth[first].values()) <= diagonal
+    # Only the cloud is ever in contact (the scene file does not hold the person).
+    assert all(source in pair for pairs in reported for pair in pairs)
+
+    # The summary.
+    clouds = re.search(r'clouds:\s+(\d+) rendered by ray casting .* sent, (\d+) answered by a '
+                       r'verdict at once', out)
+    assert clouds and clouds.group(1) == clouds.group(2) and int(clouds.group(1)) > 100, out
+    assert re.search(rf'first contact with the cloud: {seq.times[first] - seq.times[0]:.3f} s '
+                     rf'\((?:a frame|cloud \d+)\'s verdict\), {re.escape(source)} -- \w+', out)
+    assert re.search(r'from the person: \d+ frame and \d+ cloud verdicts, 0 of them with contact '
+                     r'with the cloud: the self-filter kept the arm\'s own points out', out), out
+    assert re.search(r'the node\'s filter \(/diagnostics, .*: \d+ points in, \d+ NaN, '
+                     r'[1-9]\d* self-filtered', out), out
+    assert 'result: COLLISION (with the camera\'s cloud only' in out

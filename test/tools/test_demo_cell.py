@@ -194,13 +194,24 @@ def test_triangle_counts_match_the_papers_application():
 
 
 def test_arm_has_six_limited_joints_and_a_mesh_per_link():
+    """Six revolute joints with limits, a mesh per arm link; the camera's two links (on fixed
+    joints, for ``collision_sensor_demo --camera``) have no collision geometry."""
     robot = yourdfpy.URDF.load(ARM_URDF, filename_handler=_resolve, load_meshes=False)
     assert tuple(robot.actuated_joint_names) == demo_cell.ARM_JOINT_NAMES
+    camera = (demo_cell.CAMERA_LINK, demo_cell.CAMERA_OPTICAL_FRAME)
     for joint in robot.robot.joints:
+        if joint.child in camera:
+            assert joint.type == 'fixed', joint.name
+            continue
+        assert joint.type == 'revolute'
         assert joint.limit.lower < 0.0 < joint.limit.upper
         assert joint.limit.upper - joint.limit.lower <= 2.0 * np.pi
-    for link, uris in _mesh_uris(ARM_URDF).items():
-        assert len(uris) == 1 and os.path.isfile(_resolve(uris[0])), link
+    uris = _mesh_uris(ARM_URDF)
+    assert sorted(uris) == sorted(demo_cell.ARM_LINKS + camera)
+    for link in camera:
+        assert uris[link] == [], link
+    for link in demo_cell.ARM_LINKS:
+        assert len(uris[link]) == 1 and os.path.isfile(_resolve(uris[link][0])), link
 
 
 def test_scara_links_are_split_into_several_elements():
