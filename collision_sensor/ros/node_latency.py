@@ -425,26 +425,15 @@ def rendered_clouds(robot, checker, configurations, renders: int, size: str, see
     from sensor_msgs.msg import PointCloud2, PointField
 
     from collision_sensor import CollisionChecker
-    from collision_sensor.engine.dynamic_scene import AddObject
-    from collision_sensor.model.mesh_loading import box_mesh, box_solid
-    from collision_sensor.model.scene import SceneObject
-    from collision_sensor.tools.bench.scenario_clouds import cell_objects
-    from collision_sensor.tools.depth_camera import DepthCamera, look_at
+    from collision_sensor.tools.bench.scenario_clouds import CAMERA_POSE, cell_changes
+    from collision_sensor.tools.depth_camera import DepthCamera
 
     width, height = (int(v) for v in size.lower().split('x'))
     world = CollisionChecker.from_urdf(robot.urdf, srdf=robot.srdf,
                                        package_paths=robot.package_paths)
-    changes = []
-    for name, extent, centre in cell_objects():
-        T = np.eye(4)
-        T[:3, 3] = centre
-        vertices, faces = box_mesh(extent)
-        changes.append(AddObject(SceneObject(name=name, source='node_latency', T_world_object=T,
-                                             vertices=vertices, faces=faces,
-                                             solid=box_solid(extent))))
-    world.apply_scene_changes(changes)
+    world.apply_scene_changes(cell_changes('node_latency'))
     camera = DepthCamera(width=width, height=height, noise=0.002)
-    T_world_camera = look_at([1.4, 0.9, 1.0], [0.3, 0.0, 0.3])
+    T_world_camera = CAMERA_POSE
     R, t = T_world_camera[:3, :3].T, T_world_camera[:3, 3]
     rng = np.random.default_rng(seed)
     fields = [PointField(name=axis, offset=4 * k, datatype=PointField.FLOAT32, count=1)

@@ -46,6 +46,23 @@ def cell_objects():
             ('unknown_box', (0.1, 0.1, 0.2), (0.45, 0.1, 0.1))]
 
 
+def cell_changes(source: str) -> list:
+    """The scene changes that add :func:`cell_objects` (boxes, solid), from ``source``."""
+    changes = []
+    for name, size, centre in cell_objects():
+        T = np.eye(4)
+        T[:3, 3] = centre
+        vertices, faces = box_mesh(size)
+        changes.append(AddObject(SceneObject(name=name, source=source, T_world_object=T,
+                                             vertices=vertices, faces=faces,
+                                             solid=box_solid(size))))
+    return changes
+
+
+#: The camera's optical frame in the cell.
+CAMERA_POSE = look_at([1.4, 0.9, 1.0], [0.3, 0.0, 0.3])
+
+
 def clouds(world, camera, T_world_camera, configurations, seed):
     """Render ``world`` at each configuration: [(q, (H W, 3) float32 world-frame cloud)]."""
     rng = np.random.default_rng(seed)
@@ -152,20 +169,12 @@ def run(settings) -> Section:
     section = Section(12, TITLE)
     cell = robot_cell('panda')
     sensor, world = cell.checker(), cell.checker()
-    changes = []
-    for name, size, centre in cell_objects():
-        T = np.eye(4)
-        T[:3, 3] = centre
-        vertices, faces = box_mesh(size)
-        changes.append(AddObject(SceneObject(name=name, source='bench', T_world_object=T,
-                                             vertices=vertices, faces=faces,
-                                             solid=box_solid(size))))
-    world.apply_scene_changes(changes)
+    world.apply_scene_changes(cell_changes('bench'))
     # The table is the robot's support: the cloud's voxels at the padding's edge reach the
     # base (docs/point_clouds.md); its pair is allowed, as a user would.
     camera = DepthCamera(width=160, height=120, noise=0.002) if settings.quick else \
         DepthCamera(noise=0.002)
-    T_world_camera = look_at([1.4, 0.9, 1.0], [0.3, 0.0, 0.3])
+    T_world_camera = CAMERA_POSE
     configurations = random_configurations(sensor, 2 if settings.quick else 5, settings.seed)
     rendered = clouds(world, camera, T_world_camera, configurations, settings.seed)
     rows = camera.width * camera.height
