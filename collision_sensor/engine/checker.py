@@ -38,6 +38,7 @@ from collision_sensor.errors import JointStateError, PointCloudError, SceneError
 from collision_sensor.model.robot_model import RobotModel, load_urdf
 from collision_sensor.model.scene import SceneObject, load_scene
 from collision_sensor.model.srdf import Srdf, load_srdf_for_model
+from collision_sensor.untrusted_text import quoted
 
 Pair = Tuple[str, str]
 _NOT_AN_ARRAY = engine.NOT_AN_ARRAY
@@ -379,9 +380,10 @@ class CollisionChecker:
             frame_index = self._link_index[frame]
         else:
             raise PointCloudError(
-                f'{name}: frame "{frame}" is no link of robot "{self.model.name}" and not the '
-                f'world frame ({" or ".join(sorted(self.world_frames))}); give the points in a '
-                'link\'s frame (a camera frame is a link of the URDF) or in the world frame')
+                f'{name}: frame {quoted(frame, 100)} is no link of robot "{self.model.name}" '
+                f'and not the world frame ({" or ".join(sorted(self.world_frames))}); give the '
+                'points in a link\'s frame (a camera frame is a link of the URDF) or in the '
+                'world frame')
         if stamp is None:
             stamp = time.monotonic()
         max_range, persistence, stamp = cloud_arguments(max_range, persistence, stamp)

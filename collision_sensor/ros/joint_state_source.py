@@ -178,6 +178,7 @@ class JointStateSource(InputSource):
                                   in joints_out_of_limits(merger.positions, limits)}
             self.merger, self.limits = merger, limits
             self.window.clear()     # another robot's joints, maybe in another order
+            self.window.kinds = checker.motion_kinds
             self._unchecked = []
             self._announced_waiting = False
         return commit

@@ -10,14 +10,19 @@ with its stamp; a point cloud source asks for the state at its cloud's stamp. Co
         oldest <= t < newest     -> linear interpolation between the two states around t
         t < oldest kept          -> None: older than the window, not placed with a wrong pose
 
-States older than ``window`` seconds before the newest are forgotten. Joint values are
-interpolated componentwise (revolute, prismatic; a continuous joint's two samples are taken as
-they come: at joint-state rates they are close, so no wrap is assumed).
+States older than ``window`` seconds before the newest are forgotten. Between two states the
+robot moves as a straight motion does (:func:`collision_sensor.engine.motion.interpolate`, when
+the window is given the variables' ``kinds``): revolute and prismatic joints linearly, a
+continuous joint the shorter way round (a driver that wraps its angle at +-pi is not swung
+through the other side), a floating joint's rotation along the shortest arc; without
+``kinds``, every value linearly.
 """
 import bisect
 from typing import List, Optional
 
 import numpy as np
+
+from collision_sensor.engine.motion import interpolate
 
 
 class JointStateWindow:
@@ -25,11 +30,13 @@ class JointStateWindow:
 
     :param window: seconds of history kept (> 0).
     :param capacity: states kept at most (a 1 kHz stream over 1 s: 1000), whatever the window.
+    :ivar kinds: the variables' motion kinds (``CollisionChecker.motion_kinds``), or None.
     """
 
-    def __init__(self, window: float = 1.0, capacity: int = 4096):
+    def __init__(self, window: float = 1.0, capacity: int = 4096, kinds=None):
         self.window = float(window)
         self.capacity = int(capacity)
+        self.kinds = kinds
         self._times: List[float] = []
         self._states: List[np.ndarray] = []
 
@@ -80,4 +87,6 @@ class JointStateWindow:
         k = bisect.bisect_right(times, t)       # times[k - 1] <= t < times[k]
         t0, t1 = times[k - 1], times[k]
         s = (t - t0) / (t1 - t0)
+        if self.kinds is not None:
+            return interpolate(self.kinds, self._states[k - 1], self._states[k], [s])[0]
         return (1.0 - s) * self._states[k - 1] + s * self._states[k]

@@ -456,6 +456,9 @@ def test_bad_input_and_config(panda):
     checker, _ = panda
     with pytest.raises(PointCloudError, match='frame "nowhere"'):
         checker.set_points(SOURCE, np.zeros((3, 3)), 'nowhere')
+    with pytest.raises(PointCloudError) as error:      # a frame from the graph: escaped
+        checker.set_points(SOURCE, np.zeros((3, 3)), 'cam\x1b[2J\nWARN fake' + 'x' * 5000)
+    assert error.value.args[0].isprintable() and len(str(error.value)) < 1000
     with pytest.raises(PointCloudError, match='shape'):
         checker.set_points(SOURCE, np.zeros((3, 4)))
     with pytest.raises(PointCloudError, match='source'):

@@ -40,3 +40,34 @@ def test_capacity_bounds_memory():
         window.record(k * 0.001, [float(k)])
     assert len(window) <= 51
     assert window.at(0.999)[0] == 999.0
+
+
+def test_with_kinds_a_continuous_joint_goes_the_short_way_and_a_rotation_along_the_arc():
+    """A driver wrapping a continuous joint at +-pi: between 3.1 and -3.1 the state passes
+    pi, not 0; a floating joint's quaternion moves along the shortest arc (slerp, sign
+    flips taken the short way), against the rotation computed here from the angle."""
+    import math
+    from collision_sensor.engine.compiled import engine
+    kinds = np.array([engine.MOTION_LINEAR, engine.MOTION_WRAP, engine.MOTION_QUATERNION,
+                      engine.MOTION_QUATERNION_REST, engine.MOTION_QUATERNION_REST,
+                      engine.MOTION_QUATERNION_REST])
+    window = JointStateWindow(window=1.0, kinds=kinds)
+    angle = 2.0     # about z, from the identity
+    q0 = [0.0, 3.1, 0.0, 0.0, 0.0, 1.0]
+    # the same end rotation with the quaternion's sign flipped (-q is q's rotation)
+    q1 = [1.0, -3.1, 0.0, 0.0, -math.sin(angle / 2), -math.cos(angle / 2)]
+    window.record(0.0, q0)
+    window.record(1.0, q1)
+    for s in (0.25, 0.5, 0.75):
+        q = window.at(s)
+        assert q[0] == s
+        wrapped = 3.1 + s * (2 * math.pi - 6.2)        # through pi
+        assert abs(math.remainder(q[1] - wrapped, 2 * math.pi)) < 1e-12
+        assert abs(q[1]) > 3.0
+        half = s * angle / 2      # the shortest arc from the identity: rotation s * angle
+        expected = np.array([0.0, 0.0, math.sin(half), math.cos(half)])
+        np.testing.assert_allclose(q[2:], expected, atol=1e-12)
+    plain = JointStateWindow(window=1.0)
+    plain.record(0.0, q0)
+    plain.record(1.0, q1)
+    assert abs(plain.at(0.5)[1]) < 1e-12       # without kinds: componentwise, through 0

@@ -359,3 +359,41 @@ def test_closest_approach_is_the_single_checks(fleet, spec, capsys):
     assert (f'closest approach while clear: {c["distance"]:.6f} m ({c["link_a"]} -- '
             f'{c["link_b"]}) at {c["time"]:.3f} s in {nearest["source"]}; 3 units came within '
             '--max-distance') in capsys.readouterr().out
+
+
+def test_the_settings_digest_is_the_files_contents_not_their_paths(erd_share, tmp_path,
+                                                                   panda_urdf, panda_srdf):
+    """The same Panda read from a copy elsewhere (URDF, SRDF, meshes) has the same digest, so
+    --resume continues a report after a checkout moved; a changed mesh, SRDF, setting or option
+    changes it."""
+    import shutil
+    from collision_sensor.tools.audit.unit_check import CheckOptions, RobotSpec
+    copy = tmp_path / 'elsewhere' / 'example-robot-data'
+    shutil.copytree(os.path.join(erd_share, 'robots', 'panda_description'),
+                    copy / 'robots' / 'panda_description')
+    moved = copy / 'robots' / 'panda_description'
+    options = CheckOptions()
+
+    def digest(root, urdf='urdf/panda.urdf', srdf='srdf/panda.srdf', config=None,
+               opts=options):
+        spec = RobotSpec.load(os.path.join(root, urdf), os.path.join(root, srdf),
+                              package_paths={'example-robot-data': str(root.parent.parent)},
+                              config=config)
+        return spec.digest(opts)
+
+    import pathlib
+    here = digest(pathlib.Path(erd_share) / 'robots' / 'panda_description')
+    assert digest(moved) == here
+    assert digest(moved, config={'padding': 0.01}) != here
+    assert digest(moved, opts=CheckOptions(incremental=False)) != here
+    text = (moved / 'srdf' / 'panda.srdf').read_text()
+    line = '<disable_collisions link1="panda_link0" link2="panda_link2" reason="Never"/>'
+    assert line in text
+    (moved / 'srdf' / 'fewer.srdf').write_text(text.replace(line, '', 1))
+    assert digest(moved, srdf='srdf/fewer.srdf') != here
+    import trimesh
+    mesh = str(moved / 'meshes' / 'collision' / 'link0.stl')
+    shape = trimesh.load(mesh)
+    shape.apply_scale(1.01)
+    shape.export(mesh)
+    assert digest(moved) != here

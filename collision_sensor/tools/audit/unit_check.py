@@ -14,6 +14,7 @@ node's rules) and gives the keys it adds to the report line. **The seam for moti
 ``CheckOptions.motion`` (``--motion``): it adds the key ``motion``; the report, resume, pools
 and Ray carry it as they carry the others.
 """
+import dataclasses
 import hashlib
 import os
 import pickle
@@ -94,11 +95,28 @@ class RobotSpec:
 
     def digest(self, options: 'CheckOptions') -> str:
         """Return 16 hex digits that change with the robot, its settings or the options: a
-        report's lines written under other ones are not resumed (``--resume``)."""
-        data = pickle.dumps((self.model, self.srdf, self.scene, sorted((self.config or {})
-                                                                       .items()),
-                             options.digest_fields()), protocol=4)
+        report's lines written under other ones are not resumed (``--resume``). What the files
+        hold counts, not where they are: the same robot read from a moved checkout or an
+        install space resumes the report."""
+        data = pickle.dumps((_without_sources(self.model), _without_sources(self.srdf),
+                             tuple(_without_sources(o) for o in self.scene),
+                             sorted((self.config or {}).items()), options.digest_fields()),
+                            protocol=4)
         return hashlib.sha256(data).hexdigest()[:16]
+
+
+def _without_sources(value):
+    """``value`` (a model, an SRDF or a scene object) with the file names it was read from
+    (``source`` fields, and the warnings, which name files) left out."""
+    if not dataclasses.is_dataclass(value):
+        return value
+    names = {f.name for f in dataclasses.fields(value)}
+    changes = {'source': ''} if 'source' in names else {}
+    if 'warnings' in names:
+        changes['warnings'] = ()
+    if 'elements' in names:
+        changes['elements'] = tuple(_without_sources(e) for e in value.elements)
+    return dataclasses.replace(value, **changes)
 
 
 @dataclass(frozen=True)
