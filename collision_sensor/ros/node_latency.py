@@ -139,6 +139,7 @@ class Driver:
             QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE))
         self.node_status = {}   # the node's last /diagnostics values
+        self.cloud_status = {}  # ... and its cloud source's (--clouds)
         self._status_name = f'{namespace.strip("/")}/collision_sensor: collision sensor'
         self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
                                       QoSProfile(depth=100,
@@ -201,6 +202,8 @@ class Driver:
         for status in msg.status:
             if status.name == self._status_name:
                 self.node_status = {kv.key: kv.value for kv in status.values}
+            elif status.name == f'{self._status_name.split(":")[0]}: point cloud {CLOUD_TOPIC}':
+                self.cloud_status = {kv.key: kv.value for kv in status.values}
 
     def spin_until(self, condition, timeout: float) -> bool:
         deadline = time.monotonic() + timeout
@@ -514,7 +517,14 @@ class CameraProcess:
         self.sent = None
 
     def start(self, timeout: float = 120.0) -> None:
-        self.process = subprocess.Popen(self.command, stdout=subprocess.PIPE, text=True)
+        from collision_sensor.model.share import config_path
+        environment = dict(os.environ)
+        # Clouds larger than Fast DDS's 512 KB shared memory segment are not delivered over
+        # shared memory alone: the camera's participant gets a large segment (its comment).
+        environment.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE',
+                               config_path('fastdds_large_data.xml'))
+        self.process = subprocess.Popen(self.command, stdout=subprocess.PIPE, text=True,
+                                        env=environment)
         deadline = time.monotonic() + timeout
         line = self.process.stdout.readline()
         if not line.startswith('ready') or time.monotonic() > deadline:
@@ -525,7 +535,7 @@ class CameraProcess:
         """Stop the camera; return the clouds it published."""
         if self.process is None:
             return None
-        self.process.send_signal(signal.SIGINT)
+        self.process.send_signal(signal.SIGTERM)
         try:
             out, _ = self.process.communicate(timeout=20)
         except subprocess.TimeoutExpired:
@@ -541,6 +551,7 @@ def camera_main(path: str, slot_path: str, namespace: str, rate: float) -> int:
     import rclpy
     from rclpy.node import Node
     from rclpy.qos import qos_profile_sensor_data
+    from rclpy.signals import SignalHandlerOptions
     from sensor_msgs.msg import PointCloud2
 
     saved = np.load(path)
@@ -549,7 +560,9 @@ def camera_main(path: str, slot_path: str, namespace: str, rate: float) -> int:
     clouds = {int(index): bytearray(data[offsets[k]:offsets[k + 1]].tobytes())
               for k, index in enumerate(saved['indices'])}
     slot = StampSlot(slot_path)
-    rclpy.init(args=[])
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
     node = Node('node_latency_camera', namespace=namespace, enable_rosout=False,
                 start_parameter_services=False)
     publisher = node.create_publisher(PointCloud2, CLOUD_TOPIC, qos_profile_sensor_data)
@@ -561,9 +574,8 @@ def camera_main(path: str, slot_path: str, namespace: str, rate: float) -> int:
         print('ready', flush=True)
         period = 1.0 / rate
         tick = time.monotonic()
-        while True:
+        while not stop.wait(max(0.0, tick + period - time.monotonic())):
             tick += period
-            time.sleep(max(0.0, tick - time.monotonic()))
             last = slot.read()
             if last is None:
                 continue
@@ -571,8 +583,6 @@ def camera_main(path: str, slot_path: str, namespace: str, rate: float) -> int:
             struct.pack_into('<iI', cloud, 4, *divmod(last[1], 1_000_000_000))
             publisher.publish(bytes(cloud))
             sent += 1
-    except KeyboardInterrupt:
-        pass
     finally:
         print(f'sent {sent}', flush=True)
         node.destroy_node()
@@ -584,6 +594,8 @@ def _print_figures(label: str, figures: dict, rss: Optional[int] = None):
     memory = f'  node RSS {rss / 1024:6.1f} MiB' if rss is not None else ''
     if 'clouds' in figures:
         memory += f'  clouds {figures["clouds"]}'
+    if 'cloud_counts' in figures:
+        memory += f' (the node, so far: {figures["cloud_counts"]})'
     if 'cpu_us' in figures:
         memory += f'  node CPU {figures["cpu_us"]:6.1f} us per message'
     if 'trajectories' in figures:
@@ -646,6 +658,12 @@ def _with_and_without_clouds(driver, camera: CameraProcess, rates, duration: flo
                     figures['cpu_us'] = 1e6 * (cpu_seconds(pid) - cpu) / figures['published']
                 if with_clouds:
                     figures['clouds'] = sent
+                    before = dict(driver.cloud_status)
+                    driver.spin_until(lambda: driver.cloud_status != before, 3.0)
+                    d = driver.cloud_status
+                    figures['cloud_counts'] = ', '.join(
+                        f'{key} {d.get(f"clouds_{key}_total", "?")}' for key in (
+                            'received', 'accepted', 'superseded', 'dropped', 'too_old'))
                 _print_figures('clouds' if with_clouds else 'no clouds', figures, rss_kib(pid))
                 p99[with_clouds].append(figures['p99_ms'])
                 p50[with_clouds].append(figures['p50_ms'])
