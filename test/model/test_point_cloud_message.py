@@ -1,14 +1,17 @@
-"""PointCloud2 messages read as points (collision_sensor.ros.point_cloud_message), on real
+"""PointCloud2 messages read as points (collision_sensor.model.point_cloud_message), on real
 ``sensor_msgs`` messages (no node): every layout a driver publishes is read as numpy would
 decode it field by field, and every bad input of issue 29 item 4 is refused with a message
 naming the field or step and the fix."""
 import numpy as np
 import pytest
-from sensor_msgs.msg import PointCloud2, PointField
-from std_msgs.msg import Header
 
-from collision_sensor import CollisionChecker
-from collision_sensor.ros.point_cloud_message import CloudMessageError, cloud_rows
+pytest.importorskip('sensor_msgs.msg')
+
+from sensor_msgs.msg import PointCloud2, PointField  # noqa: E402
+from std_msgs.msg import Header  # noqa: E402
+
+from collision_sensor import CollisionChecker  # noqa: E402
+from collision_sensor.model.point_cloud_message import CloudMessageError, cloud_rows  # noqa: E402
 
 
 def _message(points, dtype='<f4', extra=0, row_pad=0, height=1, order='xyz', frame='cam',

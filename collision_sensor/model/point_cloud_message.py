@@ -1,8 +1,9 @@
 """A ``sensor_msgs/PointCloud2``'s x, y, z as the engine reads them (issue 29, items 2 and 4).
 
 Pure numpy, no rclpy: the message is read through its fields (``height``, ``width``,
-``fields``, ``is_bigendian``, ``point_step``, ``row_step``, ``data``), so this module is tested
-without ROS and the node's point cloud source only hands messages over. Everything in a
+``fields``, ``is_bigendian``, ``point_step``, ``row_step``, ``data``), so the same function
+reads an rclpy message (the node's point cloud source) and a ``rosbags`` message read from a
+bag (the offline checker, :mod:`collision_sensor.tools.recorded_clouds`). Everything in a
 message is untrusted: each check below names what is wrong with the message and the fix, with
 the message's own text escaped (:mod:`collision_sensor.untrusted_text`), and nothing is
 allocated in proportion to what the message *claims* (only to the bytes it holds).
