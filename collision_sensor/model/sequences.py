@@ -92,6 +92,7 @@ class CloudEvent:
     :ivar ordinal: its place among the bag's cloud messages as the bag yields them.
     :ivar size: bytes of the serialized message.
     :ivar error: why the message could not be deserialized ('' when it could).
+    :ivar log_time: seconds, when the bag received it (the player publishes it then).
     """
 
     time: float
@@ -101,6 +102,7 @@ class CloudEvent:
     ordinal: int
     size: int = 0
     error: str = ''
+    log_time: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -656,7 +658,7 @@ def _read_clouds(path, reader, typestore, cloud_topics) -> tuple:
             error = f'cannot deserialize the message: {type(err).__name__}: {err}'
         events.append(CloudEvent((stamp or log_time) / _NS_PER_S,
                                  cloud_source(connection.topic), frame, path, ordinal, len(raw),
-                                 error[:500]))
+                                 error[:500], log_time / _NS_PER_S))
     events.sort(key=lambda event: event.time)    # stable: equal times keep the bag's order
     return tuple(events)
 
