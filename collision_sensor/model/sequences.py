@@ -64,6 +64,8 @@ DEFAULT_TOPIC = '/joint_states'
 SCENE_TOPIC = '/scene'
 FORMATS = ('csv', 'mcap', 'sqlite3')
 _NS_PER_S = 1_000_000_000
+#: Bytes of clouds read ahead of their turn that :func:`iter_cloud_messages` keeps at most.
+MAX_READ_AHEAD = 1 << 30
 
 
 @dataclass(frozen=True)
@@ -669,14 +671,17 @@ def iter_cloud_messages(clouds: Sequence[CloudEvent], path: Optional[str] = None
     time order), reading the messages again from the bag, one pass in the bag's order.
 
     Memory: a message read before its turn (recorded earlier than a cloud with an earlier
-    stamp, e.g. two cameras with different delays) is kept, serialized, until its turn; the
-    others are deserialized when yielded and dropped by the caller.
+    stamp, e.g. two cameras with different delays) is kept, serialized, until its turn, up to
+    :data:`MAX_READ_AHEAD` bytes; the others are deserialized when yielded and dropped by the
+    caller.
 
     :param path: the bag to read (default: the events' own ``bag``; a worker that unpacked a
         shipped bag elsewhere passes that).
     :return: messages are ``rosbags`` PointCloud2 dataclasses, or None for an event whose
         ``error`` says why it could not be deserialized.
-    :raises SequenceError: the bag cannot be read again.
+    :raises SequenceError: the bag cannot be read again, or its clouds' stamps are so far
+        out of the order it recorded them in that more than :data:`MAX_READ_AHEAD` bytes would
+        wait.
     """
     from rosbags.rosbag2 import Reader
 
@@ -686,7 +691,7 @@ def iter_cloud_messages(clouds: Sequence[CloudEvent], path: Optional[str] = None
     wanted = {event.ordinal for event in clouds}
     topics = sorted({event.source for event in clouds})
     typestore = _typestore()
-    waiting = {}
+    waiting, held = {}, 0
     try:
         with Reader(Path(path)) as reader:
             connections = [c for c in reader.connections
@@ -697,7 +702,15 @@ def iter_cloud_messages(clouds: Sequence[CloudEvent], path: Optional[str] = None
                     ordinal, (_, _, raw) = next(stream)
                     if ordinal in wanted:
                         waiting[ordinal] = raw
+                        held += len(raw)
+                    if held > MAX_READ_AHEAD and event.ordinal not in waiting:
+                        raise SequenceError(
+                            f'{path}: the cloud of {event.source} stamped {event.time:.3f} s '
+                            f'was recorded after more than {MAX_READ_AHEAD >> 20} MiB of clouds '
+                            'stamped later; are the stamps of one topic on another clock? '
+                            'Check each topic alone (--cloud-topic)')
                 raw = waiting.pop(event.ordinal)
+                held -= len(raw)
                 if event.error:
                     yield event, None
                     continue

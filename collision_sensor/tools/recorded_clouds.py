@@ -179,3 +179,22 @@ def summary_lines(counts: Dict[str, object]) -> List[str]:
         for message in counts['messages'][:5]:
             lines.append(f'  {message}')
     return lines
+
+
+def cloud_summary_lines(records) -> List[str]:
+    """Return a batch summary's lines on the units' clouds (their ``point_clouds`` entries)."""
+    with_clouds = [r for r in records if r.get('point_clouds')]
+    if not with_clouds:
+        return []
+    total = sum(r['point_clouds']['clouds'] for r in with_clouds)
+    applied = sum(r['point_clouds']['applied'] for r in with_clouds)
+    refused = [r for r in with_clouds if r['point_clouds']['rejected']]
+    lines = ['', f'point clouds: {applied} of {total} applied in {len(with_clouds)} units']
+    if refused:
+        reasons = Counter()
+        for r in refused:
+            reasons.update(r['point_clouds']['rejected'])
+        lines.append(f'  not applied in {len(refused)} units: ' + ', '.join(
+            f'{count} {reason}' for reason, count in sorted(reasons.items()))
+            + ' (each line\'s point_clouds.messages says why)')
+    return lines

@@ -300,6 +300,15 @@ def test_clouds_are_read_in_stamp_order_and_scheduled_by_the_frames(tmp_path, fm
         [], ['b1', 'a1'], ['b2', 'a2'], []]
     assert [e.frame for e in schedule.after_last] == ['b3']
     assert read_sequence(path, cloud_topics=['b']).clouds[0].frame == 'b1'
+    # Memory is bounded: clouds read ahead of their turn are kept up to a limit.
+    import collision_sensor.model.sequences as sequences
+    limit, sequences.MAX_READ_AHEAD = sequences.MAX_READ_AHEAD, 10
+    try:
+        with pytest.raises(SequenceError, match='the cloud of b stamped 1.050 s was recorded '
+                           'after more than 0 MiB of clouds stamped later'):
+            list(iter_cloud_messages(seq.clouds))
+    finally:
+        sequences.MAX_READ_AHEAD = limit
     # The state at a cloud's stamp: linear between the frames around it.
     assert seq.positions_at(1.05) == pytest.approx([1.05, -1.05, 2.1])
     assert seq.positions_at(0.5) == pytest.approx(positions[0])

@@ -185,7 +185,9 @@ def test_the_audit_unit_reports_the_same_pairs_and_counts(bag, panda_files, tmp_
     report = tmp_path / 'audit.jsonl'
     status = offline_check.main([bag, '--urdf', urdf, '--srdf', srdf, '--package-path', package,
                                  '--report', str(report), '--jobs', '1', '--progress', 'never'])
-    capsys.readouterr()
+    text = capsys.readouterr().out
+    assert ('point clouds: 2 of 8 applied in 1 units\n  not applied in 1 units: '
+            '1 after_last_frame, 2 fields, 1 frame, 1 invalid, 1 layout') in text, text
     assert status == offline_check.EXIT_COLLISION
     line = json.loads(report.read_text().splitlines()[0])
     assert line['error'] is None
