@@ -171,7 +171,7 @@ def summary_lines(counts: Dict[str, object]) -> List[str]:
     if not counts or not counts['clouds']:
         return []
     lines = [f'point clouds:        {counts["applied"]} of {counts["clouds"]} applied '
-             f'({", ".join(counts["sources"])})']
+             f'({", ".join(printable(source, 200) for source in counts["sources"])})']
     rejected = counts['rejected']
     if rejected:
         lines.append('  not applied: ' + ', '.join(f'{count} {reason}'

@@ -158,6 +158,10 @@ def test_options_reach_the_filter(bag, panda_files, tmp_path, capsys):
     clouds = [c for frame in frames for c in frame['clouds']]
     assert {c['source'] for c in clouds} == {'camera/points'}
     assert clouds[0]['voxels'] < 64 and status == offline_check.EXIT_COLLISION
+    # Checked from scratch at every frame: the same answers as the incremental updates.
+    _, incremental, _ = _check(bag, panda_files, tmp_path, capsys)
+    _, full, _ = _check(bag, panda_files, tmp_path, capsys, '--full')
+    assert [f['pairs'] for f in full] == [f['pairs'] for f in incremental]
     status, frames, _ = _check(bag, panda_files, tmp_path, capsys, '--no-clouds')
     assert status == offline_check.EXIT_CLEAR and 'clouds' not in frames[0]
 
