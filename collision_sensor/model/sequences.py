@@ -692,12 +692,19 @@ def iter_cloud_messages(clouds: Sequence[CloudEvent], path: Optional[str] = None
     topics = sorted({event.source for event in clouds})
     typestore = _typestore()
     waiting, held = {}, 0
+    reader = Reader(Path(path))
     try:
-        with Reader(Path(path)) as reader:
-            connections = [c for c in reader.connections
-                           if cloud_source(c.topic) in topics and c.msgtype == POINT_CLOUD_TYPE]
-            stream = enumerate(reader.messages(connections=connections))
-            for event in clouds:
+        reader.open()
+        connections = [c for c in reader.connections
+                       if cloud_source(c.topic) in topics and c.msgtype == POINT_CLOUD_TYPE]
+        messages = reader.messages(connections=connections)
+        stream = enumerate(messages)
+    except Exception as err:   # noqa: B902 - rosbags raises several families for broken bags
+        _close_quietly(reader)
+        raise SequenceError(f'{path}: cannot read the bag\'s clouds again: {err}') from None
+    try:
+        for number, event in enumerate(clouds):
+            try:
                 while event.ordinal not in waiting:
                     ordinal, (_, _, raw) = next(stream)
                     if ordinal in wanted:
@@ -711,17 +718,30 @@ def iter_cloud_messages(clouds: Sequence[CloudEvent], path: Optional[str] = None
                             'Check each topic alone (--cloud-topic)')
                 raw = waiting.pop(event.ordinal)
                 held -= len(raw)
-                if event.error:
-                    yield event, None
-                    continue
-                yield event, typestore.deserialize_cdr(raw, POINT_CLOUD_TYPE)
-    except StopIteration:
-        raise SequenceError(f'{path}: the bag holds fewer clouds than when it was read first; '
-                            'was it changed meanwhile?') from None
-    except SequenceError:
-        raise
-    except Exception as err:   # noqa: B902 - rosbags raises several families for broken bags
-        raise SequenceError(f'{path}: cannot read the bag\'s clouds again: {err}') from None
+                msg = None if event.error else typestore.deserialize_cdr(raw, POINT_CLOUD_TYPE)
+            except StopIteration:
+                raise SequenceError(f'{path}: the bag holds fewer clouds than when it was read '
+                                    'first; was it changed meanwhile?') from None
+            except SequenceError:
+                raise
+            except Exception as err:   # noqa: B902 - rosbags raises several families
+                raise SequenceError(f'{path}: cannot read the bag\'s clouds again: {err}') \
+                    from None
+            if number == len(clouds) - 1:
+                _close_quietly(reader, messages)   # the last: not left open until let go
+            yield event, msg
+    finally:
+        _close_quietly(reader, messages)
+
+
+def _close_quietly(reader, messages=None) -> None:
+    """Close a bag reader that was only read from, and its message stream (twice is
+    harmless; errors say nothing the reading did not)."""
+    for close in ((messages.close,) if messages is not None else ()) + (reader.close,):
+        try:
+            close()
+        except Exception:   # noqa: B902
+            pass
 
 
 def _merge_joint_states(path, topic, messages, joint_names) -> JointSequence:

@@ -392,7 +392,7 @@ class UnitChecker:
                 seq = self._read(unit, payload, local)
                 record.update(frames=len(seq), start_time=float(seq.times[0]),
                               duration=seq.duration, scene_changes=len(seq.scene))
-                results, clouds = self._run(seq, local)
+                results, clouds = self._run(seq)
             record['point_clouds'] = clouds
             for keys in results:
                 record.update(keys)
@@ -445,7 +445,7 @@ class UnitChecker:
         return JointSequence(seq.joint_names, seq.times, seq.positions, unit.path, seq.scene,
                              seq.clouds)
 
-    def _run(self, seq: JointSequence, local: str):
+    def _run(self, seq: JointSequence):
         """Run every check over the frames, the recorded scene arrays and point clouds
         applied between stretches (:meth:`JointSequence.scene_before`,
         :class:`~collision_sensor.tools.recorded_clouds.CloudReplay`); return the checks'
