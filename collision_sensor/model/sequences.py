@@ -34,7 +34,8 @@ rosbag2 (a bag directory with ``metadata.yaml``, or a bare ``*.mcap`` / ``*.db3`
     at its ``header.stamp`` (the log time when that is zero), its frame ``header.frame_id``,
     its source the topic as recorded without the leading ``/`` (``/camera/points`` ->
     ``camera/points``: the relative name a node's ``point_cloud_topics`` gives and the player
-    publishes on, so the obstacle is ``cloud/camera/points`` offline and in the node); the points stay in the bag until they are used
+    publishes on, so the obstacle is ``cloud/camera/points`` offline and in the node); the
+    points stay in the bag until they are used
     (:func:`iter_cloud_messages` reads them again, one at a time, in time order), so a bag of
     gigabytes of clouds is read in the memory of a few. Whether a cloud's layout is readable is
     decided when it is used (:mod:`collision_sensor.model.point_cloud_message`), where a bad

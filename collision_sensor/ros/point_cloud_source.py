@@ -5,7 +5,8 @@ name is the topic as given, its obstacle ``cloud/<topic>`` (see
 :mod:`collision_sensor.engine.point_clouds` for what a cloud becomes and what it can tell).
 
 Each cloud is handled on a thread of the source's own, newest first (clouds that arrive while
-one is filtered are superseded and counted): read (:mod:`~collision_sensor.model.point_cloud_message`),
+one is filtered are superseded and counted): read
+(:mod:`~collision_sensor.model.point_cloud_message`),
 its ``header.frame_id`` checked (a link of the robot or its world frame: there is no tf2, camera
 frames are links of the URDF), filtered and voxelised without the node's lock, then swapped in
 under the lock and answered at once by a verdict, like a scene change. The points kept are

@@ -1,6 +1,6 @@
-"""Bags with PointCloud2 topics through the offline checker (collision_sensor.tools.recorded_clouds,
-``collision_sensor_check``, the batch audit's unit), on the Panda (example-robot-data), mcap and
-sqlite3 (the scenario: test/cloud_bags.py).
+"""Bags with PointCloud2 topics through the offline checker
+(collision_sensor.tools.recorded_clouds, ``collision_sensor_check``, the batch audit's unit), on
+the Panda (example-robot-data), mcap and sqlite3 (the scenario: test/cloud_bags.py).
 
 Oracles: the box's contacts, frame by frame, are python-fcl's (one fcl.Box per voxel of the
 test's own voxelisation of the points, against each link's BVH models and primitives at
@@ -18,8 +18,7 @@ import pytest
 from collision_sensor import CollisionChecker
 from collision_sensor.model.sequences import read_sequence
 from collision_sensor.tools import offline_check
-from cloud_bags import (BAD_TOPIC, OBJECT_TOPIC, PANDA_JOINTS, SELF_TOPIC, panda_sweep,
-                        write_bag)
+from cloud_bags import OBJECT_TOPIC, PANDA_JOINTS, SELF_TOPIC, panda_sweep, write_bag
 from engine_oracles import FclOracle, voxel_links_in_contact
 
 OBJECT, OWN = 'cloud/' + OBJECT_TOPIC[1:], 'cloud/' + SELF_TOPIC[1:]
