@@ -61,7 +61,8 @@ in the player's namespace gets them; remap as any topic), reliable with a histor
 (a best-effort subscription, as the node's sensor-data one, takes them too), ``header.stamp``
 as ``--stamp`` says. At recorded timing each is published at its log time (when the recorder
 got it: after its stamp by the camera's delay, so the node has the joint states around the
-stamp to place it with, as live); with ``--rate`` just after the first frame at or after its
+stamp to place it with, as live; a log time more than :data:`MAX_CLOUD_DELAY` after the stamp,
+or before it, is taken as another clock's, and the cloud goes at its stamp); with ``--rate`` just after the first frame at or after its
 stamp. With ``--as-fast-as-possible`` the same, kept in order with the frames by the node's
 answers: before a cloud the player waits for the verdicts on every frame published so far,
 after it for the node's verdict on the cloud (an accepted cloud is answered at once) or for
@@ -130,6 +131,8 @@ CLOUD_COUNTS = ('clouds_accepted_total', 'clouds_rejected_total', 'clouds_supers
 #: s to wait for the node's answer on a cloud with --as-fast-as-possible (its status on
 #: /diagnostics, 1 Hz, answers a refused cloud), before the cloud is sent once more.
 CLOUD_ANSWER_TIMEOUT = 3.0
+#: s: a cloud logged later than this after its stamp is taken as logged on another clock.
+MAX_CLOUD_DELAY = 1.0
 #: s to wait for a subscriber on each cloud topic before the first frame.
 CLOUD_MATCH_TIMEOUT = 5.0
 #: Clouds: reliable (best-effort subscriptions take them too), one kept (each may be megabytes).
@@ -205,6 +208,18 @@ def cloud_after_frame(seq: JointSequence) -> np.ndarray:
     times = np.array([event.time for event in seq.clouds], dtype=np.float64)
     after = np.minimum(np.searchsorted(seq.times, times, side='left'), len(seq) - 1)
     return np.where(times < seq.times[0], -1, after)
+
+
+def recorded_cloud_offsets(seq: JointSequence) -> np.ndarray:
+    """Return when each cloud of ``seq`` is published at recorded timing, in seconds after
+    the first frame: at its stamp plus the delay it was logged with (a log time before the
+    stamp or more than :data:`MAX_CLOUD_DELAY` after it is another clock's, a bag of
+    simulated time: no delay), never before the cloud before it."""
+    stamps = np.array([e.time for e in seq.clouds], dtype=np.float64)
+    delay = np.array([e.log_time for e in seq.clouds], dtype=np.float64) - stamps
+    delay = np.where((delay >= 0.0) & (delay <= MAX_CLOUD_DELAY), delay, 0.0)
+    return np.maximum.accumulate(stamps + delay - float(seq.times[0])) if len(stamps) \
+        else stamps
 
 
 def _stamp_from_seconds(seconds: float):
@@ -589,9 +604,7 @@ class _CloudCursor:
         self.messages = iter_cloud_messages(seq.clouds) if seq.clouds else iter(())
         self.next = 0
         if rate is None and not fast and seq.clouds:
-            # recorded timing: at the log time (never before the cloud published before it)
-            logged = np.array([e.log_time for e in seq.clouds]) - float(seq.times[0])
-            self.when = np.maximum.accumulate(logged)
+            self.when = recorded_cloud_offsets(seq)
             # (a cloud logged with a frame's time goes after it: the node then knows the state)
             self.due = lambda k, index: index >= len(offsets) or self.when[k] < offsets[index]
         else:

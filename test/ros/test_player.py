@@ -23,6 +23,16 @@ def test_frame_offsets_follow_recorded_times_or_the_rate():
     assert player.frame_offsets(times, rate=4.0).tolist() == [0.0, 0.25, 0.5]
 
 
+def test_clouds_go_at_their_log_time_unless_it_is_another_clocks():
+    from collision_sensor.model.sequences import CloudEvent
+    seq = JointSequence(('a',), np.array([10.0, 10.1, 10.2]), np.zeros((3, 1)), clouds=[
+        CloudEvent(10.05, 'c', 'f', 'bag', 0, log_time=10.08),       # 30 ms camera delay
+        CloudEvent(10.06, 'c', 'f', 'bag', 1, log_time=1.7e9),       # simulated time
+        CloudEvent(10.07, 'c', 'f', 'bag', 2, log_time=10.0),        # logged before its stamp
+        CloudEvent(10.15, 'c', 'f', 'bag', 3, log_time=10.16)])
+    assert player.recorded_cloud_offsets(seq) == pytest.approx([0.08, 0.08, 0.08, 0.16])
+
+
 def test_loop_period_adds_one_typical_gap():
     assert player.loop_period(np.array([0.0, 0.1, 0.2, 0.6])) == pytest.approx(0.7)
 
