@@ -117,6 +117,16 @@ class FclOracle:
         model.endModel()
         return model
 
+    def link_objects(self, poses, link):
+        """fcl objects of ``link`` at ``poses``: its BVH models and its solid primitives."""
+        T = poses[link]
+        t = fcl.Transform(T[:3, :3], T[:3, 3])
+        objects = [fcl.CollisionObject(m, t) for m in self.models[link]]
+        for primitive, T_local in self.solids.get(link, ()):
+            Tp = T @ T_local
+            objects.append(fcl.CollisionObject(primitive, fcl.Transform(Tp[:3, :3], Tp[:3, 3])))
+        return objects
+
     def pin_configuration(self, positions):
         """pinocchio q from our joint vector (mimic joints get their derived value)."""
         from collision_sensor.model.robot_model import resolve_mimics
@@ -271,3 +281,62 @@ class SceneOracle:
     def changes_from_scratch(self):
         return [AddObject(obj, link, touch, pose)
                 for obj, link, touch, pose in self.objects.values()]
+
+
+def world_elements(checker):
+    """Each collision element of the robot at the checker's state: (link, trimesh in the world,
+    solid?)."""
+    import trimesh
+    poses = checker.link_poses()
+    out = []
+    for element in checker.model.elements:
+        T = poses[element.link] @ element.T_link_element
+        mesh = trimesh.Trimesh(element.vertices @ T[:3, :3].T + T[:3, 3], element.faces,
+                               process=False)
+        out.append((element.link, mesh, element.solid is not None))
+    return out
+
+
+def surface_points(checker, rng, per_element=2000, noise=0.002):
+    """Points sampled on the robot's collision surfaces at the checker's state (world frame),
+    with Gaussian noise of ``noise`` m."""
+    import trimesh
+    points = []
+    for _, mesh, _ in world_elements(checker):
+        sample, _ = trimesh.sample.sample_surface(mesh, per_element,
+                                                  seed=int(rng.integers(1 << 30)))
+        points.append(sample)
+    points = np.concatenate(points)
+    return points + rng.normal(0.0, noise, points.shape)
+
+
+def voxel_manager(centres, size):
+    """One fcl.Box of edge ``size`` per voxel centre (V, 3), in a dynamic AABB tree; returns
+    the manager and the boxes."""
+    boxes = [fcl.CollisionObject(fcl.Box(size, size, size), fcl.Transform(np.eye(3), c))
+             for c in centres]
+    manager = fcl.DynamicAABBTreeCollisionManager()
+    manager.registerObjects(boxes)
+    manager.setup()
+    return manager, boxes
+
+
+def voxel_links_in_contact(oracle, q, centres, size, links, padding=0.0):
+    """The links of ``links`` that python-fcl finds in contact with the voxel boxes at joint
+    values ``q`` (within ``padding`` when > 0), at pinocchio's poses (``oracle``: FclOracle)."""
+    poses = oracle.poses(q)
+    manager, _ = voxel_manager(centres, size)
+    hits = set()
+    for link in links:
+        for obj in oracle.link_objects(poses, link):
+            if padding > 0.0:
+                data = fcl.DistanceData()
+                manager.distance(obj, data, fcl.defaultDistanceCallback)
+                if data.result.min_distance <= padding:
+                    hits.add(link)
+            else:
+                data = fcl.CollisionData()
+                manager.collide(obj, data, fcl.defaultCollisionCallback)
+                if data.result.is_collision:
+                    hits.add(link)
+    return hits

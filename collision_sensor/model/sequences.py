@@ -29,6 +29,18 @@ rosbag2 (a bag directory with ``metadata.yaml``, or a bare ``*.mcap`` / ``*.db3`
     frames at or after its time, in the order recorded (the node's rules:
     :mod:`collision_sensor.scene_markers`). A CSV file holds no scene changes: record a bag.
 
+    Point clouds: ``sensor_msgs/msg/PointCloud2`` messages, on every topic of that type by
+    default or on the topics asked for (``cloud_topics``). Each becomes a :class:`CloudEvent`
+    at its ``header.stamp`` (the log time when that is zero), its frame ``header.frame_id``,
+    its source the topic as recorded without the leading ``/`` (``/camera/points`` ->
+    ``camera/points``: the relative name a node's ``point_cloud_topics`` gives and the player
+    publishes on, so the obstacle is ``cloud/camera/points`` offline and in the node); the
+    points stay in the bag until they are used
+    (:func:`iter_cloud_messages` reads them again, one at a time, in time order), so a bag of
+    gigabytes of clouds is read in the memory of a few. Whether a cloud's layout is readable is
+    decided when it is used (:mod:`collision_sensor.model.point_cloud_message`), where a bad
+    one is reported and the others go on.
+
 Errors are :class:`~collision_sensor.errors.SequenceError` and name the file, the line (CSV) or
 message (bag) and the fix.
 """
@@ -40,7 +52,7 @@ import shutil
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Optional, Sequence
+from typing import Iterable, Iterator, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -48,10 +60,13 @@ from collision_sensor.errors import SequenceError
 
 JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
 MARKER_ARRAY_TYPE = 'visualization_msgs/msg/MarkerArray'
+POINT_CLOUD_TYPE = 'sensor_msgs/msg/PointCloud2'
 DEFAULT_TOPIC = '/joint_states'
 SCENE_TOPIC = '/scene'
 FORMATS = ('csv', 'mcap', 'sqlite3')
 _NS_PER_S = 1_000_000_000
+#: Bytes of clouds read ahead of their turn that :func:`iter_cloud_messages` keeps at most.
+MAX_READ_AHEAD = 1 << 30
 
 
 @dataclass(frozen=True)
@@ -68,6 +83,48 @@ class SceneEvent:
 
 
 @dataclass(frozen=True)
+class CloudEvent:
+    """One recorded point cloud, its points left in the bag (:func:`iter_cloud_messages`).
+
+    :ivar time: seconds on the frames' clock: ``header.stamp``, or the log time when that is
+        zero.
+    :ivar source: the topic as recorded without its leading ``/`` (the source's name as the
+        node's ``point_cloud_topics`` gives it; the obstacle is ``cloud/<source>``).
+    :ivar frame: ``header.frame_id`` (untrusted text: escape it before printing).
+    :ivar bag: the bag it is read from.
+    :ivar ordinal: its place among the bag's cloud messages as the bag yields them.
+    :ivar size: bytes of the serialized message.
+    :ivar error: why the message could not be deserialized ('' when it could).
+    :ivar log_time: seconds, when the bag received it (the player publishes it then).
+    """
+
+    time: float
+    source: str
+    frame: str
+    bag: str
+    ordinal: int
+    size: int = 0
+    error: str = ''
+    log_time: float = 0.0
+
+
+@dataclass(frozen=True)
+class CloudSchedule:
+    """When a sequence's clouds apply (:meth:`JointSequence.cloud_schedule`).
+
+    :ivar before_first: clouds stamped before the first frame (the node drops them: no joint
+        state to self-filter them with yet).
+    :ivar per_frame: n lists: the clouds applied before frame i, those with a time in
+        ``(times[i - 1], times[i]]`` (for frame 0, at its time).
+    :ivar after_last: clouds stamped after the last frame (no frame checks them).
+    """
+
+    before_first: tuple
+    per_frame: tuple
+    after_last: tuple
+
+
+@dataclass(frozen=True)
 class JointSequence:
     """Joint positions over time, and the scene's changes meanwhile.
 
@@ -76,6 +133,7 @@ class JointSequence:
     :ivar positions: (n, J) float64 joint positions.
     :ivar source: where the sequence came from (a file name), for messages.
     :ivar scene: :class:`SceneEvent` in time order (equal times in recorded order).
+    :ivar clouds: :class:`CloudEvent` in time order (equal times in recorded order).
     """
 
     joint_names: tuple
@@ -83,6 +141,7 @@ class JointSequence:
     positions: np.ndarray
     source: str = ''
     scene: tuple = ()
+    clouds: tuple = ()
 
     def __post_init__(self):
         names = tuple(str(name) for name in self.joint_names)
@@ -107,12 +166,16 @@ class JointSequence:
         event_times = [event.time for event in self.scene]
         if not all(math.isfinite(t) for t in event_times) or event_times != sorted(event_times):
             raise SequenceError(f'{where}: scene event times must be finite and in order')
+        cloud_times = [event.time for event in self.clouds]
+        if not all(math.isfinite(t) for t in cloud_times) or cloud_times != sorted(cloud_times):
+            raise SequenceError(f'{where}: cloud times must be finite and in order')
         times.setflags(write=False)
         positions.setflags(write=False)
         object.__setattr__(self, 'joint_names', names)
         object.__setattr__(self, 'times', times)
         object.__setattr__(self, 'positions', positions)
         object.__setattr__(self, 'scene', tuple(self.scene))
+        object.__setattr__(self, 'clouds', tuple(self.clouds))
 
     def __len__(self) -> int:
         return len(self.times)
@@ -134,7 +197,7 @@ class JointSequence:
                 f'it has {list(self.joint_names)}')
         columns = [self.joint_names.index(name) for name in joint_names]
         return JointSequence(tuple(joint_names), self.times, self.positions[:, columns],
-                             self.source, self.scene)
+                             self.source, self.scene, self.clouds)
 
     def scene_before(self) -> list:
         """Return, for each frame i, the scene events to apply before it: those with a time
@@ -149,6 +212,42 @@ class JointSequence:
                 k += 1
             out.append(list(self.scene[start:k]))
         return out
+
+    def cloud_schedule(self) -> CloudSchedule:
+        """Return when each cloud applies: before the first frame at or after its time (as a
+        scene array), the robot's state at its time known then (:meth:`positions_at`)."""
+        times = self.times
+        cloud_times = np.array([event.time for event in self.clouds], dtype=np.float64)
+        # frame index of the first frame at or after each cloud's time (n: after the last)
+        frame = np.searchsorted(times, cloud_times, side='left')
+        early = cloud_times < times[0] if len(times) else np.ones(len(cloud_times), bool)
+        per_frame = [[] for _ in range(len(times))]
+        before, after = [], []
+        for event, i, is_early in zip(self.clouds, frame.tolist(), early.tolist()):
+            if is_early:
+                before.append(event)
+            elif i >= len(times):
+                after.append(event)
+            else:
+                per_frame[i].append(event)
+        return CloudSchedule(tuple(before), tuple(tuple(f) for f in per_frame), tuple(after))
+
+    def positions_at(self, t: float) -> np.ndarray:
+        """Return the joint positions at time ``t``: linear between the two frames around it
+        (the node's joint-state window, :mod:`collision_sensor.ros.joint_state_window`, with
+        every frame kept); the first or last frame outside them.
+
+        :return: (J,) float64.
+        """
+        times = self.times
+        k = int(np.searchsorted(times, t, side='right'))     # times[k - 1] <= t < times[k]
+        if k == 0:
+            return self.positions[0].copy()
+        if k >= len(times):
+            return self.positions[-1].copy()
+        t0, t1 = float(times[k - 1]), float(times[k])
+        s = (t - t0) / (t1 - t0)
+        return (1.0 - s) * self.positions[k - 1] + s * self.positions[k]
 
     def __eq__(self, other):
         if not isinstance(other, JointSequence):
@@ -175,13 +274,16 @@ def _format_from_path(path: str) -> str:
 
 def read_sequence(path, topic: str = DEFAULT_TOPIC,
                   joint_names: Optional[Sequence[str]] = None,
-                  scene_topic: str = SCENE_TOPIC) -> JointSequence:
+                  scene_topic: str = SCENE_TOPIC,
+                  cloud_topics: Optional[Sequence[str]] = None) -> JointSequence:
     """Read a sequence from a CSV file or a rosbag2 bag (see the module docstring).
 
     :param path: a ``.csv`` file, a bag directory holding ``metadata.yaml``, or a bare
         ``.mcap`` / ``.db3`` file.
     :param topic: the JointState topic in a bag (ignored for CSV).
     :param scene_topic: the MarkerArray topic of scene changes in a bag (none if absent).
+    :param cloud_topics: the PointCloud2 topics of a bag to read clouds from: None for every
+        topic of that type, ``()`` for none; a topic named must be in the bag.
     :param joint_names: the joints expected, in the order wanted for the columns. For CSV the
         columns must be exactly these; for a bag every one must appear (others are ignored).
         ``None`` takes the file's own joints in the order they first appear.
@@ -194,14 +296,14 @@ def read_sequence(path, topic: str = DEFAULT_TOPIC,
             raise SequenceError(
                 f'{path}: a directory without metadata.yaml is not a rosbag2 bag; give a bag '
                 'directory, a .mcap/.db3 file or a .csv file')
-        return _read_bag(path, topic, joint_names, scene_topic)
+        return _read_bag(path, topic, joint_names, scene_topic, cloud_topics)
     if not os.path.exists(path):
         raise SequenceError(f'{path}: no such file; check the path')
     suffix = Path(path).suffix.lower()
     if suffix == '.csv':
         return _read_csv(path, joint_names)
     if suffix in ('.mcap', '.db3'):
-        return _read_bag(path, topic, joint_names, scene_topic)
+        return _read_bag(path, topic, joint_names, scene_topic, cloud_topics)
     raise SequenceError(
         f'{path}: unknown sequence format "{suffix}"; use a .csv file, a rosbag2 bag '
         'directory, or a .mcap/.db3 file')
@@ -460,7 +562,8 @@ def _bag_marker(typestore, marker, stamp_ns: int):
 
 
 def _read_bag(path: str, topic: str, joint_names: Optional[Sequence[str]],
-              scene_topic: str = SCENE_TOPIC) -> JointSequence:
+              scene_topic: str = SCENE_TOPIC,
+              cloud_topics: Optional[Sequence[str]] = None) -> JointSequence:
     from rosbags.rosbag2 import Reader
 
     typestore = _typestore()
@@ -483,6 +586,7 @@ def _read_bag(path: str, topic: str, joint_names: Optional[Sequence[str]],
                 messages.append((index, stamp or log_time, list(msg.name),
                                  np.asarray(msg.position, dtype=np.float64)))
             scene = _read_scene(path, reader, typestore, scene_topic)
+            clouds = _read_clouds(path, reader, typestore, cloud_topics)
     except SequenceError:
         raise
     except Exception as err:  # rosbags raises several families for broken bags
@@ -491,7 +595,7 @@ def _read_bag(path: str, topic: str, joint_names: Optional[Sequence[str]],
     if not messages:
         raise SequenceError(f'{path}: topic "{topic}" has no messages; record some first')
     seq = _merge_joint_states(path, topic, messages, joint_names)
-    return JointSequence(seq.joint_names, seq.times, seq.positions, seq.source, scene)
+    return JointSequence(seq.joint_names, seq.times, seq.positions, seq.source, scene, clouds)
 
 
 def _read_scene(path, reader, typestore, scene_topic) -> tuple:
@@ -511,6 +615,134 @@ def _read_scene(path, reader, typestore, scene_topic) -> tuple:
         events.append(SceneEvent((stamp or log_time) / _NS_PER_S, markers))
     events.sort(key=lambda event: event.time)    # stable: equal times keep the bag's order
     return tuple(events)
+
+
+def cloud_source(topic: str) -> str:
+    """Return the source name of a recorded cloud topic: without its leading ``/``."""
+    return topic[1:] if topic.startswith('/') else topic
+
+
+def _cloud_connections(path, reader, cloud_topics) -> list:
+    """The bag's connections of the cloud topics asked for (module docstring); a topic asked
+    for matches with or without its leading ``/``."""
+    if cloud_topics is None:
+        return [c for c in reader.connections if c.msgtype == POINT_CLOUD_TYPE]
+    connections = []
+    for name in cloud_topics:
+        found = [c for c in reader.connections if cloud_source(c.topic) == cloud_source(name)]
+        if not found:
+            clouds = sorted({c.topic for c in reader.connections
+                             if c.msgtype == POINT_CLOUD_TYPE})
+            raise SequenceError(
+                f'{path}: no topic "{name}" in the bag; its PointCloud2 topics are '
+                f'{clouds or "none"}; pass one of them (--cloud-topic) or none')
+        wrong = [c.msgtype for c in found if c.msgtype != POINT_CLOUD_TYPE]
+        if wrong:
+            raise SequenceError(f'{path}: topic "{name}" has type {wrong[0]}, expected '
+                                f'{POINT_CLOUD_TYPE}; pass a PointCloud2 topic (--cloud-topic)')
+        connections += found
+    return connections
+
+
+def _read_clouds(path, reader, typestore, cloud_topics) -> tuple:
+    """The bag's clouds as :class:`CloudEvent` in time order, their points left in the bag."""
+    connections = _cloud_connections(path, reader, cloud_topics)
+    if not connections:
+        return ()       # (an empty list would make rosbags read every topic)
+    events = []
+    for ordinal, (connection, log_time, raw) in enumerate(
+            reader.messages(connections=connections)):
+        try:
+            header = typestore.deserialize_cdr(raw, POINT_CLOUD_TYPE).header
+            stamp = header.stamp.sec * _NS_PER_S + header.stamp.nanosec
+            frame, error = str(header.frame_id), ''
+        except Exception as err:   # noqa: B902 - rosbags raises several kinds for bad bytes
+            stamp, frame = 0, ''
+            error = f'cannot deserialize the message: {type(err).__name__}: {err}'
+        events.append(CloudEvent((stamp or log_time) / _NS_PER_S,
+                                 cloud_source(connection.topic), frame, path, ordinal, len(raw),
+                                 error[:500], log_time / _NS_PER_S))
+    events.sort(key=lambda event: event.time)    # stable: equal times keep the bag's order
+    return tuple(events)
+
+
+def iter_cloud_messages(clouds: Sequence[CloudEvent], path: Optional[str] = None
+                        ) -> Iterator[Tuple[CloudEvent, object]]:
+    """Yield ``(event, message)`` for ``clouds`` (events of one bag, in the order given:
+    time order), reading the messages again from the bag, one pass in the bag's order.
+
+    Memory: a message read before its turn (recorded earlier than a cloud with an earlier
+    stamp, e.g. two cameras with different delays) is kept, serialized, until its turn, up to
+    :data:`MAX_READ_AHEAD` bytes; the others are deserialized when yielded and dropped by the
+    caller.
+
+    :param path: the bag to read (default: the events' own ``bag``; a worker that unpacked a
+        shipped bag elsewhere passes that).
+    :return: messages are ``rosbags`` PointCloud2 dataclasses, or None for an event whose
+        ``error`` says why it could not be deserialized.
+    :raises SequenceError: the bag cannot be read again, or its clouds' stamps are so far
+        out of the order it recorded them in that more than :data:`MAX_READ_AHEAD` bytes would
+        wait.
+    """
+    from rosbags.rosbag2 import Reader
+
+    if not clouds:
+        return
+    path = path or clouds[0].bag
+    wanted = {event.ordinal for event in clouds}
+    topics = sorted({event.source for event in clouds})
+    typestore = _typestore()
+    waiting, held = {}, 0
+    reader = Reader(Path(path))
+    try:
+        reader.open()
+        connections = [c for c in reader.connections
+                       if cloud_source(c.topic) in topics and c.msgtype == POINT_CLOUD_TYPE]
+        messages = reader.messages(connections=connections)
+        stream = enumerate(messages)
+    except Exception as err:   # noqa: B902 - rosbags raises several families for broken bags
+        _close_quietly(reader)
+        raise SequenceError(f'{path}: cannot read the bag\'s clouds again: {err}') from None
+    try:
+        for number, event in enumerate(clouds):
+            try:
+                while event.ordinal not in waiting:
+                    ordinal, (_, _, raw) = next(stream)
+                    if ordinal in wanted:
+                        waiting[ordinal] = raw
+                        held += len(raw)
+                    if held > MAX_READ_AHEAD and event.ordinal not in waiting:
+                        raise SequenceError(
+                            f'{path}: the cloud of {event.source} stamped {event.time:.3f} s '
+                            f'was recorded after more than {MAX_READ_AHEAD >> 20} MiB of clouds '
+                            'stamped later; are the stamps of one topic on another clock? '
+                            'Check each topic alone (--cloud-topic)')
+                raw = waiting.pop(event.ordinal)
+                held -= len(raw)
+                msg = None if event.error else typestore.deserialize_cdr(raw, POINT_CLOUD_TYPE)
+            except StopIteration:
+                raise SequenceError(f'{path}: the bag holds fewer clouds than when it was read '
+                                    'first; was it changed meanwhile?') from None
+            except SequenceError:
+                raise
+            except Exception as err:   # noqa: B902 - rosbags raises several families
+                raise SequenceError(f'{path}: cannot read the bag\'s clouds again: {err}') \
+                    from None
+            if number == len(clouds) - 1:
+                _close_quietly(reader, messages)   # the last: not left open until let go
+            yield event, msg
+    finally:
+        _close_quietly(reader, messages)
+
+
+def _close_quietly(reader, messages=None) -> None:
+    """Close a bag reader that was only read from, and its message stream (twice is
+    harmless; errors say nothing the reading did not)."""
+    for close in ((messages.close,) if messages is not None else ()) + (reader.close,):
+        try:
+            close()
+        except Exception:   # noqa: B902
+            pass
 
 
 def _merge_joint_states(path, topic, messages, joint_names) -> JointSequence:

@@ -54,6 +54,23 @@ node in the player's namespace): before an array it waits for the verdicts on ev
 published so far, after it for the node's verdict on the array, or before the first frame
 (nothing to answer with yet) for the status counting the array as applied or rejected.
 
+Point clouds: a bag's ``sensor_msgs/PointCloud2`` topics (every one, or those of
+``--cloud-topic``; ``--no-clouds`` for none) are published on the recorded topic made relative
+(``/camera/points`` on ``camera/points``: a node with ``point_cloud_topics: [camera/points]``
+in the player's namespace gets them; remap as any topic), reliable with a history of one cloud
+(a best-effort subscription, as the node's sensor-data one, takes them too), ``header.stamp``
+as ``--stamp`` says. At recorded timing each is published at its log time (when the recorder
+got it: after its stamp by the camera's delay, so the node has the joint states around the
+stamp to place it with, as live; a log time more than :data:`MAX_CLOUD_DELAY` after the stamp,
+or before it, is taken as another clock's, and the cloud goes at its stamp); with ``--rate`` just after the first frame at or after its
+stamp. With ``--as-fast-as-possible`` the same, kept in order with the frames by the node's
+answers: before a cloud the player waits for the verdicts on every frame published so far,
+after it for the node's verdict on the cloud (an accepted cloud is answered at once) or for
+the node's status of that topic counting it (a refused one is not answered); the node's
+answer on the cloud is then the offline checker's verdict on the frame it precedes
+(``collision_sensor_check``, :mod:`collision_sensor.tools.recorded_clouds`). The clouds are read
+from the bag one at a time as they are published.
+
 The sequence is read before ROS starts, so a bad file fails fast with one line
 ``collision_sensor_play: error: ...`` on stderr and exit status 2.
 """
@@ -75,12 +92,12 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import JointState, PointCloud2, PointField
 from visualization_msgs.msg import Marker, MarkerArray
 
 from collision_sensor.errors import CollisionSensorError, SequenceError
 from collision_sensor.model.sequences import (
-    DEFAULT_TOPIC, SCENE_TOPIC, JointSequence, SceneEvent, read_sequence)
+    DEFAULT_TOPIC, SCENE_TOPIC, JointSequence, SceneEvent, iter_cloud_messages, read_sequence)
 from collision_sensor.ros.sensor_node import SCENE_QOS
 from collision_sensor.tools.progress import MODES, ProgressBar
 
@@ -107,6 +124,20 @@ DIAGNOSTICS_DEPTH = 100
 #: The scene status's counts that together count the arrays the node has handled.
 SCENE_COUNTS = ('scene_arrays_applied_total', 'scene_arrays_rejected_total',
                 'scene_arrays_dropped_total')
+#: A point cloud status's counts that together count the clouds the node is done with (each
+#: counted under the node's lock once the cloud is the obstacle, refused or passed over).
+CLOUD_COUNTS = ('clouds_accepted_total', 'clouds_rejected_total', 'clouds_superseded_total',
+                'clouds_dropped_total')
+#: s to wait for the node's answer on a cloud with --as-fast-as-possible (its status on
+#: /diagnostics, 1 Hz, answers a refused cloud), before the cloud is sent once more.
+CLOUD_ANSWER_TIMEOUT = 3.0
+#: s: a cloud logged later than this after its stamp is taken as logged on another clock.
+MAX_CLOUD_DELAY = 1.0
+#: s to wait for a subscriber on each cloud topic before the first frame.
+CLOUD_MATCH_TIMEOUT = 5.0
+#: Clouds: reliable (best-effort subscriptions take them too), one kept (each may be megabytes).
+CLOUD_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                       reliability=ReliabilityPolicy.RELIABLE)
 
 
 def frame_offsets(times: np.ndarray, rate: Optional[float] = None) -> np.ndarray:
@@ -153,6 +184,42 @@ def marker_message(marker) -> Marker:
     msg.points = [Point(x=float(p.x), y=float(p.y), z=float(p.z))
                   for p in getattr(marker, 'points', ())]
     return msg
+
+
+def cloud_message(msg, stamp) -> PointCloud2:
+    """Return an rclpy PointCloud2 with the fields of ``msg`` (a rosbags message read from a
+    bag), stamped ``stamp``; the data are copied once."""
+    out = PointCloud2(height=int(msg.height), width=int(msg.width),
+                      fields=[PointField(name=str(f.name), offset=int(f.offset),
+                                         datatype=int(f.datatype), count=int(f.count))
+                              for f in msg.fields],
+                      is_bigendian=bool(msg.is_bigendian), point_step=int(msg.point_step),
+                      row_step=int(msg.row_step), is_dense=bool(msg.is_dense))
+    out.header.stamp = stamp
+    out.header.frame_id = str(msg.header.frame_id)
+    out.data = np.asarray(msg.data, dtype=np.uint8).tobytes()
+    return out
+
+
+def cloud_after_frame(seq: JointSequence) -> np.ndarray:
+    """Return, per cloud of ``seq``, the frame it is published after with ``--rate`` and
+    ``--as-fast-as-possible``: the first frame at or after its stamp (the last frame for the
+    later ones), -1 for those stamped before the first frame."""
+    times = np.array([event.time for event in seq.clouds], dtype=np.float64)
+    after = np.minimum(np.searchsorted(seq.times, times, side='left'), len(seq) - 1)
+    return np.where(times < seq.times[0], -1, after)
+
+
+def recorded_cloud_offsets(seq: JointSequence) -> np.ndarray:
+    """Return when each cloud of ``seq`` is published at recorded timing, in seconds after
+    the first frame: at its stamp plus the delay it was logged with (a log time before the
+    stamp or more than :data:`MAX_CLOUD_DELAY` after it is another clock's, a bag of
+    simulated time: no delay), never before the cloud before it."""
+    stamps = np.array([e.time for e in seq.clouds], dtype=np.float64)
+    delay = np.array([e.log_time for e in seq.clouds], dtype=np.float64) - stamps
+    delay = np.where((delay >= 0.0) & (delay <= MAX_CLOUD_DELAY), delay, 0.0)
+    return np.maximum.accumulate(stamps + delay - float(seq.times[0])) if len(stamps) \
+        else stamps
 
 
 def _stamp_from_seconds(seconds: float):
@@ -217,13 +284,20 @@ class SequencePlayer:
                                                     FAST_QOS if fast else PLAYBACK_QOS)
         self.scene_publisher = (self.node.create_publisher(MarkerArray, SCENE, SCENE_QOS)
                                 if seq.scene else None)
+        self.cloud_publishers = {source: self.node.create_publisher(PointCloud2, source,
+                                                                    CLOUD_QOS)
+                                 for source in sorted({e.source for e in seq.clouds})}
+        #: Clouds published, per source; clouds the node has handled, per topic (its status).
+        self.clouds_published = {source: 0 for source in self.cloud_publishers}
+        self.clouds_handled: dict = {}
+        self._unheard: set = set()
         # The node's verdicts on frames (header frame_id empty) and on scene arrays (its root
         # frame), counted while scene arrays are played as fast as possible.
         self.frame_verdicts = self.scene_verdicts = 0
         #: Arrays the node has applied or rejected, from its scene status (None: none seen).
         self.scene_handled: Optional[int] = None
         self._executor = None
-        if seq.scene:
+        if seq.scene or seq.clouds:
             self.node.create_subscription(DiagnosticArray, 'colliding_pairs', self._on_verdict,
                                           VERDICT_QOS)
             self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
@@ -251,9 +325,19 @@ class SequencePlayer:
         namespace = self.node.get_namespace().strip('/')
         for status in msg.status:
             node, _, kind = status.name.rpartition(': ')
-            if kind != 'scene' or node.rpartition('/')[0] != namespace:
+            if node.rpartition('/')[0] != namespace:
                 continue
             values = {item.key: item.value for item in status.values}
+            if kind.startswith('point cloud '):
+                try:
+                    handled = sum(int(values[key]) for key in CLOUD_COUNTS)
+                except (KeyError, ValueError):
+                    continue
+                topic = values.get('topic', '').lstrip('/')
+                self.clouds_handled[topic] = max(handled, self.clouds_handled.get(topic, 0))
+                continue
+            if kind != 'scene':
+                continue
             try:
                 handled = sum(int(values[key]) for key in SCENE_COUNTS)
             except (KeyError, ValueError):
@@ -292,9 +376,22 @@ class SequencePlayer:
             time.sleep(min(remaining, _POLL))
 
     def wait_for_subscribers(self, count: int) -> None:
-        """Block until ``count`` subscriptions are matched (0: return at once)."""
+        """Block until ``count`` subscriptions are matched (0: return at once), then give each
+        cloud topic up to :data:`CLOUD_MATCH_TIMEOUT` to be matched too (a cloud published
+        before its best-effort subscriber is matched is lost to it)."""
         if count <= 0:
             return
+        self._wait_for_joint_state_subscribers(count)
+        deadline = time.monotonic() + CLOUD_MATCH_TIMEOUT
+        waiting = dict(self.cloud_publishers)
+        while waiting and time.monotonic() < deadline:
+            waiting = {k: p for k, p in waiting.items() if not p.get_subscription_count()}
+            self.sleep_until(time.monotonic() + _POLL)
+        for publisher in waiting.values():
+            self.node.get_logger().warning(f'no subscriber on {publisher.topic_name}: its clouds '
+                                           'are published for nobody so far')
+
+    def _wait_for_joint_state_subscribers(self, count: int) -> None:
         logged = False
         while self.publisher.get_subscription_count() < count:
             if not logged:
@@ -338,6 +435,53 @@ class SequencePlayer:
         handled = self.scene_handled
         self.publish_scene(event)
         return self.wait_for_verdicts(lambda: self.scene_handled > handled, timeout)
+
+    def publish_cloud(self, event, msg) -> None:
+        """Publish one recorded cloud on its topic (made relative), stamped as ``--stamp``
+        says."""
+        stamp = (_stamp_from_seconds(event.time) if self.stamp == 'recorded'
+                 else self.node.get_clock().now().to_msg())
+        self.cloud_publishers[event.source].publish(cloud_message(msg, stamp))
+        self.clouds_published[event.source] += 1
+
+    def play_cloud(self, event, msg, in_order: bool, timeout: Optional[float] = None) -> bool:
+        """Publish a cloud; ``in_order``, wait for the node's answers that keep it in order
+        with the frames (module doc). Return False if one did not come within ``timeout``."""
+        if msg is None:     # the bag's bytes did not deserialize: nothing to publish
+            self.node.get_logger().warning(
+                f'cloud on {event.source} at {event.time:.3f} s not published: {event.error}')
+            return True
+        publisher = self.cloud_publishers[event.source]
+        if not in_order or not publisher.get_subscription_count():
+            if in_order and event.source not in self._unheard:
+                self._unheard.add(event.source)
+                self.node.get_logger().warning(
+                    f'no subscriber on {publisher.topic_name}: its clouds are published '
+                    'without waiting for an answer (is the node\'s point_cloud_topics set to '
+                    f'[{event.source}]?)')
+            self.publish_cloud(event, msg)
+            return True
+        if self.published and not self.wait_for_verdicts(
+                lambda: self.frame_verdicts >= self.published, timeout):
+            return False
+        if not self.published:
+            self.publish_cloud(event, msg)
+            return True     # before the first frame: the node drops it (no joint state yet)
+        for attempt in range(2):
+            answered = self.scene_verdicts
+            self.publish_cloud(event, msg)
+            count = self.clouds_published[event.source]
+            if self.wait_for_verdicts(lambda: self.scene_verdicts > answered
+                                      or self.clouds_handled.get(event.source, 0) >= count,
+                                      CLOUD_ANSWER_TIMEOUT if timeout is None else timeout):
+                return True
+            # Best effort: a cloud the node's subscription never got (it had not yet matched
+            # the player) is sent once more; one it got twice is the same obstacle again.
+        self.node.get_logger().warning(
+            f'no answer from the node on the cloud on {event.source} at {event.time:.3f} s '
+            f'after {2 * CLOUD_ANSWER_TIMEOUT:g} s; going on (the order of the clouds and '
+            'frames is not kept if it comes later)')
+        return False
 
     def scene_events_before(self, index: int) -> list:
         """The scene events due before frame ``index`` (see JointSequence.scene_before)."""
@@ -424,8 +568,10 @@ class SequencePlayer:
         start = time.monotonic()
         while True:
             label = f'{source.rsplit("/", 1)[-1]}' + (f' loop {round_index + 1}' if loop else '')
+            clouds = _CloudCursor(self, offsets, rate, fast, start)
             with ProgressBar(len(self.seq), label=label, mode=progress_mode) as progress:
                 for index in range(len(self.seq)):
+                    clouds.play_before(index)
                     if fast:
                         self._ok()
                     else:
@@ -438,10 +584,43 @@ class SequencePlayer:
                     else:
                         self.note_acknowledged()
                     progress.update(index + 1)
+                clouds.play_before(len(self.seq))
             if not loop:
                 return self.published
             round_index += 1
             start = time.monotonic() if fast else start + period
+
+
+class _CloudCursor:
+    """The sequence's clouds in time order, read from the bag as they are published, each
+    at its turn (module docstring): at recorded timing at its log time, else after the first
+    frame at or after its stamp."""
+
+    def __init__(self, player: SequencePlayer, offsets: np.ndarray, rate, fast: bool,
+                 start: float):
+        seq = player.seq
+        self.player, self.fast, self.start = player, fast, start
+        self.events = seq.clouds
+        self.messages = iter_cloud_messages(seq.clouds) if seq.clouds else iter(())
+        self.next = 0
+        if rate is None and not fast and seq.clouds:
+            self.when = recorded_cloud_offsets(seq)
+            # (a cloud logged with a frame's time goes after it: the node then knows the state)
+            self.due = lambda k, index: index >= len(offsets) or self.when[k] < offsets[index]
+        else:
+            after = cloud_after_frame(seq) if seq.clouds else np.zeros(0)
+            self.when = np.array([offsets[max(a, 0)] for a in after.tolist()])
+            self.due = lambda k, index: after[k] < index
+
+    def play_before(self, index: int) -> None:
+        """Publish the clouds due before frame ``index`` (``len(seq)``: the rest)."""
+        player = self.player
+        while self.next < len(self.events) and self.due(self.next, index):
+            if not self.fast:
+                player.sleep_until(self.start + self.when[self.next])
+            event, msg = next(self.messages)
+            player.play_cloud(event, msg, self.fast)
+            self.next += 1
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -481,6 +660,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--scene-topic', default=SCENE_TOPIC,
                         help='MarkerArray topic of scene changes to read from a bag, '
                              'published on "scene" (default %(default)s)')
+    parser.add_argument('--cloud-topic', metavar='TOPIC', action='append',
+                        help='PointCloud2 topic to read from a bag and publish, made relative '
+                             '(repeatable; default: every PointCloud2 topic of the bag)')
+    parser.add_argument('--no-clouds', action='store_true',
+                        help='publish none of the bag\'s point clouds')
     parser.add_argument('--progress', choices=MODES, default='auto',
                         help='progress bar on stderr: auto (on a terminal), always, never')
     return parser
@@ -516,9 +700,13 @@ def main(argv: Optional[Sequence[str]] = None, context=None) -> int:
     if args.wait_for_subscribers < 0:
         return _error(f'--wait-for-subscribers {args.wait_for_subscribers}: must not be '
                       'negative (0: start at once)')
+    if args.no_clouds and args.cloud_topic:
+        return _error('--no-clouds and --cloud-topic contradict each other; give one')
+    cloud_topics = () if args.no_clouds else (tuple(args.cloud_topic) if args.cloud_topic
+                                              else None)
     try:
         seq = read_sequence(args.sequence, topic=args.bag_topic, joint_names=joints,
-                            scene_topic=args.scene_topic)
+                            scene_topic=args.scene_topic, cloud_topics=cloud_topics)
     except SequenceError as err:
         return _error(str(err))
 

@@ -5,7 +5,8 @@ name is the topic as given, its obstacle ``cloud/<topic>`` (see
 :mod:`collision_sensor.engine.point_clouds` for what a cloud becomes and what it can tell).
 
 Each cloud is handled on a thread of the source's own, newest first (clouds that arrive while
-one is filtered are superseded and counted): read (:mod:`~collision_sensor.ros.point_cloud_message`),
+one is filtered are superseded and counted): read
+(:mod:`~collision_sensor.model.point_cloud_message`),
 its ``header.frame_id`` checked (a link of the robot or its world frame: there is no tf2, camera
 frames are links of the URDF), filtered and voxelised without the node's lock, then swapped in
 under the lock and answered at once by a verdict, like a scene change. The points kept are
@@ -42,10 +43,11 @@ from collision_sensor.engine.point_clouds import NO_STATS
 from collision_sensor.errors import JointStateError, PointCloudError
 from collision_sensor.ros.input_source import InputSource, Timeout
 from collision_sensor.ros.node_parameters import CONTACT
-from collision_sensor.ros.point_cloud_message import (
-    CloudMessageError, cdr_from_points, cloud_from_cdr, cloud_rows)
+from collision_sensor.model.point_cloud_message import (
+    CloudMessageError, cdr_from_points, cloud_frame, cloud_from_cdr, cloud_rows,
+    require_some_valid)
 from collision_sensor.ros.work_queue import BACKGROUND_NICE, NewestFirstWorker
-from collision_sensor.untrusted_text import printable, quoted
+from collision_sensor.untrusted_text import printable
 
 #: The ``colliding_pairs`` entry of a timed-out cloud source.
 POINT_CLOUD_TIMEOUT = 'point_cloud_timeout'
@@ -174,15 +176,11 @@ class PointCloudSource(InputSource):
                 positions = positions.copy()
             window = host.joints.window
             oldest, newest = window.oldest, window.newest
-        frame = rows.frame
-        if frame in checker.world_frames:
-            frame = None
-        elif frame not in checker.kinematics.link_names:
-            worlds = ' or '.join(quoted(name) for name in sorted(checker.world_frames))
-            self._reject('frame', f'{self.name}: header.frame_id {quoted(rows.frame, 100)} is no '
-                         f'link of the robot and not its world frame ({worlds}); publish the '
-                         'cloud in a frame of the URDF (add the camera\'s optical frame to the '
-                         'URDF as a link) or in the world frame (there is no tf2 here)', notes)
+        try:
+            frame = cloud_frame(rows.frame, checker.kinematics.link_names,
+                                checker.world_frames, self.name)
+        except CloudMessageError as error:
+            self._reject(error.kind, str(error), notes)
             return
         if isinstance(positions, str):
             self._reject('old', f'{self.name}: stamped {newest - stamp:.3f} s before the newest '
@@ -209,10 +207,10 @@ class PointCloudSource(InputSource):
                 self._reject('engine', f'{self.name}: {printable(error, 500)}', notes)
                 return
             stats = prepared.stats
-            if stats.invalid == stats.points:
-                self._reject('invalid', f'{self.name}: every one of its {stats.points} points '
-                             'has a NaN or infinite coordinate; the last good cloud stays the '
-                             'obstacle', notes)
+            try:
+                require_some_valid(stats, self.name)
+            except CloudMessageError as error:
+                self._reject(error.kind, str(error), notes)
                 return
             with host.lock:
                 checker.commit_points(prepared)

@@ -12,6 +12,16 @@ are applied before the frames they precede, by the node's rules
 (:mod:`collision_sensor.scene_markers`): objects added, moved, attached and removed while the
 robot moves. A recorded array the node would reject stops the run with its reason (status 2).
 
+A bag's point clouds (``sensor_msgs/PointCloud2``: every topic of that type, or the topics of
+``--cloud-topic``; ``--no-clouds`` for none) are applied as the node applies its
+``point_cloud_topics`` (:mod:`collision_sensor.tools.recorded_clouds`): each before the first
+frame at or after its stamp, self-filtered with the robot's state at its stamp, voxelised with
+``--cloud-voxel-size``, ``--cloud-self-filter-padding``, ``--cloud-max-points``,
+``--cloud-max-range`` and ``--cloud-persistence`` (the node's ``point_cloud_*`` parameters and
+defaults); contacts with ``cloud/<topic>`` are pairs like any other. A cloud that cannot be
+taken (bad fields or steps, every point NaN, a frame that is no link) is counted and named in
+the summary and in the JSON lines' ``clouds``; the check goes on.
+
 With ``--max-distance D`` (default 0.1 m; 0 turns it off) each frame also gets the smallest
 distance between the checked pairs nearer than D (``CollisionChecker.proximity``: <= 0 in
 collision), in the JSON lines, the summary and under the timeline of ``--plot``. Padding is a
@@ -56,6 +66,7 @@ from typing import Dict, List, Optional, Sequence, TextIO, Tuple
 import numpy as np
 
 from collision_sensor.errors import ConfigError, SequenceError
+from collision_sensor.engine.checker_config import CheckerConfig
 from collision_sensor.engine.scene_markers import SceneTopic
 from collision_sensor.model.joint_map import load_joint_map
 from collision_sensor.model.mesh_loading import parse_package_paths
@@ -71,8 +82,10 @@ from collision_sensor.tools.audit.unit_check import (
 from collision_sensor.tools.audit.units import find_units
 from collision_sensor.tools.command_line import run_command
 from collision_sensor.tools.progress import MODES, ProgressBar
+from collision_sensor.tools.recorded_clouds import CloudOptions, CloudReplay, summary_lines
 
 PROG = 'collision_sensor_check'
+_ENGINE = CheckerConfig()
 DEFAULT_MAX_DISTANCE = 0.1
 EXIT_CLEAR, EXIT_COLLISION, EXIT_ERROR = 0, 1, 2
 EXIT_INTERRUPTED = 130   # as a shell reports a process stopped by SIGINT
@@ -90,6 +103,8 @@ class FrameResult:
     pair was nearer than the run's max_distance, else None (also when not measured);
     ``nearest_pair`` is that pair. The distance is measured after ``seconds`` was taken.
     ``motion`` (with ``--motion``) is the motion from the previous frame into this one.
+    ``clouds`` are the recorded clouds applied (or refused) before the frame
+    (:class:`~collision_sensor.tools.recorded_clouds.CloudOutcome`).
     """
 
     index: int
@@ -100,6 +115,7 @@ class FrameResult:
     min_distance: Optional[float] = None
     nearest_pair: Optional[Pair] = None
     motion: Optional['MotionAnswer'] = None
+    clouds: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -126,7 +142,8 @@ def run_sequence(checker, seq: JointSequence, incremental: bool = True,
                  progress: Optional[ProgressBar] = None,
                  max_distance: float = 0.0,
                  scene: Optional[SceneTopic] = None,
-                 motion: bool = False) -> List[FrameResult]:
+                 motion: bool = False,
+                 clouds: Optional[CloudReplay] = None) -> List[FrameResult]:
     """Check every frame of ``seq`` in order, its scene events applied as they come.
 
     The first frame is checked once from scratch before timing starts, so the per-frame times
@@ -140,11 +157,15 @@ def run_sequence(checker, seq: JointSequence, incremental: bool = True,
     :param motion: also check the motion from each frame to the next (``update_motion``, or
         ``check_motion`` with ``incremental`` False), in the timed check; its scene is the
         frame's (the events due before it applied first).
+    :param clouds: the sequence's clouds, applied before the frames they precede after the
+        scene events, outside the timed check (default: every cloud of ``seq``, by the node's
+        defaults); :meth:`CloudReplay.finish` is called at the end.
     :raises MarkerError: a recorded array the node would reject (naming its time).
     """
     check = checker.update if incremental else checker.check
     scene = scene if scene is not None else SceneTopic()
     events = seq.scene_before()
+    clouds = clouds if clouds is not None else CloudReplay(seq)
     if len(seq):
         checker.check(seq.positions[0])
     results = []
@@ -152,6 +173,7 @@ def run_sequence(checker, seq: JointSequence, incremental: bool = True,
     for index, (t, q) in enumerate(zip(times, seq.positions)):
         for event in events[index]:
             apply_recorded(scene, checker, event)
+        applied = tuple(clouds.apply_before(checker, index)) if clouds.due(index) else ()
         start = time.perf_counter()
         answer = None
         if motion and index > 0:
@@ -170,9 +192,10 @@ def run_sequence(checker, seq: JointSequence, incremental: bool = True,
                 nearest, distance = (records[0].link_a, records[0].link_b), records[0].distance
         results.append(FrameResult(index, t, bool(result.in_collision),
                                    tuple(tuple(pair) for pair in result.colliding_pairs),
-                                   elapsed, distance, nearest, answer))
+                                   elapsed, distance, nearest, answer, applied))
         if progress is not None:
             progress.update(index + 1)
+    clouds.finish()
     return results
 
 
@@ -191,12 +214,14 @@ def pair_spans(results: Sequence[FrameResult]) -> List[PairSpan]:
     return sorted(spans, key=lambda s: (s.first, s.pair))
 
 
-def json_line(result: FrameResult, motion: bool = False) -> str:
+def json_line(result: FrameResult, motion: bool = False, clouds: bool = False) -> str:
     """Return the frame's JSON line: ``{"index", "time", "in_collision", "pairs",
     "min_distance", "nearest_pair"}`` (the last two null when no pair was within the
     max distance), and with ``motion`` ``"motion": {"first_contact", "pairs"}`` (the motion
     into the frame: its first contact's time and pairs; null for the first frame, and
-    ``first_contact`` null when the motion is free)."""
+    ``first_contact`` null when the motion is free), and with ``clouds`` (a recording with
+    point clouds) ``"clouds": [{"source", "time", "frame", "voxels"}]``, the clouds applied
+    before the frame (``voxels`` null and ``"error"`` the reason for one refused)."""
     line = {'index': result.index, 'time': result.time, 'in_collision': result.in_collision,
             'pairs': [list(pair) for pair in result.pairs],
             'min_distance': result.min_distance,
@@ -205,6 +230,8 @@ def json_line(result: FrameResult, motion: bool = False) -> str:
         line['motion'] = None if result.motion is None else {
             'first_contact': result.motion.first_contact,
             'pairs': [list(pair) for pair in result.motion.pairs]}
+    if clouds:
+        line['clouds'] = [outcome.as_json() for outcome in result.clouds]
     return json.dumps(line)
 
 
@@ -241,7 +268,8 @@ def distance_summary(results: Sequence[FrameResult], t0: float, max_distance: fl
 
 
 def summary(results: Sequence[FrameResult], seq: JointSequence, checker,
-            incremental: bool = True, max_distance: float = 0.0) -> str:
+            incremental: bool = True, max_distance: float = 0.0,
+            clouds: Optional[CloudReplay] = None) -> str:
     """Return the human summary: frames and time in collision, pairs, check time."""
     n = len(results)
     t0 = float(seq.times[0]) if n else 0.0
@@ -258,6 +286,8 @@ def summary(results: Sequence[FrameResult], seq: JointSequence, checker,
         lines.append(f'scene changes:       {len(seq.scene)} arrays replayed, '
                      f'{len(checker.object_names)} objects at the end (the scene file\'s '
                      'included)')
+    if clouds is not None:
+        lines += summary_lines(clouds.counts())
     spans = pair_spans(results)
     if spans:
         width = max(len(f'{a} -- {b}') for a, b in (s.pair for s in spans))
@@ -277,7 +307,11 @@ def summary(results: Sequence[FrameResult], seq: JointSequence, checker,
         mode = 'incremental update' if incremental else 'full check'
         lines.append(f'check time per frame ({mode}): mean {ms.mean():.3f} ms, '
                      f'median {np.median(ms):.3f} ms, max {ms.max():.3f} ms')
-    lines.append('result: ' + ('COLLISION' if colliding or motion_met(results) else 'clear'))
+    result = 'COLLISION' if colliding or motion_met(results) else 'clear'
+    if clouds is not None and clouds.counts()['rejected']:
+        refused = sum(clouds.counts()['rejected'].values())
+        result += f' ({refused} of {len(clouds)} point clouds not applied: see above)'
+    lines.append('result: ' + result)
     return '\n'.join(lines)
 
 
@@ -419,6 +453,30 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--scene-topic', default=SCENE_TOPIC,
                         help='MarkerArray topic of scene changes in a bag, replayed as the '
                              'node applies its scene topic (default %(default)s)')
+    clouds = parser.add_argument_group(
+        'point clouds (bags with sensor_msgs/PointCloud2; as the node\'s point_cloud_* '
+        'parameters)')
+    clouds.add_argument('--cloud-topic', metavar='TOPIC', action='append',
+                        help='PointCloud2 topic in a bag whose clouds are obstacles '
+                             'cloud/<topic> (repeatable; default: every PointCloud2 topic)')
+    clouds.add_argument('--no-clouds', action='store_true',
+                        help='ignore the bag\'s point clouds')
+    clouds.add_argument('--cloud-voxel-size', metavar='M', type=float,
+                        help=f'voxel edge (default {_ENGINE.voxel_size:g}, or voxel_size in '
+                             '--config)')
+    clouds.add_argument('--cloud-self-filter-padding', metavar='M', type=float,
+                        help='points within this of the robot are its own (default '
+                             f'{_ENGINE.self_filter_padding:g}, or self_filter_padding in '
+                             '--config)')
+    clouds.add_argument('--cloud-max-points', metavar='N', type=int,
+                        help=f'most points taken from one cloud (default {_ENGINE.max_points}, '
+                             'or max_points in --config)')
+    clouds.add_argument('--cloud-max-range', metavar='M', type=float, default=0.0,
+                        help='drop points farther than this from the cloud frame\'s origin '
+                             '(default 0: no limit)')
+    clouds.add_argument('--cloud-persistence', metavar='S', type=float, default=0.0,
+                        help='seconds an earlier cloud\'s voxel stays an obstacle (default 0: '
+                             'only the latest cloud)')
     parser.add_argument('--joint-map', metavar='YAML',
                         help='LeRobot datasets: which entry of the state vector is which URDF '
                              'joint, with a scale and an offset (see docs/offline.md); without it '
@@ -459,6 +517,50 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 BATCH_OPTIONS = ('report', 'jobs', 'ray', 'resume')
+#: The cloud options that are checker settings, by config key.
+CLOUD_SETTINGS = {'voxel_size': 'cloud_voxel_size',
+                  'self_filter_padding': 'cloud_self_filter_padding',
+                  'max_points': 'cloud_max_points'}
+
+
+def cloud_topics(args) -> Optional[Tuple[str, ...]]:
+    """Return the bag's cloud topics to read: None for every PointCloud2 topic, () for
+    none."""
+    if args.no_clouds:
+        if args.cloud_topic:
+            raise ConfigError('--no-clouds and --cloud-topic contradict each other; give one')
+        return ()
+    return tuple(args.cloud_topic) if args.cloud_topic else None
+
+
+def cloud_options(args) -> CloudOptions:
+    """Return ``--cloud-max-range`` and ``--cloud-persistence`` checked."""
+    max_range, persistence = args.cloud_max_range, args.cloud_persistence
+    if not (max_range >= 0.0 and math.isfinite(max_range)):
+        raise ConfigError(f'--cloud-max-range {max_range}: expected a finite distance >= 0 '
+                          '(metres; 0: no limit)')
+    if not (persistence >= 0.0 and math.isfinite(persistence)):
+        raise ConfigError(f'--cloud-persistence {persistence}: expected a finite number of '
+                          'seconds >= 0 (0: only the latest cloud counts)')
+    return CloudOptions(max_range=max_range if max_range > 0.0 else math.inf,
+                        persistence=persistence)
+
+
+def _with_cloud_settings(config, args):
+    """Return ``config`` with the cloud options that are checker settings (they win)."""
+    chosen = {key: getattr(args, option) for key, option in CLOUD_SETTINGS.items()
+              if getattr(args, option) is not None}
+    if not chosen:
+        return config
+    merged = dict(config or {}, **chosen)
+    try:
+        CheckerConfig.from_mapping(merged)
+    except ConfigError as error:
+        text = str(error)
+        for key, option in CLOUD_SETTINGS.items():
+            text = text.replace(f'setting {key}', '--' + option.replace('_', '-'))
+        raise ConfigError(text) from None
+    return merged
 
 
 def _robot(args) -> RobotSpec:
@@ -475,7 +577,7 @@ def _robot(args) -> RobotSpec:
     if args.no_scene:
         scene = None
     return RobotSpec.load(urdf, srdf=srdf, package_paths=package_paths or None, scene=scene,
-                          config=_load_config(args.config),
+                          config=_with_cloud_settings(_load_config(args.config), args),
                           xacro_args=parse_xacro_args(args.xacro_arg) or None, label=label,
                           demo=args.urdf is None)
 
@@ -512,7 +614,8 @@ def _run(args) -> int:
 def _run_batch(args, units, spec, checker, joint_map, max_distance) -> int:
     options = CheckOptions(incremental=not args.full, max_distance=max_distance,
                            topic=args.topic, scene_topic=args.scene_topic, joint_map=joint_map,
-                           motion=args.motion)
+                           motion=args.motion, cloud_topics=cloud_topics(args),
+                           clouds=cloud_options(args))
     runner = make_runner(spec, options, args.jobs, args.ray)
     label = (f'Ray ({args.ray})' if args.ray else
              f'{args.jobs or default_jobs()} local worker processes'
@@ -532,32 +635,34 @@ def _run_batch(args, units, spec, checker, joint_map, max_distance) -> int:
 
 
 def _run_one(args, unit, spec, checker, max_distance) -> int:
+    options = cloud_options(args)
     try:
         seq = read_sequence(unit.path, topic=args.topic, joint_names=checker.joint_names,
-                            scene_topic=args.scene_topic)
+                            scene_topic=args.scene_topic, cloud_topics=cloud_topics(args))
     except SequenceError as err:
         raise SequenceError(with_demo_arm_hint(str(err), spec.demo)) from None
 
     label = os.path.basename(os.path.normpath(seq.source))
+    clouds = CloudReplay(seq, options)
     with ProgressBar(len(seq), label=label, mode=args.progress) as progress:
         results = run_sequence(checker, seq, incremental=not args.full, progress=progress,
                                max_distance=max_distance,
                                scene=SceneTopic(package_paths=dict(spec.package_paths) or None),
-                               motion=args.motion)
+                               motion=args.motion, clouds=clouds)
 
     to_stdout = args.json == '-'
     if args.json:
         stream: TextIO = sys.stdout if to_stdout else open(args.json, 'w', encoding='utf-8')
         try:
             for result in results:
-                stream.write(json_line(result, args.motion) + '\n')
+                stream.write(json_line(result, args.motion, bool(seq.clouds)) + '\n')
         finally:
             if not to_stdout:
                 stream.close()
     if args.plot:
         plot_timeline(results, seq, args.plot, max_distance=max_distance)
     print(summary(results, seq, checker, incremental=not args.full,
-                  max_distance=max_distance),
+                  max_distance=max_distance, clouds=clouds if seq.clouds else None),
           file=sys.stderr if to_stdout else sys.stdout)
     met = any(r.in_collision for r in results) or motion_met(results)
     return EXIT_COLLISION if met else EXIT_CLEAR

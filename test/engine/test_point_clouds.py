@@ -29,7 +29,8 @@ from collision_sensor.engine.sampling import random_configurations, sampling_bou
 from collision_sensor.errors import ConfigError, PointCloudError
 from collision_sensor.model.mesh_loading import box_mesh, box_solid
 from collision_sensor.model.scene import SceneObject
-from engine_oracles import FclOracle
+from engine_oracles import (
+    FclOracle, surface_points, voxel_links_in_contact, voxel_manager, world_elements)
 
 SOURCE = 'camera/points'
 CLOUD = 'cloud/' + SOURCE
@@ -56,19 +57,6 @@ def _random_state(checker, rng):
     return random_configurations(checker, 1, int(rng.integers(1 << 30)))[0]
 
 
-def _world_elements(checker):
-    """Each collision element of the robot at the checker's state: (link, trimesh in the world,
-    solid?)."""
-    poses = checker.link_poses()
-    out = []
-    for element in checker.model.elements:
-        T = poses[element.link] @ element.T_link_element
-        mesh = trimesh.Trimesh(element.vertices @ T[:3, :3].T + T[:3, 3], element.faces,
-                               process=False)
-        out.append((element.link, mesh, element.solid is not None))
-    return out
-
-
 def _brute_force_removed(checker, points, padding, reach=np.inf):
     """(n,) bool: within ``padding`` of the robot's triangles or inside a solid of it, and
     (n,) the distance to the triangles (trimesh, all elements; those whose bounds are farther
@@ -76,7 +64,7 @@ def _brute_force_removed(checker, points, padding, reach=np.inf):
     distance = np.full(len(points), np.inf)
     inside = np.zeros(len(points), dtype=bool)
     lo, hi = points.min(axis=0) - reach, points.max(axis=0) + reach
-    for _, mesh, solid in _world_elements(checker):
+    for _, mesh, solid in world_elements(checker):
         if np.any(mesh.bounds[0] > hi) or np.any(mesh.bounds[1] < lo):
             continue
         _, d, _ = trimesh.proximity.closest_point(mesh, points)
@@ -84,15 +72,6 @@ def _brute_force_removed(checker, points, padding, reach=np.inf):
         if solid:
             inside |= mesh.contains(points)
     return (distance <= padding) | inside, distance
-
-
-def _surface_points(checker, rng, per_element=2000, noise=0.002):
-    points = []
-    for _, mesh, _ in _world_elements(checker):
-        sample, _ = trimesh.sample.sample_surface(mesh, per_element, seed=int(rng.integers(1 << 30)))
-        points.append(sample)
-    points = np.concatenate(points)
-    return points + rng.normal(0.0, noise, points.shape)
 
 
 def _kept_points(checker, points, q, **options):
@@ -113,47 +92,16 @@ class VoxelOracle:
         self.fcl = FclOracle(checker, urdf)
         self.checker = checker
 
-    def voxel_manager(self, centres, size):
-        boxes = [fcl.CollisionObject(fcl.Box(size, size, size),
-                                     fcl.Transform(np.eye(3), c)) for c in centres]
-        manager = fcl.DynamicAABBTreeCollisionManager()
-        manager.registerObjects(boxes)
-        manager.setup()
-        return manager, boxes
-
-    def link_objects(self, poses, link):
-        T = poses[link]
-        t = fcl.Transform(T[:3, :3], T[:3, 3])
-        objects = [fcl.CollisionObject(m, t) for m in self.fcl.models[link]]
-        for primitive, T_local in self.fcl.solids.get(link, ()):
-            Tp = T @ T_local
-            objects.append(fcl.CollisionObject(primitive, fcl.Transform(Tp[:3, :3], Tp[:3, 3])))
-        return objects
-
     def links_in_contact(self, q, padding=0.0):
         centres, size = self.checker.cloud_voxels(SOURCE)
-        poses = self.fcl.poses(q)
-        manager, boxes = self.voxel_manager(centres, size)
-        hits = set()
-        for link in _cloud_pairs(self.checker.checked_pairs):
-            for obj in self.link_objects(poses, link):
-                if padding > 0.0:
-                    data = fcl.DistanceData()
-                    manager.distance(obj, data, fcl.defaultDistanceCallback)
-                    if data.result.min_distance <= padding:
-                        hits.add(link)
-                else:
-                    data = fcl.CollisionData()
-                    manager.collide(obj, data, fcl.defaultCollisionCallback)
-                    if data.result.is_collision:
-                        hits.add(link)
-        return hits
+        return voxel_links_in_contact(self.fcl, q, centres, size,
+                                      _cloud_pairs(self.checker.checked_pairs), padding)
 
     def distances(self, q):
         """{link: fcl's distance from the link's triangles to the nearest voxel box}."""
         centres, size = self.checker.cloud_voxels(SOURCE)
         poses = self.fcl.poses(q)
-        manager, _ = self.voxel_manager(centres, size)
+        manager, _ = voxel_manager(centres, size)
         out = {}
         for link in _cloud_pairs(self.checker.checked_pairs):
             T = poses[link]
@@ -182,7 +130,7 @@ def test_own_surface_points_are_removed_and_never_in_contact(erd_share, erd_pack
     for _ in range(3):
         q = _random_state(checker, rng)
         checker.check(q)
-        points = _surface_points(checker, rng, per_element=400 if robot == 'tiago' else 2000)
+        points = surface_points(checker, rng, per_element=400 if robot == 'tiago' else 2000)
         voxels = checker.set_points(SOURCE, points, positions=q)
         stats = checker.point_cloud_stats(SOURCE)
         assert stats.points == len(points)
@@ -200,7 +148,7 @@ def test_self_filter_equals_brute_force(erd_share, erd_package_paths, padding):
         q = _random_state(checker, rng)
         checker.check(q)
         # Points around the robot's surfaces, from inside its solids to beyond the padding.
-        base = _surface_points(checker, rng, per_element=150, noise=0.0)
+        base = surface_points(checker, rng, per_element=150, noise=0.0)
         points = base + rng.normal(0.0, 0.03, base.shape)
         kept, stats = _kept_points(checker, points, q)
         removed, distance = _brute_force_removed(checker, points, padding)
@@ -250,7 +198,7 @@ def test_contact_equals_fcl_on_the_voxel_boxes(erd_share, erd_package_paths, fil
     for _ in range(6):
         q = _random_state(checker, rng)
         checker.check(q)
-        base = _surface_points(checker, rng, per_element=60, noise=0.0)
+        base = surface_points(checker, rng, per_element=60, noise=0.0)
         points = base + rng.normal(0.0, 0.04, base.shape)
         checker.set_points(SOURCE, points, positions=q, persistence=0.0)
         engine = _cloud_pairs(checker.update(q).colliding_pairs)
@@ -281,7 +229,7 @@ def test_proximity_equals_fcl_distance_to_the_voxel_boxes(erd_share, erd_package
                 records[link] = (r.distance, on_link, on_cloud)
         truth = oracle.distances(q)
         centres, size = checker.cloud_voxels(SOURCE)
-        elements = _world_elements(checker)
+        elements = world_elements(checker)
         assert records.keys() == truth.keys()
         for link, d in truth.items():
             distance, on_link, on_cloud = records[link]
@@ -305,7 +253,7 @@ def test_object_cloud_near_the_hand_measures_min_distance_within_a_voxel(panda, 
     for trial in range(3):
         q = _random_state(checker, rng)
         checker.check(q)
-        hand = trimesh.util.concatenate([mesh for link, mesh, _ in _world_elements(checker)
+        hand = trimesh.util.concatenate([mesh for link, mesh, _ in world_elements(checker)
                                          if link == 'panda_hand'])
         if aligned:
             n = np.zeros(3)
@@ -343,7 +291,7 @@ def test_padding_boundary_both_sides(panda, gap, lost):
     size = checker.config.voxel_size
     q = np.zeros(len(checker.joint_names))
     checker.check(q)
-    base = trimesh.util.concatenate([m for link, m, _ in _world_elements(checker)
+    base = trimesh.util.concatenate([m for link, m, _ in world_elements(checker)
                                      if link == 'panda_link0'])
     # The largest face pointing along -x (away from the arm at q = 0).
     facing = np.flatnonzero(base.face_normals[:, 0] < -0.99)

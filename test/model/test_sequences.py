@@ -264,3 +264,64 @@ def test_what_the_fast_reader_refuses_the_exact_reader_judges(tmp_path, body):
     else:
         assert body in ('0,1\n1,"2"\n', '0,1\n,,\n1,2\n')   # quoted and empty rows are fine
         assert exact.positions.tolist() == [[1.0], [2.0]]
+
+
+# --- point clouds in bags ----------------------------------------------------------------------
+
+@pytest.mark.parametrize('fmt', ['mcap', 'sqlite3'])
+def test_clouds_are_read_in_stamp_order_and_scheduled_by_the_frames(tmp_path, fmt):
+    """Two cameras with different delays: the bag's order (log time) is not the stamps'; the
+    messages come back in stamp order, each its own, and each cloud goes before the first frame
+    at or after its stamp (earlier ones dropped, later ones after the last frame)."""
+    from cloud_bags import _typestore, cloud_message, write_bag
+    typestore = _typestore()
+    times = np.array([1.0, 1.1, 1.2, 1.3])
+    positions = np.column_stack([times, -times, 2 * times])
+    point = np.array([[0.1, 0.2, 0.3]])
+    # (topic, log time, stamp, frame)
+    recorded = [('/a', 0.50, 0.50, 'a0'), ('/a', 1.12, 1.10, 'a1'), ('/b', 1.16, 1.05, 'b1'),
+                ('/a', 1.22, 1.20, 'a2'), ('/b', 1.26, 1.15, 'b2'), ('/b', 1.50, 1.45, 'b3')]
+    clouds = [(topic, log, cloud_message(typestore, point * (k + 1), frame, int(stamp * 1e9)))
+              for k, (topic, log, stamp, frame) in enumerate(recorded)]
+    path = tmp_path / ('c.mcap' if fmt == 'mcap' else 'c.db3')
+    write_bag(path, fmt, JOINTS, times, positions, clouds)
+    seq = read_sequence(path)
+    by_stamp = sorted(recorded, key=lambda r: r[2])
+    assert [(e.source, e.time, e.frame) for e in seq.clouds] == [
+        (topic[1:], stamp, frame) for topic, _, stamp, frame in by_stamp]
+    from collision_sensor.model.sequences import iter_cloud_messages
+    got = [(event.frame, msg.header.frame_id, np.frombuffer(msg.data, '<f4')[0])
+           for event, msg in iter_cloud_messages(seq.clouds)]
+    scale = {frame: k + 1 for k, (_, _, _, frame) in enumerate(recorded)}
+    assert got == [(f, f, pytest.approx(0.1 * scale[f])) for _, _, _, f in by_stamp]
+    schedule = seq.cloud_schedule()
+    assert [e.frame for e in schedule.before_first] == ['a0']
+    assert [[e.frame for e in events] for events in schedule.per_frame] == [
+        [], ['b1', 'a1'], ['b2', 'a2'], []]
+    assert [e.frame for e in schedule.after_last] == ['b3']
+    assert read_sequence(path, cloud_topics=['b']).clouds[0].frame == 'b1'
+    # Memory is bounded: clouds read ahead of their turn are kept up to a limit.
+    import collision_sensor.model.sequences as sequences
+    limit, sequences.MAX_READ_AHEAD = sequences.MAX_READ_AHEAD, 10
+    try:
+        with pytest.raises(SequenceError, match='the cloud of b stamped 1.050 s was recorded '
+                           'after more than 0 MiB of clouds stamped later'):
+            list(iter_cloud_messages(seq.clouds))
+    finally:
+        sequences.MAX_READ_AHEAD = limit
+    # The state at a cloud's stamp: linear between the frames around it.
+    assert seq.positions_at(1.05) == pytest.approx([1.05, -1.05, 2.1])
+    assert seq.positions_at(0.5) == pytest.approx(positions[0])
+    assert seq.positions_at(9.0) == pytest.approx(positions[-1])
+
+
+def test_a_cloud_topic_that_is_missing_or_not_a_cloud_is_named(tmp_path, seq):
+    path = tmp_path / 's.mcap'
+    write_sequence(seq, path)
+    with pytest.raises(SequenceError, match='no topic "/cam" in the bag; its PointCloud2 '
+                       'topics are none'):
+        read_sequence(path, cloud_topics=['/cam'])
+    with pytest.raises(SequenceError, match='has type sensor_msgs/msg/JointState, expected '
+                       'sensor_msgs/msg/PointCloud2'):
+        read_sequence(path, cloud_topics=['joint_states'])
+    assert read_sequence(path).clouds == ()

@@ -23,6 +23,16 @@ def test_frame_offsets_follow_recorded_times_or_the_rate():
     assert player.frame_offsets(times, rate=4.0).tolist() == [0.0, 0.25, 0.5]
 
 
+def test_clouds_go_at_their_log_time_unless_it_is_another_clocks():
+    from collision_sensor.model.sequences import CloudEvent
+    seq = JointSequence(('a',), np.array([10.0, 10.1, 10.2]), np.zeros((3, 1)), clouds=[
+        CloudEvent(10.05, 'c', 'f', 'bag', 0, log_time=10.08),       # 30 ms camera delay
+        CloudEvent(10.06, 'c', 'f', 'bag', 1, log_time=1.7e9),       # simulated time
+        CloudEvent(10.07, 'c', 'f', 'bag', 2, log_time=10.0),        # logged before its stamp
+        CloudEvent(10.15, 'c', 'f', 'bag', 3, log_time=10.16)])
+    assert player.recorded_cloud_offsets(seq) == pytest.approx([0.08, 0.08, 0.08, 0.16])
+
+
 def test_loop_period_adds_one_typical_gap():
     assert player.loop_period(np.array([0.0, 0.1, 0.2, 0.6])) == pytest.approx(0.7)
 
@@ -296,3 +306,114 @@ def test_frames_nobody_was_matched_for_are_said_to_be_received_by_nobody(ros, tm
     assert _summary(play.output) == ('', 5, 0)
     assert '5 published while no subscription was matched, received by nobody' in play.output
     assert 'not acknowledged' not in play.output
+
+
+# --- a bag with point clouds into the node -----------------------------------------------------
+
+def test_a_bags_clouds_reach_the_node_in_order_and_answer_as_the_offline_check(
+        ros, tmp_path, capsys, panda_urdf, panda_srdf, erd_share, erd_package_paths):
+    """The Panda bag of test/cloud_bags.py (a box in the arm's way, the robot's own surfaces,
+    bad clouds) played as fast as possible into a node with its three cloud topics: the node's
+    last answer on each frame (its verdict on the frame, or on the clouds published after it)
+    equals ``collision_sensor_check``'s verdict on that frame; the bad clouds are refused."""
+    import json
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from collision_sensor import CollisionChecker
+    from collision_sensor.tools import offline_check
+    from cloud_bags import PANDA_JOINTS, panda_sweep, write_bag
+    from test_node import panda_parameters, start_node
+
+    checker = CollisionChecker.from_urdf(panda_urdf, panda_srdf,
+                                         package_paths=erd_package_paths)
+    times, positions, clouds, _ = panda_sweep(checker, np.random.default_rng(29))
+    bag = str(tmp_path / 'sweep.mcap')
+    write_bag(bag, 'mcap', PANDA_JOINTS, times, positions, clouds)
+    report = tmp_path / 'frames.jsonl'
+    assert offline_check.main([bag, '--urdf', panda_urdf, '--srdf', panda_srdf,
+                               '--package-path', f'example-robot-data={erd_share}',
+                               '--json', str(report), '--progress', 'never']) == 1
+    capsys.readouterr()
+    expected = [json.loads(line) for line in report.read_text().splitlines()]
+
+    topics = ['camera/points', 'wrist/points', 'bad/points']
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
+                                     point_cloud_topics=topics, point_cloud_timeout=0.0,
+                                     stale_timeout=0.0, overload_policy='every',
+                                     check_motion=False))
+    every = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    pairs = ros.record(DiagnosticArray, 'colliding_pairs', every)
+    status = {}
+
+    def on_diagnostics(msg):
+        for entry in msg.status:
+            if entry.name.endswith(': point cloud bad/points'):
+                status.update({kv.key: kv.value for kv in entry.values})
+    ros.probe.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 100)
+    assert ros.spin_until(lambda: all(ros.probe.count_subscribers(f'{ros.namespace}/{t}') > 0
+                                      for t in topics + ['joint_states']), 60.0)
+    play = PlayerThread([bag, '--as-fast-as-possible', '--stamp', 'recorded', '--progress',
+                         'never', '--ros-args', '-r', f'__ns:={ros.namespace}'])
+    try:
+        assert ros.spin_until(lambda: not play.thread.is_alive(), 30.0), 'player still running'
+        assert play.join() == 0
+        ros.spin_for(0.3)
+    finally:
+        play.stop()
+    # The node's answers, in order: a frame's verdict (no header frame), then its clouds'.
+    # The last answer is the node's on the cloud after the last frame (offline: not checked).
+    messages = pairs.messages
+    assert messages[-1].header.frame_id == 'panda_link0'
+    last, frame = {}, -1
+    stamps = [int(round(t * 1e9)) for t in times]
+    for msg in messages[:-1]:
+        if not msg.header.frame_id:
+            frame = stamps.index(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+        last[frame] = sorted(status.name for status in msg.status)
+    assert sorted(last) == list(range(len(times))), sorted(last)
+    for index, want in enumerate(expected):
+        assert last[index] == sorted(':'.join(pair) for pair in want['pairs']), index
+    assert any('cloud/camera/points' in name for names in last.values() for name in names)
+    assert not any('cloud/wrist/points' in name for names in last.values() for name in names)
+    # Refused by the node as offline: INT32 x, point_step 8, the unknown frame, no z field.
+    assert ros.spin_until(lambda: status.get('clouds_rejected_total') == '4', 5.0), status
+
+
+def test_recorded_timing_publishes_each_cloud_as_recorded(ros, tmp_path):
+    """Clouds at recorded timing, on the topics made relative: the same fields, bytes, frame
+    and stamp (``--stamp recorded``) as in the bag."""
+    from rclpy.qos import qos_profile_sensor_data
+    from cloud_bags import WORLD, _typestore, cloud_message, write_bag
+    typestore = _typestore()
+    times = np.array([0.0, 0.1, 0.2, 0.3])
+    positions = np.column_stack([times, 2 * times])
+    rng = np.random.default_rng(5)
+    sent = [('/cam/points', 0.05, 0.02, rng.uniform(-1, 1, (30, 3)), '<f4'),
+            ('/cam/points', 0.25, 0.22, rng.uniform(-1, 1, (10, 3)), '<f4'),
+            ('/lidar', 0.15, 0.15, rng.uniform(-1, 1, (20, 3)), '<f4')]
+    clouds = [(topic, log, cloud_message(typestore, points, WORLD, int(round(stamp * 1e9))))
+              for topic, log, stamp, points, _ in sent]
+    bag = str(tmp_path / 'c.db3')
+    write_bag(bag, 'sqlite3', ('a', 'b'), times, positions, clouds)
+    frames = ros.record(player.JointState, 'joint_states', _keep_all())
+    cam = ros.record(player.PointCloud2, 'cam/points', qos_profile_sensor_data)
+    lidar = ros.record(player.PointCloud2, 'lidar', qos_profile_sensor_data)
+    play = PlayerThread([bag, '--stamp', 'recorded', '--progress', 'never',
+                         '--ros-args', '-r', f'__ns:={ros.namespace}'])
+    try:
+        assert ros.spin_until(lambda: len(frames) >= 4 and len(cam) >= 2 and len(lidar) >= 1,
+                              30.0)
+        assert play.join() == 0
+    finally:
+        play.stop()
+    for msg, (topic, _, stamp, points, _) in zip(cam.messages + lidar.messages,
+                                                [sent[0], sent[1], sent[2]]):
+        assert msg.header.frame_id == WORLD
+        assert msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec == int(round(stamp * 1e9))
+        assert (msg.height, msg.width, msg.point_step, msg.row_step) == (
+            1, len(points), 12, 12 * len(points))
+        assert [(f.name, f.offset, f.datatype, f.count) for f in msg.fields] == [
+            ('x', 0, 7, 1), ('y', 4, 7, 1), ('z', 8, 7, 1)]
+        assert np.array_equal(np.frombuffer(bytes(msg.data), '<f4').reshape(-1, 3),
+                              points.astype('<f4'))

@@ -18,6 +18,7 @@ from collision_sensor.tools.audit.unit_check import CheckOptions, RobotSpec, Uni
     checks_for, rss_bytes
 from collision_sensor.tools.audit.units import Unit
 from collision_sensor.tools.progress import ProgressBar
+from collision_sensor.tools.recorded_clouds import cloud_summary_lines
 
 EXIT_CLEAR, EXIT_COLLISION, EXIT_FAILED = 0, 1, 3
 
@@ -137,6 +138,7 @@ def print_summary(result: BatchResult, spec: RobotSpec, checker, options: CheckO
     checked = [r for r in result.records if r['error'] is None]
     for check in checks_for(options)[1:]:       # the contacts are the table above
         lines += check.summary_lines(checked)
+    lines += cloud_summary_lines(checked)
     new_frames = sum(r['frames'] or 0 for r in result.new)
     resumed = len(result.records) - len(result.new)
     run = (f'this run:  {len(result.new)} units, {new_frames:,} frames in '

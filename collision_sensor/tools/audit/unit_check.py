@@ -13,7 +13,13 @@ node's rules) and gives the keys it adds to the report line. **The seam for moti
 (``CollisionChecker.check_motion``, issue 25) is :class:`MotionCheck`, chosen with
 ``CheckOptions.motion`` (``--motion``): it adds the key ``motion``; the report, resume, pools
 and Ray carry it as they carry the others.
+
+A bag's point clouds apply between stretches too, as in ``collision_sensor_check`` on one
+recording (:mod:`collision_sensor.tools.recorded_clouds`: the node's rules); the line's
+``point_clouds`` counts them, applied and refused by reason, with the first refusals' messages
+(null for a recording without clouds). A refused cloud is no failure of the unit.
 """
+import contextlib
 import dataclasses
 import hashlib
 import os
@@ -31,6 +37,7 @@ from collision_sensor.model.sequences import (
     DEFAULT_TOPIC, SCENE_TOPIC, JointSequence, read_sequence)
 from collision_sensor.tools.audit import shipping
 from collision_sensor.tools.audit.units import Unit
+from collision_sensor.tools.recorded_clouds import CloudOptions, CloudReplay
 
 DEMO_ARM_HINT = ('these are the joints of the bundled demo arm, the robot checked when no '
                  '--urdf is given: pass --urdf YOUR_ROBOT.urdf (with --srdf and --package-path '
@@ -129,6 +136,9 @@ class CheckOptions:
     :ivar scene_topic: the MarkerArray topic of a bag's scene changes.
     :ivar joint_map: how dataset state entries become joints (None: named as the joints).
     :ivar motion: also check the motion between consecutive frames (:class:`MotionCheck`).
+    :ivar cloud_topics: the PointCloud2 topics of bags (None: every one; ``()``: none).
+    :ivar clouds: the clouds' range and persistence (voxel size, self-filter padding and max
+        points are the checker's settings).
     """
 
     incremental: bool = True
@@ -137,10 +147,15 @@ class CheckOptions:
     scene_topic: str = SCENE_TOPIC
     joint_map: Optional[JointMap] = None
     motion: bool = False
+    cloud_topics: Optional[Tuple[str, ...]] = None
+    clouds: CloudOptions = CloudOptions()
 
     def digest_fields(self) -> tuple:
-        return (self.incremental, self.max_distance, self.topic, self.scene_topic,
-                self.joint_map, self.motion)
+        fields = (self.incremental, self.max_distance, self.topic, self.scene_topic,
+                  self.joint_map, self.motion)
+        if self.cloud_topics is None and self.clouds == CloudOptions():
+            return fields       # as before clouds: reports of then resume
+        return fields + (self.cloud_topics, self.clouds)
 
 
 class UnitCheck:
@@ -355,7 +370,8 @@ def checks_for(options: CheckOptions) -> List[Type[UnitCheck]]:
 
 def record_keys(options: CheckOptions) -> List[str]:
     """Return a report line's keys, in order, under ``options``."""
-    keys = ['source', 'format', 'frames', 'start_time', 'duration', 'scene_changes']
+    keys = ['source', 'format', 'frames', 'start_time', 'duration', 'scene_changes',
+            'point_clouds']
     for check in checks_for(options):
         keys += list(check.EMPTY)
     return keys + ['error']
@@ -390,10 +406,12 @@ class UnitChecker:
         record = self.failed_record(unit, self.options, None)
         try:
             record['format'] = unit.format
-            seq = self._read(unit, payload)
-            record.update(frames=len(seq), start_time=float(seq.times[0]),
-                          duration=seq.duration, scene_changes=len(seq.scene))
-            results = self._run(seq)
+            with self._local(unit, payload) as local:
+                seq = self._read(unit, payload, local)
+                record.update(frames=len(seq), start_time=float(seq.times[0]),
+                              duration=seq.duration, scene_changes=len(seq.scene))
+                results, clouds = self._run(seq)
+            record['point_clouds'] = clouds
             for keys in results:
                 record.update(keys)
         except CollisionSensorError as err:
@@ -414,50 +432,65 @@ class UnitChecker:
         """Return ``unit``'s report line with nothing measured and ``error``."""
         record: Dict[str, object] = {'source': unit.source, 'format': None, 'frames': None,
                                      'start_time': None, 'duration': None,
-                                     'scene_changes': None}
+                                     'scene_changes': None, 'point_clouds': None}
         for check in checks_for(options):
             record.update(check.EMPTY)
         record['error'] = error
         return record
 
-    def _read(self, unit: Unit, payload) -> JointSequence:
+    @staticmethod
+    @contextlib.contextmanager
+    def _local(unit: Unit, payload):
+        """Yield the path to read ``unit`` from: its own, or its shipped files unpacked here
+        (kept while the unit is checked: a bag's clouds are read when applied)."""
+        if payload is None or unit.kind == 'lerobot':
+            yield unit.path
+            return
+        with shipping.unpacked(unit, payload) as local:
+            try:
+                yield local
+            except SequenceError as err:
+                raise SequenceError(shipping.relabel(str(err), local, unit.path)) from None
+
+    def _read(self, unit: Unit, payload, local: str) -> JointSequence:
         names = self.checker.joint_names
         if unit.kind == 'lerobot':
             joint_map = self.options.joint_map or JointMap.identity(names)
             return lerobot.read_episode(unit.episode, joint_map, names, data=payload)
-        if payload is None:
-            return read_sequence(unit.path, topic=self.options.topic, joint_names=names,
-                                 scene_topic=self.options.scene_topic)
-        with shipping.unpacked(unit, payload) as local:
-            try:
-                seq = read_sequence(local, topic=self.options.topic, joint_names=names,
-                                    scene_topic=self.options.scene_topic)
-            except SequenceError as err:
-                raise SequenceError(shipping.relabel(str(err), local, unit.path)) from None
-        return JointSequence(seq.joint_names, seq.times, seq.positions, unit.path, seq.scene)
+        seq = read_sequence(local, topic=self.options.topic, joint_names=names,
+                            scene_topic=self.options.scene_topic,
+                            cloud_topics=self.options.cloud_topics)
+        return JointSequence(seq.joint_names, seq.times, seq.positions, unit.path, seq.scene,
+                             seq.clouds)
 
-    def _run(self, seq: JointSequence) -> List[Dict[str, object]]:
-        """Run every check over the frames, the recorded scene arrays applied between
-        stretches (:meth:`JointSequence.scene_before`)."""
+    def _run(self, seq: JointSequence):
+        """Run every check over the frames, the recorded scene arrays and point clouds
+        applied between stretches (:meth:`JointSequence.scene_before`,
+        :class:`~collision_sensor.tools.recorded_clouds.CloudReplay`); return the checks'
+        keys and the ``point_clouds`` entry."""
         checker = self.checker
         checks = [kind(self.options, seq) for kind in checks_for(self.options)]
         events = seq.scene_before() if seq.scene else [()] * len(seq)
-        starts = [0] + [i for i in range(1, len(seq)) if events[i]] + [len(seq)] \
-            if seq.scene else [0, len(seq)]
+        clouds = CloudReplay(seq, self.options.clouds)
+        starts = [0] + [i for i in range(1, len(seq)) if events[i] or clouds.due(i)] \
+            + [len(seq)]
         topic = SceneTopic(package_paths=dict(self.spec.package_paths) or None)
-        if seq.scene:
+        if seq.scene or seq.clouds:
             self._checker = None   # the next unit gets the scene as loaded
         try:
             checker.check(seq.positions[0])
             for start, stop in zip(starts[:-1], starts[1:]):
                 for event in events[start]:
                     apply_recorded(topic, checker, event)
+                if clouds.due(start):
+                    clouds.apply_before(checker, start)
                 for check in checks:
                     check.segment(checker, start, stop)
+            clouds.finish()
         except BaseException:
             self._checker = None   # whatever state an error left, the next unit starts clean
             raise
-        return [check.result() for check in checks]
+        return [check.result() for check in checks], (clouds.counts() if seq.clouds else None)
 
 
 def rss_bytes() -> int:

@@ -1,8 +1,9 @@
 """A ``sensor_msgs/PointCloud2``'s x, y, z as the engine reads them (issue 29, items 2 and 4).
 
 Pure numpy, no rclpy: the message is read through its fields (``height``, ``width``,
-``fields``, ``is_bigendian``, ``point_step``, ``row_step``, ``data``), so this module is tested
-without ROS and the node's point cloud source only hands messages over. Everything in a
+``fields``, ``is_bigendian``, ``point_step``, ``row_step``, ``data``), so the same function
+reads an rclpy message (the node's point cloud source) and a ``rosbags`` message read from a
+bag (the offline checker, :mod:`collision_sensor.tools.recorded_clouds`). Everything in a
 message is untrusted: each check below names what is wrong with the message and the fix, with
 the message's own text escaped (:mod:`collision_sensor.untrusted_text`), and nothing is
 allocated in proportion to what the message *claims* (only to the bytes it holds).
@@ -22,7 +23,7 @@ the received bytes. :func:`cdr_from_points` writes ``~/filtered_points`` the sam
 takes about 60 ms to serialize a cloud of that size from Python).
 """
 import struct
-from typing import NamedTuple
+from typing import NamedTuple, Optional
 
 import numpy as np
 
@@ -265,3 +266,36 @@ def cloud_rows(msg, topic: str = 'point cloud') -> CloudRows:
                             strides=(row_step, point_step))
         points[:, k] = column.reshape(-1)
     return CloudRows(points, str(msg.header.frame_id))
+
+
+def cloud_frame(frame_id: str, link_names, world_frames, name: str) -> Optional[str]:
+    """Return the frame a cloud's points are given in, as the checker takes it: a link's name,
+    or None for the world frame.
+
+    :param frame_id: the message's ``header.frame_id`` (untrusted).
+    :param link_names: the robot's links; ``world_frames``: the names of its world frame.
+    :param name: names the input in messages (``point cloud /camera/points``).
+    :raises CloudMessageError: (kind ``frame``) any other frame, named, with the fix.
+    """
+    if frame_id in world_frames:
+        return None
+    if frame_id in link_names:
+        return frame_id
+    worlds = ' or '.join(quoted(world) for world in sorted(world_frames))
+    raise CloudMessageError(
+        'frame', f'{printable(name, 200)}: header.frame_id {quoted(frame_id, 100)} is no link '
+        f'of the robot and not its world frame ({worlds}); publish the cloud in a frame of the '
+        'URDF (add the camera\'s optical frame to the URDF as a link) or in the world frame '
+        '(there is no tf2 here)')
+
+
+def require_some_valid(stats, name: str) -> None:
+    """Refuse a cloud whose every point has a NaN or infinite coordinate.
+
+    :param stats: the cloud's ``PointCloudStats`` (``points``, ``invalid``).
+    :raises CloudMessageError: (kind ``invalid``) saying so.
+    """
+    if stats.invalid == stats.points:
+        raise CloudMessageError(
+            'invalid', f'{printable(name, 200)}: every one of its {stats.points} points has a '
+            'NaN or infinite coordinate; the last good cloud stays the obstacle')
