@@ -212,7 +212,7 @@ def test_the_camera_demo_sees_the_person_and_keeps_the_arm_out_of_its_cloud():
     import trimesh
     import yourdfpy
 
-    from collision_sensor.model.share import SOURCE_ROOT, config_path
+    from collision_sensor.model.share import config_path, share_directory
     from collision_sensor.tools import demo_cell
     from collision_sensor.tools.demo_camera import CLOUD_TOPIC
 
@@ -226,7 +226,7 @@ def test_the_camera_demo_sees_the_person_and_keeps_the_arm_out_of_its_cloud():
     robot = yourdfpy.URDF.load(config_path('demo_arm.urdf'), load_meshes=False,
                                build_collision_scene_graph=False,
                                filename_handler=lambda uri: os.path.join(
-                                   SOURCE_ROOT, uri[len('package://collision_sensor/'):]))
+                                   share_directory(), uri[len('package://collision_sensor/'):]))
     models = {}
     for link in robot.robot.links:
         for collision in link.collisions:
