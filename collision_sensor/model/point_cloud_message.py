@@ -177,6 +177,13 @@ _XYZ = b''.join(struct.pack('<I', 2) + axis + b'\0' + b'\0\0' + struct.pack('<IB
                 for k, axis in enumerate((b'x', b'y', b'z')))
 
 
+def write_stamp(data: bytearray, sec: int, nanosec: int) -> None:
+    """Write ``header.stamp`` into a serialized message that begins with a ``std_msgs/Header``
+    (a PointCloud2, a DiagnosticArray ...), in place: the bytes after the 4-byte CDR
+    encapsulation header, in the byte order it names."""
+    struct.pack_into('<iI' if data[1] == 1 else '>iI', data, 4, sec, nanosec)
+
+
 def cdr_from_points(points: np.ndarray, sec: int, nanosec: int, frame_id: str) -> bytes:
     """Serialize an unorganised ``sensor_msgs/PointCloud2`` of ``points`` (n, 3) float32: x,
     y, z FLOAT32, 12-byte points, dense, little-endian CDR; what rclpy would publish."""

@@ -453,11 +453,9 @@ def rendered_clouds(robot, checker, configurations, renders: int, size: str, see
                           point_step=16, row_step=16 * width, is_dense=False)
         msg.header.frame_id = frame
         msg.data = data.tobytes()
-        # Published serialized, its stamp written in place (rclpy takes about 60 ms to
-        # serialize such a cloud: the publishing loop would fall behind).
-        serialized = bytearray(serialize_message(msg))
-        assert serialized[:2] == b'\0\1'      # little-endian CDR: the stamp at bytes 4-11
-        out[index] = serialized
+        # Published serialized, its stamp written in place (write_stamp; rclpy takes about
+        # 60 ms to serialize such a cloud: the camera would fall behind).
+        out[index] = bytearray(serialize_message(msg))
     return out
 
 
@@ -554,6 +552,8 @@ def camera_main(path: str, slot_path: str, namespace: str, rate: float) -> int:
     from rclpy.signals import SignalHandlerOptions
     from sensor_msgs.msg import PointCloud2
 
+    from collision_sensor.model.point_cloud_message import write_stamp
+
     saved = np.load(path)
     offsets = np.concatenate([[0], np.cumsum(saved['sizes'])])
     data = saved['data']
@@ -580,7 +580,7 @@ def camera_main(path: str, slot_path: str, namespace: str, rate: float) -> int:
             if last is None:
                 continue
             cloud = clouds[last[0]]
-            struct.pack_into('<iI', cloud, 4, *divmod(last[1], 1_000_000_000))
+            write_stamp(cloud, *divmod(last[1], 1_000_000_000))
             publisher.publish(bytes(cloud))
             sent += 1
     finally:

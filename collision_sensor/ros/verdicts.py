@@ -25,9 +25,9 @@ level ERROR, the reason as its message, values ``kind``, ``reason`` and ``policy
   an input it could not take changed nothing), ``colliding_pairs`` the failure entry, then that
   verdict's pairs. With no state checked yet there is nothing to hold: as ``contact``.
 """
-import struct
 from typing import Optional, Tuple
 
+from collision_sensor.model.point_cloud_message import write_stamp
 from collision_sensor.ros.motion_stream import NO_MOTION, MotionVerdict
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -138,11 +138,8 @@ class VerdictPublisher:
             self._pairs_msg.header = header
             self._pairs_raw = bytearray(serialize_message(self._pairs_msg))
             self._raw_frame = header.frame_id
-        raw = self._pairs_raw
-        # CDR: 4 bytes of encapsulation (byte 1: 1 little-endian), then the stamp.
-        struct.pack_into('<iI' if raw[1] == 1 else '>iI', raw, 4, header.stamp.sec,
-                         header.stamp.nanosec)
-        self._pairs_pub.publish(bytes(raw))
+        write_stamp(self._pairs_raw, header.stamp.sec, header.stamp.nanosec)
+        self._pairs_pub.publish(bytes(self._pairs_raw))
 
     def publish_failure(self, header, entry: DiagnosticStatus, policy: str) -> bool:
         """Answer ``header`` with the failure ``entry`` by ``policy``; return the ``contact``
