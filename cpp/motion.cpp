@@ -45,6 +45,7 @@ void MotionWork::size_for(const Model& m) {
     front_cost.assign(P, 0);
     marched.reserve(P);
     prev_gap.assign(P, 0.0);
+    start_apart.assign(P, 0);
     prev_sums.assign(2 * P, 0.0);
     // A descent from at most MOTION_FRONT_MAX seeds (or a pair's root pairs) holds at most
     // one node pair per level of each tree on top of them.
@@ -637,7 +638,11 @@ int64_t MotionQuery::march_pairs(const int64_t* list, int64_t n, const Path& pat
     double pose[POSE_WIDTH];
     std::vector<MotionWork::March>& heap = w_.heap;
     heap.clear();
-    for (int64_t i = 0; i < n; ++i) w_.front[list ? list[i] : i].clear();
+    const auto known_apart = [this](int64_t p) { return w_.start_known && w_.start_apart[p]; };
+    for (int64_t i = 0; i < n; ++i) {
+        const int64_t p = list ? list[i] : i;
+        if (!known_apart(p)) w_.front[p].clear();
+    }
     const auto later = [](const MotionWork::March& x, const MotionWork::March& y) {
         return x.t > y.t;
     };
@@ -648,6 +653,7 @@ int64_t MotionQuery::march_pairs(const int64_t* list, int64_t n, const Path& pat
     w_.side_n[0] = w_.side_n[1] = 0;
     for (int64_t i = 0; i < n; ++i) {
         const int64_t p = list ? list[i] : i;
+        if (known_apart(p)) continue;
         pair_pose(m_.pair_a[p], m_.pair_b[p], pose);
         margin(p, 0.0);
         if (pair_within(p, pose, 0.0).within) {
@@ -767,8 +773,29 @@ int64_t check_step_motion(MotionContext& c, const double* q0, const double* q1,
         w.marched.push_back(p);
     }
     if (w.marched.empty()) return 0;
-    return check_straight_motion(c, q0, q1, w.marched.data(), int64_t(w.marched.size()), t,
-                                 pairs);
+    // A marched pair the carried state had apart at q0 (its gap recorded, not -INF) is not
+    // checked there again, and its march starts from the node pairs where the query's descent
+    // at q1 stopped (its front: they cover every pair of triangles, whatever the poses).
+    const Fronts& fronts = s.fronts;
+    for (const int64_t p : w.marched) {
+        w.start_apart[p] = w.prev_gap[p] > -INF ? 1 : 0;
+        std::vector<int64_t>& front = w.front[p];
+        front.clear();
+        const int64_t rows = fronts.state[2 * p];
+        if (!w.start_apart[p] || rows == 0 || rows > MOTION_FRONT_MAX || m.is_cloud(m.pair_b[p]))
+            continue;
+        const int64_t* row = fronts.pairs.data() + 3 * p * fronts.capacity;
+        for (int64_t e = 0; e < rows; ++e) {
+            front.push_back(row[3 * e]);
+            front.push_back(row[3 * e + 1]);
+        }
+        w.front_cost[p] = fronts.state[2 * p + 1];
+    }
+    w.start_known = true;
+    const int64_t hit = check_straight_motion(c, q0, q1, w.marched.data(),
+                                              int64_t(w.marched.size()), t, pairs);
+    w.start_known = false;
+    return hit;
 }
 
 }  // namespace collision_sensor

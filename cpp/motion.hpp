@@ -657,6 +657,11 @@ struct MotionWork {
     std::vector<int64_t> front_cost;          // (P,) its last descent's node pairs
     std::vector<int64_t> recorded, stack, marched;
     std::vector<double> prev_gap, prev_sums;  // (P,), (P, 2): update_motion's MotionRecord
+    // update_motion's march (check_step_motion): start_apart[p] = 1 for a pair the carried
+    // state has apart at the start, whose front it set from the carried state's; read while
+    // start_known.
+    std::vector<uint8_t> start_apart;
+    bool start_known = false;
     bool sized = false;
 
     void size_for(const Model& m);

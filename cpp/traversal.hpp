@@ -353,8 +353,11 @@ inline bool triangle_pair_collides(const double* tris, int64_t ia, int64_t ib,
 
 // Every triangle of leaf a against every triangle of leaf b (body b at pose), by the padded
 // rule (triangles_within): the first pair in contact (-1, -1 if none), the number of triangle
-// pairs tested, and, with pad > 0 and none in contact, the smallest distance minus pad (a
-// padded leaf pair's clearance; 0 without padding, where no distance is measured).
+// pairs tested, and, with pad > 0 or measure and none in contact, the smallest distance minus
+// pad (the leaf pair's clearance; 0 otherwise, where no distance is measured). Without padding
+// the intersection test decides and the distance only bounds: an incremental query measures
+// it (measure), since a leaf pair's clearance of 0 would have its pair re-checked at every
+// state, and its motion swept at every step (update_motion), while it stays that near.
 struct LeafResult {
     bool hit;
     int64_t ia, ib, tested;
@@ -362,7 +365,8 @@ struct LeafResult {
 };
 
 inline LeafResult leaves_collide(const double* tris, const int64_t* leaf_a,
-                                 const int64_t* leaf_b, const double* pose, double pad) {
+                                 const int64_t* leaf_b, const double* pose, double pad,
+                                 bool measure = false) {
     Triangle Q;
     int64_t tested = 0;
     double nearest = INF;
@@ -373,12 +377,16 @@ inline LeafResult leaves_collide(const double* tris, const int64_t* leaf_a,
         for (int64_t ia = first_a; ia < end_a; ++ia) {
             ++tested;
             double distance;
-            if (triangles_within(triangle_at(tris, ia), Q, pad, distance))
-                return {true, ia, ib, tested, 0.0};
+            const Triangle& P = triangle_at(tris, ia);
+            if (triangles_within(P, Q, pad, distance)) return {true, ia, ib, tested, 0.0};
+            if (measure && !(pad > 0.0)) {
+                double x[3], y[3];
+                distance = triangle_distance(P, Q, x, y);
+            }
             nearest = std::min(nearest, distance);
         }
     }
-    return {false, -1, -1, tested, pad > 0.0 ? nearest - pad : 0.0};
+    return {false, -1, -1, tested, (pad > 0.0 || measure) ? nearest - pad : 0.0};
 }
 
 // True iff box m's centre is nearer the point x than box n's (same body frame).
@@ -439,8 +447,8 @@ struct TreesResult {
 // With request.track, gap is a lower bound of the distance between the two trees' triangles
 // (minus inflation) when they do not meet: the smallest gap of the node pairs pruned (sphere
 // gap |d| - r_a - r_b, or face_gap for a box test, or the gap along the edge axis that
-// separated them), 0 once a leaf pair had to be tested triangle by triangle (without
-// padding). Not rounded down: the caller allows for that. Without track (full checks), gap
+// separated them, or a leaf pair's smallest triangle distance minus padding). Not rounded
+// down: the caller allows for that. Without track (full checks), gap
 // is 0 and costs nothing.
 //
 // The front: when node.front records (length >= 0), every node pair where the descent stopped
@@ -525,7 +533,7 @@ inline TreesResult collide_trees_as(const TreePairTraversal& node, int64_t n_see
         const bool leaf_a = node_a[NODE_LEFT] < 0;
         const bool leaf_b = node_b[NODE_LEFT] < 0;
         if (leaf_a && leaf_b) {
-            const LeafResult leaf = leaves_collide(f.tris, node_a, node_b, P, pad);
+            const LeafResult leaf = leaves_collide(f.tris, node_a, node_b, P, pad, track);
             n_triangles += leaf.tested;
             if (leaf.hit) {
                 hit = true;
