@@ -16,7 +16,8 @@ from collision_sensor import CollisionChecker
 from collision_sensor.engine.dynamic_scene import AddObject
 from collision_sensor.engine.motion import TOUCH_TOLERANCE, interpolate
 from collision_sensor.engine.sampling import random_configurations
-from collision_sensor.engine.trajectory import TrajectoryPoint, spline_coefficients
+from collision_sensor.engine.trajectory import (
+    TrajectoryPoint, polynomial_extremes, spline_coefficients)
 from collision_sensor.errors import JointStateError
 from collision_sensor.model.scene import load_scene
 from engine_oracles import FclOracle, body_triangles
@@ -694,3 +695,29 @@ def test_a_trajectory_starts_at_rest_and_takes_the_wrap_around():
     assert coef[0, 0, 0] == pytest.approx(-2.9 - (2 * math.pi - 5.8))
     assert coef[0, 0, 0] + coef[0, 0, 1] == pytest.approx(-2.9)
     assert list(times) == [0.0, 1.0]
+
+
+def test_polynomial_extremes_against_dense_sampling():
+    """The joint-limit check's extremes of splines on [0, 1], all degrees at once (leading
+    zeros, constants, roots at the ends and outside), against the polynomials sampled every
+    5e-5: nothing sampled beyond them, and they within the sampling's resolution of it."""
+    rng = np.random.default_rng(3)
+    c = rng.normal(size=(600, 6)) * rng.choice([1e-3, 1.0, 30.0], size=(600, 1))
+    for k, degree in enumerate(rng.integers(0, 6, size=600)):
+        c[k, degree + 1:] = 0.0
+    c[:20, 1:] = 0.0                                          # constants
+    c[20:40] = [0.0, 0.0, 3.0, -2.0, 0.0, 0.0]                # derivative's roots at 0 and 1
+    low, t_low, high, t_high = polynomial_extremes(c)
+    assert low.shape == (600,) and np.all((0.0 <= t_low) & (t_low <= 1.0))
+    grid = np.linspace(0.0, 1.0, 20001)
+    sampled = np.polynomial.polynomial.polyval(grid, c.T)     # (600, grid)
+    slope = np.abs(np.polynomial.polynomial.polyder(c.T)).sum(axis=0)  # bounds |p'| on [0, 1]
+    resolution = slope * (grid[1] - grid[0]) + 1e-12 * (1.0 + np.abs(c).sum(axis=1))
+    assert np.all(low <= sampled.min(axis=1) + 1e-12 * (1.0 + np.abs(c).sum(axis=1)))
+    assert np.all(low >= sampled.min(axis=1) - resolution)
+    assert np.all(high >= sampled.max(axis=1) - 1e-12 * (1.0 + np.abs(c).sum(axis=1)))
+    assert np.all(high <= sampled.max(axis=1) + resolution)
+    np.testing.assert_allclose([np.polynomial.polynomial.polyval(t, row)
+                                for t, row in zip(t_low, c)], low, atol=1e-9)
+    np.testing.assert_allclose([np.polynomial.polynomial.polyval(t, row)
+                                for t, row in zip(t_high, c)], high, atol=1e-9)
