@@ -75,32 +75,32 @@ def _fraction_of(start: float, duration: float, u: float) -> float:
     return float(start + u * duration)
 
 
-def spline_coefficients(p0, v0, a0, p1, v1, a1, duration: float, kind: str) -> np.ndarray:
-    """Return ``(n, 6)`` coefficients of the controller's spline from (p0, v0, a0) to
+def spline_coefficients(p0, v0, a0, p1, v1, a1, duration, kind) -> np.ndarray:
+    """Return ``(..., n, 6)`` coefficients of the controller's splines from (p0, v0, a0) to
     (p1, v1, a1) over ``duration`` seconds, rescaled to t = time / duration in [0, 1]
     (``kind``: ``linear``, ``cubic`` or ``quintic``; as ros2_controllers'
-    ``Trajectory::interpolate_between_points``). A zero duration is a straight jump."""
-    p0, v0, a0 = (np.asarray(x, dtype=np.float64) for x in (p0, v0, a0))
-    p1, v1, a1 = (np.asarray(x, dtype=np.float64) for x in (p1, v1, a1))
-    c = np.zeros((len(p0), 6))
-    c[:, 0] = p0
-    T = float(duration)
-    if kind == 'linear' or T == 0.0:
-        c[:, 1] = p1 - p0
-        return c
-    if kind == 'cubic':
-        c[:, 1] = v0 * T
-        c[:, 2] = -3.0 * p0 + 3.0 * p1 - 2.0 * v0 * T - v1 * T
-        c[:, 3] = 2.0 * p0 - 2.0 * p1 + v0 * T + v1 * T
-        return c
+    ``Trajectory::interpolate_between_points``). A zero duration is a straight jump. The ends
+    are ``(..., n)`` arrays, ``duration`` and ``kind`` one per leading index (many segments at
+    once) or scalars."""
+    p0, v0, a0, p1, v1, a1 = (np.asarray(x, dtype=np.float64) for x in (p0, v0, a0, p1, v1, a1))
+    T = np.asarray(duration, dtype=np.float64)[..., None]
+    kind = np.asarray(kind)[..., None]
+    linear = (kind == 'linear') | (T == 0.0)
+    cubic = (kind == 'cubic') & ~linear
+    quintic = ~linear & ~cubic
     T2 = T * T
-    c[:, 1] = v0 * T
-    c[:, 2] = 0.5 * a0 * T2
-    c[:, 3] = (-20.0 * p0 + 20.0 * p1 - 3.0 * a0 * T2 + a1 * T2 - 12.0 * v0 * T
-               - 8.0 * v1 * T) / 2.0
-    c[:, 4] = (30.0 * p0 - 30.0 * p1 + 3.0 * a0 * T2 - 2.0 * a1 * T2 + 16.0 * v0 * T
-               + 14.0 * v1 * T) / 2.0
-    c[:, 5] = (-12.0 * p0 + 12.0 * p1 - a0 * T2 + a1 * T2 - 6.0 * v0 * T - 6.0 * v1 * T) / 2.0
+    c = np.zeros(np.broadcast(p0, p1, T).shape + (6,))
+    c[..., 0] = p0
+    c[..., 1] = np.where(linear, p1 - p0, v0 * T)
+    c[..., 2] = np.where(cubic, -3.0 * p0 + 3.0 * p1 - 2.0 * v0 * T - v1 * T,
+                         np.where(quintic, 0.5 * a0 * T2, 0.0))
+    c[..., 3] = np.where(cubic, 2.0 * p0 - 2.0 * p1 + v0 * T + v1 * T,
+                         np.where(quintic, (-20.0 * p0 + 20.0 * p1 - 3.0 * a0 * T2 + a1 * T2
+                                            - 12.0 * v0 * T - 8.0 * v1 * T) / 2.0, 0.0))
+    c[..., 4] = np.where(quintic, (30.0 * p0 - 30.0 * p1 + 3.0 * a0 * T2 - 2.0 * a1 * T2
+                                   + 16.0 * v0 * T + 14.0 * v1 * T) / 2.0, 0.0)
+    c[..., 5] = np.where(quintic, (-12.0 * p0 + 12.0 * p1 - a0 * T2 + a1 * T2 - 6.0 * v0 * T
+                                   - 6.0 * v1 * T) / 2.0, 0.0)
     return c
 
 
@@ -205,32 +205,39 @@ def build_segments(checker, joint_names: Sequence[str], points: Sequence[Traject
                                   'then has no spline); give velocities too, or neither')
         times.append(t)
         states.append((positions, velocities, accelerations))
-    coef = np.zeros((len(points), J, 6))
-    current = np.asarray(start, dtype=np.float64).copy()
-    previous = current[columns]
+    S = len(points)
+    positions = np.array([state[0] for state in states])                  # (S, K)
+    has_v = np.array([len(state[1]) > 0 for state in states])
+    has_a = np.array([len(state[2]) > 0 for state in states])
+    velocities = np.zeros((S, K))
+    accelerations = np.zeros((S, K))
+    for i, (_, v, a) in enumerate(states):
+        if has_v[i]:
+            velocities[i] = v
+        if has_a[i]:
+            accelerations[i] = a
+    start = np.asarray(start, dtype=np.float64)
     kinds = checker.motion_kinds
     wrap = np.array([kinds[j] == engine.MOTION_WRAP for j in columns])  # continuous joints
-    first = states[0][0]
     # The controller's wrap-around: a continuous joint starts from the value nearest the
     # first point.
-    shortest = np.remainder(first - previous + math.pi, 2.0 * math.pi) - math.pi
-    previous = np.where(wrap, first - shortest, previous)
-    prev_v = np.zeros(K)
-    prev_a = np.zeros(K)
-    prev_has_v = len(states[0][1]) > 0   # the start takes what the first point has, as 0
-    prev_has_a = len(states[0][2]) > 0
-    for i, (positions, velocities, accelerations) in enumerate(states):
-        has_v = prev_has_v and len(velocities) > 0
-        has_a = has_v and prev_has_a and len(accelerations) > 0
-        kind = 'quintic' if has_a else 'cubic' if has_v else 'linear'
-        v1 = velocities if len(velocities) else np.zeros(K)
-        a1 = accelerations if len(accelerations) else np.zeros(K)
-        coef[i, :, 0] = current
-        coef[i, columns] = spline_coefficients(previous, prev_v, prev_a, positions, v1, a1,
-                                               times[i + 1] - times[i], kind)
-        current[columns] = positions
-        previous, prev_v, prev_a = positions, v1, a1
-        prev_has_v, prev_has_a = len(velocities) > 0, len(accelerations) > 0
+    previous = start[columns]
+    shortest = np.remainder(positions[0] - previous + math.pi, 2.0 * math.pi) - math.pi
+    previous = np.where(wrap, positions[0] - shortest, previous)
+    # Segment i runs from point i - 1 (the start for i = 0, at rest, taking the first point's
+    # velocities and accelerations as given or not) to point i.
+    p0 = np.vstack([previous[None], positions[:-1]])
+    v0 = np.vstack([np.zeros((1, K)), velocities[:-1]])
+    a0 = np.vstack([np.zeros((1, K)), accelerations[:-1]])
+    from_v = np.concatenate([has_v[:1], has_v[:-1]])
+    from_a = np.concatenate([has_a[:1], has_a[:-1]])
+    spline_v = from_v & has_v
+    spline_a = spline_v & from_a & has_a
+    kind = np.where(spline_a, 'quintic', np.where(spline_v, 'cubic', 'linear'))
+    coef = np.zeros((S, J, 6))
+    coef[:, :, 0] = start
+    coef[:, columns] = spline_coefficients(p0, v0, a0, positions, velocities, accelerations,
+                                           np.diff(times), kind)
     return coef, np.asarray(times)
 
 
