@@ -189,6 +189,10 @@ def test_every_robot_scenario_has_a_row_per_robot_and_agrees_with_its_peers(tmp_
     assert section.verdicts[2].passed                          # heavy contact indeed
     fcl_row = [line for line in section.lines if line.startswith('| python-fcl `collide`')]
     assert len(fcl_row) == 1 and fcl_row[0].endswith('| 500/500 |')
+    split = [line.strip('| ').split(' | ') for line in section.lines
+             if re.match(r'\| \d+ poses (in contact|apart) \|', line)]
+    assert len(split) == 2 and sum(int(row[0].split()[0]) for row in split) == 500
+    assert all(row[-1] == f'{row[0].split()[0]}/{row[0].split()[0]}' for row in split), split
 
 
 def test_every_robot_scenario_enumerates_every_urdf_of_the_package():

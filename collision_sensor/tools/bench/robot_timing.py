@@ -22,6 +22,7 @@ class RobotTiming:
 
     :ivar configurations: how many random configurations were timed.
     :ivar work: our mean ``{'boxes', 'triangles', 'spheres'}`` tests per check.
+    :ivar colliding: our mean number of colliding pairs per configuration.
     :ivar equal: ``"k/n"`` configurations with equal colliding pair sets, or why not compared.
     :ivar pinocchio_missing: why pinocchio+coal was not timed (None: it was).
     """
@@ -33,6 +34,7 @@ class RobotTiming:
     ours_us: Optional[float] = None
     pinocchio_us: Optional[float] = None
     work: Dict[str, float] = field(default_factory=dict)
+    colliding: Optional[float] = None
     equal: str = '-'
     pinocchio_missing: Optional[str] = None
 
@@ -60,6 +62,7 @@ def time_robot(cell, checker: CollisionChecker, count: Callable[[CollisionChecke
     timing.configurations = n
     configurations = list(random_configurations(checker, n, seed))
     ours = [frozenset(checker.check(q).colliding_pairs) for q in configurations]
+    timing.colliding = sum(map(len, ours)) / n
     pin, timing.pinocchio_missing = optional_peer(pinocchio_peer, cell, checker)
     candidates = [Candidate('ours', checker.check, configurations)]
     if pin is not None:

@@ -107,7 +107,7 @@ def measure_robots(settings, names: Optional[Sequence[str]] = None):
                 warnings.simplefilter('ignore', LoadWarning)  # oddities tolerated on load
                 checker = cell.checker()
         except Exception as error:  # a robot we cannot load is a row, never left out
-            rows.append([cell.name, srdf, '-', '-', '-', '-', '-', '-', '-',
+            rows.append([cell.name, srdf, '-', '-', '-', '-', '-', '-', '-', '-',
                          f'not loaded by collision_sensor ({_short(error, share)}); '
                          f'{_pinocchio_loads(cell)}'])
             continue
@@ -119,9 +119,10 @@ def measure_robots(settings, names: Optional[Sequence[str]] = None):
         t = time_robot(cell, checker, lambda c: configuration_count(c, settings.quick),
                        settings.seed, settings.rounds)
         work = f'{t.work["boxes"]:.0f} / {t.work["triangles"]:.0f}' if t.work else '-'
+        colliding = f'{t.colliding:.1f}' if t.colliding is not None else '-'
         rows.append([cell.name, srdf, f'{t.triangles:,}', t.pairs, t.configurations or '-',
                      us(t.ours_us), us(t.pinocchio_us), ratio(t.ours_us, t.pinocchio_us), work,
-                     t.equal])
+                     colliding, t.equal])
         if t.ratio is not None:
             timings.append(t)
         del checker
@@ -181,14 +182,14 @@ def run(settings, workdir: str, robots: Optional[Sequence[str]] = None) -> Secti
         'passes.')
     section.table(['robot', 'SRDF', 'triangles', 'pairs', 'configs', 'ours us',
                    'pinocchio+coal us', 'ours / pinocchio', 'ours box / triangle tests',
-                   'pair sets equal'], rows)
+                   'colliding pairs', 'pair sets equal'], rows)
     if meshless:
         section.text('Without a collision mesh (not timed): ' + ', '.join(meshless) + '.', '')
     judge_robots(section, timings)
     checker = mesh_pair_checker(workdir)
     n = POSES[settings.quick]
-    timing = time_contact(checker, random_configurations(checker, n, seed=settings.seed),
-                          settings.rounds)
+    poses = random_configurations(checker, n, seed=settings.seed)
+    timing = time_contact(checker, poses, settings.rounds)
     section.text(
         '', f'**B. Two real meshes in heavy contact.** Fixed: `{FIXED_MESH}` '
         f'({timing.fixed_triangles:,} triangles); moving: `{TOOL_MESH}` '
@@ -198,4 +199,15 @@ def run(settings, workdir: str, robots: Optional[Sequence[str]] = None) -> Secti
         f'interleaved passes. Our work per check: {timing.work["boxes"]:.0f} box tests, '
         f'{timing.work["triangles"]:.0f} triangle tests.')
     report_contact(section, timing, 'S13 real meshes')
+    section.text('Where the time goes: the same poses split by our answer, timed apart.')
+    touching = np.array([checker.check(q).in_collision for q in poses], dtype=bool)
+    rows = []
+    for label, part in (('in contact', poses[touching]), ('apart', poses[~touching])):
+        if len(part):
+            t = time_contact(checker, part, settings.rounds)
+            rows.append([f'{len(part)} poses {label}', us(t.ours_us), us(t.fcl_us),
+                         ratio(t.ours_us, t.fcl_us), f'{t.work["boxes"]:.0f}',
+                         f'{t.work["triangles"]:.0f}', t.equal])
+    section.table(['poses', 'ours us', 'python-fcl us', 'ours / python-fcl', 'our box tests',
+                   'our triangle tests', 'answers equal'], rows)
     return section
