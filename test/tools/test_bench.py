@@ -22,8 +22,11 @@ def _installed(module):
 
 
 def test_quick_run_writes_every_scenario_and_a_png(tmp_path, capsys):
+    """Every scenario but 13, whose quick form still loads all 69 robots twice (ours and
+    pinocchio's: about a minute); its test below runs it on a few."""
     table, png = tmp_path / 'bench.md', tmp_path / 'bench.png'
-    assert bench.main(['--quick', '--markdown', str(table), '--plot', str(png)]) == 0
+    scenarios = [arg for n in bench.SCENARIOS if n != 13 for arg in ('--scenario', str(n))]
+    assert bench.main(['--quick', *scenarios, '--markdown', str(table), '--plot', str(png)]) == 0
     text = table.read_text()
     for header in HEADERS:
         assert header in text, header
@@ -144,6 +147,60 @@ def test_dynamic_scene_scenario_judges_both_targets():
         "S9 adding a 10,000-triangle mesh <= python-fcl's BVH build"]
     assert all(v.passed is not None for v in section.verdicts)
     assert any('`update` and `check` agreed at every step' in line for line in section.lines)
+
+
+def test_every_robot_scenario_has_a_row_per_robot_and_agrees_with_its_peers(tmp_path):
+    """Scenario 13 in its quick form on a few robots: a row per robot with a mesh (one without
+    a checked pair says so), a row for the URDF neither loader reads, the robot without a
+    mesh named; the distribution and every target judged; colliding pair sets equal to
+    pinocchio+coal's on every configuration, and python-fcl's answer on every pose of the two
+    real meshes, most of them in contact."""
+    pytest.importorskip('pinocchio')
+    pytest.importorskip('fcl')
+    from collision_sensor.tools.bench import scenario_everyrobot
+    from collision_sensor.tools.bench.scenario_settings import Settings
+    timed = ['panda_description/panda', 'talos_data/talos_left_arm', 'ur_description/ur5_robot']
+    names = timed + ['ur_description/ur3', 'human_description/human',
+                     'hector_description/quadrotor_base']
+    section = scenario_everyrobot.run(Settings.for_run(quick=True, seed=3), str(tmp_path),
+                                      robots=names)
+    rows = {line.split(' | ')[0][2:]: line.strip('| ').split(' | ') for line in section.lines
+            if line.startswith('| ') and line.split(' | ')[0][2:] in names}
+    assert sorted(rows) == sorted(set(names) - {'human_description/human'})
+    for name in timed:
+        configurations, equal = rows[name][4], rows[name][-1]
+        assert equal == f'{configurations}/{configurations}', rows[name]
+        assert rows[name][7].endswith('x')                   # ours / pinocchio measured
+    assert rows['hector_description/quadrotor_base'][-1] == 'no pair to check'
+    unloaded = rows['ur_description/ur3'][-1]
+    assert 'not loaded by collision_sensor (RobotDescriptionError' in unloaded
+    assert 'no <link> element' in unloaded and 'pinocchio+coal: could not load' in unloaded
+    assert any('Without a collision mesh' in line and 'human_description/human (no collision '
+               'element)' in line for line in section.lines)
+    header = section.lines.index('| robots | min | first quartile | median | third quartile | '
+                                 'max | over 0.5x | over 0.2x |')
+    assert section.lines[header + 2].startswith('| 3 | ')      # the three timed robots
+    assert [v.target for v in section.verdicts] == [
+        'S13 every robot: `check` <= 0.5x pinocchio+coal',
+        'S13 the median robot: `check` <= 0.2x pinocchio+coal',
+        'S13 real meshes more than half the poses collide',
+        'S13 real meshes heavy contact: `check` <= 0.5x python-fcl `collide`']
+    assert all(v.passed is not None for v in section.verdicts)
+    assert section.verdicts[2].passed                          # heavy contact indeed
+    fcl_row = [line for line in section.lines if line.startswith('| python-fcl `collide`')]
+    assert len(fcl_row) == 1 and fcl_row[0].endswith('| 500/500 |')
+    split = [line.strip('| ').split(' | ') for line in section.lines
+             if re.match(r'\| \d+ poses (in contact|apart) \|', line)]
+    assert len(split) == 2 and sum(int(row[0].split()[0]) for row in split) == 500
+    assert all(row[-1] == f'{row[0].split()[0]}/{row[0].split()[0]}' for row in split), split
+
+
+def test_every_robot_scenario_enumerates_every_urdf_of_the_package():
+    from collision_sensor.tools.bench.scenario_everyrobot import every_robot_cells
+    cells = every_robot_cells()
+    assert len(cells) == 69 and sum(cell.srdf is not None for cell in cells) == 43
+    with pytest.raises(ValueError, match='not in example-robot-data: no/such'):
+        every_robot_cells(['no/such'])
 
 
 def test_motion_scenario_judges_every_target_and_its_oracle_finds_no_miss(tmp_path):

@@ -31,7 +31,10 @@ times of scenario 1. Peers are optional: a missing one is reported as missing.
    ``check_path`` on one thread against two; every other scenario runs our checker on one
    thread, as its peers run); 12. point clouds (a 640 x 480
    depth camera's organised cloud self-filtered, voxelised and checked, against a pipeline of
-   python-fcl, trimesh and numpy).
+   python-fcl, trimesh and numpy); 13. every example-robot-data robot with a collision mesh
+   against pinocchio+coal on the same pairs (the distribution of the ratios), and two of its
+   meshes in heavy contact (a 200-triangle hand on a free joint against a 2,188-triangle arm
+   link) against python-fcl.
 """
 import argparse
 import datetime
@@ -48,7 +51,7 @@ from collision_sensor.tools.bench.runs import merge_reports
 from collision_sensor.tools.bench.scenario_report import Section
 from collision_sensor.tools.bench.scenario_settings import Settings
 
-SCENARIOS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12)
+SCENARIOS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13)
 #: The scenarios that take a robot, run on the user's with --urdf.
 ROBOT_SCENARIOS = (1, 2, 8)
 PROG = 'collision_sensor_bench'
@@ -63,9 +66,9 @@ def run_scenarios(numbers: Sequence[int], settings: Settings, log=None,
         scenarios run on it alone.
     """
     from collision_sensor.tools.bench import (
-        scenario_cells, scenario_clouds, scenario_contact, scenario_dynamic, scenario_large,
-        scenario_motion, scenario_paper, scenario_parts, scenario_proximity, scenario_random,
-        scenario_scale, scenario_streams, scenario_threads)
+        scenario_cells, scenario_clouds, scenario_contact, scenario_dynamic, scenario_everyrobot,
+        scenario_large, scenario_motion, scenario_paper, scenario_parts, scenario_proximity,
+        scenario_random, scenario_scale, scenario_streams, scenario_threads)
     log = log or (lambda message: None)
     sections = []
     with tempfile.TemporaryDirectory(prefix='collision_sensor_bench_') as workdir:
@@ -101,6 +104,8 @@ def run_scenarios(numbers: Sequence[int], settings: Settings, log=None,
                 section = scenario_motion.run(settings, workdir)
             elif number == 11:
                 section = scenario_threads.run(settings)
+            elif number == 13:
+                section = scenario_everyrobot.run(settings, workdir)
             else:
                 section = scenario_clouds.run(settings)
             section.plot['seconds'] = time.perf_counter() - start
@@ -239,7 +244,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument('--quick', action='store_true',
                         help='small counts and meshes, for a smoke run (figures are rough)')
     parser.add_argument('--scenario', type=int, action='append', choices=SCENARIOS,
-                        metavar='N', help='run scenario N (1-12); repeatable; default: all (with '
+                        metavar='N', help='run scenario N (1-13); repeatable; default: all (with '
                                           '--urdf: 1, 2 and 8)')
     robot = parser.add_argument_group(
         'your robot', 'run the robot scenarios (1 random configurations, 2 coherent streams, '

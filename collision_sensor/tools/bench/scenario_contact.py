@@ -9,12 +9,19 @@ triangles: the case where a hierarchy's pruning helps least.
 Ours: one Python ``check`` call per pose, forward kinematics included. python-fcl: one
 ``fcl.collide`` of the two BVH models (OBBRSS) on the same triangles, the tool placed at the
 pose our kinematics computed (placement not timed, each pose its own ``CollisionObject``).
+Scenario 13 puts two real meshes of example-robot-data on the same joints
+(:func:`free_mesh_checker`, :func:`time_contact`).
 """
 import os
+from dataclasses import dataclass
+from typing import Dict, Optional
 
 import numpy as np
 
+from collision_sensor.engine.checker import CollisionChecker
+from collision_sensor.engine.sampling import random_configurations
 from collision_sensor.tools.bench.scenario_measure import Candidate, interleaved_us, work_per_check
+from collision_sensor.tools.bench.scenario_peers import fcl_bvh
 from collision_sensor.tools.bench.scenario_report import Section, ratio, us
 
 TITLE = 'Scenario 6: heavy contact, a tool mesh among clutter'
@@ -75,83 +82,119 @@ URDF = '''<robot name="contact_tool">
 '''
 
 
-def contact_checker(workdir: str, seed: int):
-    """Return ``(checker, tool vertices, tool faces, clutter vertices, clutter faces)``."""
-    import trimesh
-    from collision_sensor.engine.checker import CollisionChecker
-    tool_v, tool_f = tool_mesh()
-    path = os.path.join(workdir, 'contact_tool.stl')
-    trimesh.Trimesh(tool_v, tool_f, process=False).export(path)
-    clutter_v, clutter_f = clutter_mesh(seed)
-    clutter_path = os.path.join(workdir, 'contact_clutter.stl')
-    trimesh.Trimesh(clutter_v, clutter_f, process=False).export(clutter_path)
-    (x0, x1), (y0, y1), (z0, z1) = REGION
-    urdf = URDF.format(geometry=f'<mesh filename="file://{path}"/>', x0=x0, x1=x1, y0=y0,
+def free_mesh_checker(tool_path: str, fixed_path: str, region) -> CollisionChecker:
+    """Return a checker of the tool mesh on URDF's six joints against one fixed scene mesh.
+
+    :param tool_path: the tool's mesh file (the link "tool").
+    :param fixed_path: the fixed mesh file (the scene object "fixed", at the world origin).
+    :param region: ``((x0, x1), (y0, y1), (z0, z1))``: the sliders' limits (m).
+    """
+    (x0, x1), (y0, y1), (z0, z1) = region
+    urdf = URDF.format(geometry=f'<mesh filename="file://{tool_path}"/>', x0=x0, x1=x1, y0=y0,
                        y1=y1, z0=z0, z1=z1)
-    scene = {'objects': [{'name': 'clutter', 'mesh': {'filename': clutter_path}}]}
-    checker = CollisionChecker.from_urdf(urdf, scene=scene)
-    return checker, tool_v, tool_f, clutter_v, clutter_f
+    scene = {'objects': [{'name': 'fixed', 'mesh': {'filename': fixed_path}}]}
+    return CollisionChecker.from_urdf(urdf, scene=scene)
 
 
-def run(settings, workdir: str) -> Section:
-    """Time ours against python-fcl on random poses of the tool in the clutter."""
-    section = Section(6, TITLE)
-    checker, tool_v, tool_f, clutter_v, clutter_f = contact_checker(workdir, settings.seed)
-    from collision_sensor.engine.sampling import random_configurations
-    n = 500 if settings.quick else 3000
-    poses = random_configurations(checker, n, seed=settings.seed)
+def contact_checker(workdir: str, seed: int) -> CollisionChecker:
+    """Return the checker of scenario 6: the torus tool among the clutter."""
+    import trimesh
+    paths = []
+    for name, (vertices, faces) in (('tool', tool_mesh()), ('clutter', clutter_mesh(seed))):
+        paths.append(os.path.join(workdir, f'contact_{name}.stl'))
+        trimesh.Trimesh(vertices, faces, process=False).export(paths[-1])
+    return free_mesh_checker(paths[0], paths[1], REGION)
+
+
+@dataclass
+class ContactTiming:
+    """Ours (``check``) against python-fcl's ``collide`` on the same poses of the tool.
+
+    :ivar colliding: the share of poses in contact (our answers).
+    :ivar fcl_us: None when python-fcl is not installed (``fcl_missing`` says so).
+    :ivar equal: ``"k/n"`` poses where python-fcl's answer equals ours (``-`` without it).
+    """
+
+    tool_triangles: int
+    fixed_triangles: int
+    poses: int
+    colliding: float
+    ours_us: float
+    fcl_us: Optional[float]
+    fcl_missing: Optional[str]
+    equal: str
+    work: Dict[str, float]
+
+
+def time_contact(checker: CollisionChecker, poses, rounds: int) -> ContactTiming:
+    """Time one Python ``check`` per pose against one ``fcl.collide`` of the two BVH models
+    (OBBRSS) on the triangles our loader read, the tool placed where our kinematics put it
+    (placement not timed: each pose its own ``CollisionObject``).
+
+    :param checker: from :func:`free_mesh_checker`.
+    :param poses: ``(n, 6)`` joint positions.
+    """
     ours = [bool(checker.check(q).in_collision) for q in poses]
-    tool_tris = len(checker.forest.tris) - len(clutter_f)
+    (tool,), (fixed,) = checker.model.elements, checker.scene_objects
+    candidates = [Candidate('check', checker.check, poses)]
+    equal, missing = '-', None
     try:
         import fcl
     except ImportError as error:
-        fcl = None
-        missing = f'not installed ({error})'
-    rows = []
-    theirs_us = None
-    agree = '-'
-    candidates = [Candidate('check', checker.check, poses)]
+        fcl, missing = None, f'not installed ({error.name or error})'
     if fcl is not None:
-        def bvh(vertices, faces):
-            model = fcl.BVHModel()
-            model.beginModel(len(vertices), len(faces))
-            model.addSubModel(np.asarray(vertices, dtype=np.float64),
-                              np.asarray(faces, dtype=np.int32))
-            model.endModel()
-            return model
-        tool_model = bvh(tool_v, tool_f)
-        clutter = fcl.CollisionObject(bvh(clutter_v, clutter_f))
+        T = tool.T_link_element
+        tool_model = fcl_bvh(tool.vertices @ T[:3, :3].T + T[:3, 3], tool.faces)
+        T = fixed.T_world_object
+        fixed_object = fcl.CollisionObject(fcl_bvh(fixed.vertices, fixed.faces),
+                                           fcl.Transform(T[:3, :3].copy(), T[:3, 3].copy()))
         placed = []
         for q in poses:
             checker.check(q)
             T = checker.link_poses()['tool']
             placed.append(fcl.CollisionObject(tool_model, fcl.Transform(T[:3, :3], T[:3, 3])))
         request = fcl.CollisionRequest()
-        answers = [bool(fcl.collide(obj, clutter, request, fcl.CollisionResult()))
-                   for obj in placed]
-        agree = f'{sum(a == b for a, b in zip(ours, answers))}/{n}'
 
         def fcl_collide(obj):
-            return fcl.collide(obj, clutter, request, fcl.CollisionResult())
+            return fcl.collide(obj, fixed_object, request, fcl.CollisionResult())
+        answers = [bool(fcl_collide(obj)) for obj in placed]
+        equal = f'{sum(a == b for a, b in zip(ours, answers))}/{len(poses)}'
         candidates.append(Candidate('fcl', fcl_collide, placed))
-    times = interleaved_us(candidates, rounds=settings.rounds)
-    theirs_us = times.get('fcl')
-    work = work_per_check(checker, poses)
-    colliding = sum(ours) / n
-    rows.append(['collision_sensor `check` (FK + the pair, one Python call)', us(times['check']),
-                 '1.00x', '-'])
-    if theirs_us is not None:
-        rows.append(['python-fcl `collide` (placement not counted)', us(theirs_us),
-                     ratio(times['check'], theirs_us), agree])
-    section.text(
-        f'Tool {tool_tris} triangles, clutter {len(clutter_f)} triangles (70 random boxes, '
-        f'spheres and cylinders, seed {settings.seed}); {n} random poses, {colliding:.0%} '
-        f'colliding. Best of {settings.rounds} interleaved passes. Our work per check: '
-        f'{work["boxes"]:.0f} box tests, {work["triangles"]:.0f} triangle tests.')
+    times = interleaved_us(candidates, rounds=rounds)
+    return ContactTiming(len(tool.faces), len(fixed.faces), len(poses), sum(ours) / len(poses),
+                         times['check'], times.get('fcl'), missing, equal,
+                         work_per_check(checker, poses))
+
+
+def report_contact(section: Section, timing: ContactTiming, tag: str) -> None:
+    """Add the table of ``timing`` and its two verdicts (most poses in contact; ours <= 0.5x
+    python-fcl), named ``tag`` (``S6``)."""
+    rows = [['collision_sensor `check` (FK + the pair, one Python call)', us(timing.ours_us),
+             '1.00x', '-']]
+    if timing.fcl_us is not None:
+        rows.append(['python-fcl `collide` (placement not counted)', us(timing.fcl_us),
+                     ratio(timing.ours_us, timing.fcl_us), timing.equal])
     section.table(['implementation', 'us / pose', 'ours / this', 'answers equal to ours'],
                   rows)
-    section.judge(f'S6 more than half the poses collide', f'{colliding:.0%}', colliding > 0.5)
-    section.judge_ratio('S6 heavy contact: `check` <= 0.5x python-fcl `collide`',
-                        times['check'], theirs_us, TARGET_RATIO, 'python-fcl',
-                        None if fcl is not None else missing)
+    section.judge(f'{tag} more than half the poses collide', f'{timing.colliding:.0%}',
+                  timing.colliding > 0.5)
+    section.judge_ratio(f'{tag} heavy contact: `check` <= 0.5x python-fcl `collide`',
+                        timing.ours_us, timing.fcl_us, TARGET_RATIO, 'python-fcl',
+                        timing.fcl_missing)
+
+
+def run(settings, workdir: str) -> Section:
+    """Time ours against python-fcl on random poses of the tool in the clutter."""
+    section = Section(6, TITLE)
+    checker = contact_checker(workdir, settings.seed)
+    n = 500 if settings.quick else 3000
+    timing = time_contact(checker, random_configurations(checker, n, seed=settings.seed),
+                          settings.rounds)
+    section.text(
+        f'Tool {timing.tool_triangles} triangles, clutter {timing.fixed_triangles} triangles '
+        f'(70 random boxes, spheres and cylinders, seed {settings.seed}); {n} random poses, '
+        f'{timing.colliding:.0%} colliding. Best of {settings.rounds} interleaved passes. Our '
+        f'work per check: {timing.work["boxes"]:.0f} box tests, '
+        f'{timing.work["triangles"]:.0f} triangle tests.')
+    report_contact(section, timing, 'S6')
     return section
