@@ -153,6 +153,27 @@ def _numbers(values, what: str, count: int) -> np.ndarray:
     return array
 
 
+def _stacked(points: Sequence[TrajectoryPoint], count: int):
+    """Every point's numbers at once, ``(positions, velocities, accelerations)`` as
+    ``(S, count)`` arrays (zeros where a point gives none) and ``(has_v, has_a)`` per point,
+    when every point gives ``count`` finite positions and velocities and accelerations alike
+    (all or none); else None, and the points are read one by one, naming the first bad one."""
+    try:
+        P, V, A = (np.array([getattr(point, field) for point in points], dtype=np.float64)
+                   for field in ('positions', 'velocities', 'accelerations'))
+    except (TypeError, ValueError):
+        return None
+    S = len(points)
+    if (P.shape != (S, count) or V.ndim != 2 or A.ndim != 2 or V.shape[1] not in (0, count)
+            or A.shape[1] not in (0, count) or (A.shape[1] and not V.shape[1])):
+        return None
+    if not (np.isfinite(P).all() and np.isfinite(V).all() and np.isfinite(A).all()):
+        return None
+    has_v, has_a = np.full(S, V.shape[1] > 0), np.full(S, A.shape[1] > 0)
+    return (P, V if V.shape[1] else np.zeros((S, count)),
+            A if A.shape[1] else np.zeros((S, count)), has_v, has_a)
+
+
 def build_segments(checker, joint_names: Sequence[str], points: Sequence[TrajectoryPoint],
                    start: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
     """Return the controller's path: ``coef (S, J, 6)`` (``J``: the checker's variables; one
@@ -183,6 +204,7 @@ def build_segments(checker, joint_names: Sequence[str], points: Sequence[Traject
             f'are {", ".join(checker.joint_names)}')
     columns = [index[n] for n in names]
     J, K = len(checker.joint_names), len(names)
+    stacked = _stacked(points, K)
     times = [0.0]
     states = []
     for i, point in enumerate(points):
@@ -194,6 +216,9 @@ def build_segments(checker, joint_names: Sequence[str], points: Sequence[Traject
             raise TrajectoryError(
                 f'{where}: time_from_start {t} s does not increase (point {i - 1} is at '
                 f'{times[-1]} s); make time_from_start strictly increasing')
+        times.append(t)
+        if stacked is not None:
+            continue
         positions = _numbers(point.positions, f'{where} positions', K)
         if len(positions) == 0:
             raise TrajectoryError(f'{where}: no positions; every point needs positions '
@@ -203,19 +228,21 @@ def build_segments(checker, joint_names: Sequence[str], points: Sequence[Traject
         if len(accelerations) and not len(velocities):
             raise TrajectoryError(f'{where}: accelerations without velocities (the controller '
                                   'then has no spline); give velocities too, or neither')
-        times.append(t)
         states.append((positions, velocities, accelerations))
     S = len(points)
-    positions = np.array([state[0] for state in states])                  # (S, K)
-    has_v = np.array([len(state[1]) > 0 for state in states])
-    has_a = np.array([len(state[2]) > 0 for state in states])
-    velocities = np.zeros((S, K))
-    accelerations = np.zeros((S, K))
-    for i, (_, v, a) in enumerate(states):
-        if has_v[i]:
-            velocities[i] = v
-        if has_a[i]:
-            accelerations[i] = a
+    if stacked is not None:
+        positions, velocities, accelerations, has_v, has_a = stacked
+    else:
+        positions = np.array([state[0] for state in states])              # (S, K)
+        has_v = np.array([len(state[1]) > 0 for state in states])
+        has_a = np.array([len(state[2]) > 0 for state in states])
+        velocities = np.zeros((S, K))
+        accelerations = np.zeros((S, K))
+        for i, (_, v, a) in enumerate(states):
+            if has_v[i]:
+                velocities[i] = v
+            if has_a[i]:
+                accelerations[i] = a
     start = np.asarray(start, dtype=np.float64)
     kinds = checker.motion_kinds
     wrap = np.array([kinds[j] == engine.MOTION_WRAP for j in columns])  # continuous joints

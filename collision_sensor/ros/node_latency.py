@@ -47,7 +47,9 @@ has no cloud); the runs without clouds come after a pause that lets the cloud ti
 (``point_cloud_on_timeout: ignore``: its voxels are removed), so they check no cloud either.
 
 ``--per-call`` only times ``update`` against ``update_motion`` on the same configurations in
-this process (the engine's part of a verdict, without the node).
+this process (the engine's part of a verdict, without the node); with ``--trajectories`` also
+``check_trajectory`` on the planned trajectory of ``--trajectory-points`` points, whole and
+its engine part (``check_spline``).
 
 The highest rate of those tried that had no drop is reported. ``--executor`` sets
 ``COLLISION_SENSOR_EXECUTOR`` for the node (see
@@ -698,6 +700,28 @@ def _per_call(checker, configurations, passes: int = 5) -> None:
     print(f'update_motion / update (medians): {ratio:.2f}', flush=True)
 
 
+def _per_call_trajectory(checker, msg, passes: int = 5) -> None:
+    """Print the time of ``check_trajectory`` on ``msg`` (a ``JointTrajectory``) and of its
+    engine part, ``check_spline`` on the same segments (min / median / max of the passes)."""
+    from collision_sensor.engine.trajectory import build_segments, check_trajectory
+    from collision_sensor.ros.trajectory_source import points_of
+
+    points = points_of(msg)
+    start = checker.positions
+    coef, _ = build_segments(checker, msg.joint_names, points,
+                             checker._merged(start))
+    for name, call in (('check_trajectory',
+                        lambda: check_trajectory(checker, msg.joint_names, points, start)),
+                       ('check_spline', lambda: checker.check_spline(coef))):
+        per = []
+        for _ in range(passes):
+            started = time.perf_counter()
+            call()
+            per.append(1e3 * (time.perf_counter() - started))
+        print(f'{name:>16}: ms per {len(points)}-point trajectory min {min(per):8.2f}  '
+              f'median {float(np.median(per)):8.2f}  max {max(per):8.2f}', flush=True)
+
+
 def main(argv=None) -> int:
     """Run the benchmark; print the figures."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
@@ -764,6 +788,10 @@ def main(argv=None) -> int:
     if args.per_call:
         print(f'{what}, {colliding} colliding')
         _per_call(checker, configurations)
+        if args.trajectories:
+            checker.check(configurations[0])
+            _per_call_trajectory(checker, planned_trajectory(checker, args.trajectory_points,
+                                                             args.seed))
         return 0
     from collision_sensor.ros.node_parameters import default_values
     # Random configurations are jumps, no motion of a robot: by default they are checked as
