@@ -24,6 +24,8 @@ constexpr int64_t MIN_TABLE = 4096;
 // The fewest rows a thread of the first pass takes (about 0.4 ms of work, against tens of
 // microseconds to start and join a thread); fewer rows run on fewer threads.
 constexpr int64_t MIN_CHUNK_ROWS = 20000;
+// Entries of the first pass's table of recent voxels (a power of 2).
+constexpr int64_t RECENT = 1024;
 
 uint64_t pack_key(int64_t i, int64_t j, int64_t k) {
     return uint64_t(i + VOXEL_COORD_LIMIT) | uint64_t(j + VOXEL_COORD_LIMIT) << 21 |
@@ -79,26 +81,30 @@ int64_t next_power_of_two(int64_t n) {
 void CloudBuilder::Tally::clear(int64_t capacity) {
     n = 0;
     invalid = out_of_range = 0;
-    ijk.clear();
-    lo.clear();
-    hi.clear();
-    count.clear();
-    near_count.clear();
     if (int64_t(keys.size()) != capacity) {
         keys.assign(capacity, EMPTY_KEY);
         slots.assign(capacity, -1);
-        mask = capacity - 1;
-        shift = 64 - log2_of(capacity);
+        size_for(capacity);
     } else {
         std::fill(keys.begin(), keys.end(), EMPTY_KEY);
     }
 }
 
+void CloudBuilder::Tally::size_for(int64_t capacity) {
+    mask = capacity - 1;
+    shift = 64 - log2_of(capacity);
+    const int64_t most = capacity / 2 + 1;  // voxels before the table grows
+    ijk.resize(3 * most);
+    lo.resize(3 * most);
+    hi.resize(3 * most);
+    count.resize(most);
+    near_count.resize(most);
+}
+
 void CloudBuilder::Tally::rehash(int64_t capacity) {
     keys.assign(capacity, EMPTY_KEY);
     slots.assign(capacity, -1);
-    mask = capacity - 1;
-    shift = 64 - log2_of(capacity);
+    size_for(capacity);
     for (int64_t v = 0; v < n; ++v) {
         const uint64_t key = pack_key(ijk[3 * v], ijk[3 * v + 1], ijk[3 * v + 2]);
         int64_t at = table_index(key, shift);
@@ -118,13 +124,14 @@ int64_t CloudBuilder::Tally::slot_of(uint64_t key) {
     keys[at] = key;
     slots[at] = int32_t(v);
     const int64_t L = VOXEL_COORD_LIMIT;
-    ijk.insert(ijk.end(), {int32_t(int64_t(key & 0x1fffff) - L),
-                           int32_t(int64_t((key >> 21) & 0x1fffff) - L),
-                           int32_t(int64_t((key >> 42) & 0x1fffff) - L)});
-    lo.insert(lo.end(), 3, INF);
-    hi.insert(hi.end(), 3, -INF);
-    count.push_back(0);
-    near_count.push_back(0);
+    ijk[3 * v] = int32_t(int64_t(key & 0x1fffff) - L);
+    ijk[3 * v + 1] = int32_t(int64_t((key >> 21) & 0x1fffff) - L);
+    ijk[3 * v + 2] = int32_t(int64_t((key >> 42) & 0x1fffff) - L);
+    for (int a = 0; a < 3; ++a) {
+        lo[3 * v + a] = INF;
+        hi[3 * v + a] = -INF;
+    }
+    count[v] = near_count[v] = 0;
     if (2 * n > mask + 1) rehash(2 * (mask + 1));
     return v;
 }
@@ -142,6 +149,12 @@ void CloudBuilder::tally_rows(const RowPass& p, int64_t begin, int64_t end, Tall
     int64_t invalid = 0, out_of_range = 0;
     uint64_t last_key = EMPTY_KEY;
     int64_t last_voxel = -1;
+    // The voxels met lately, direct-mapped: an organised cloud's next image row meets the
+    // voxels of the last few again, and this small table stays in the L1 cache, where the
+    // hash table (tens of thousands of slots) does not (a third of the lookups reach it).
+    uint64_t recent_key[RECENT];
+    int32_t recent_voxel[RECENT];
+    std::fill(recent_key, recent_key + RECENT, EMPTY_KEY);
     for (int64_t t = begin; t < end; ++t) {
         row_voxel[t] = -1;
         double x[3], w[3];
@@ -162,7 +175,14 @@ void CloudBuilder::tally_rows(const RowPass& p, int64_t begin, int64_t end, Tall
         const uint64_t key = pack_key(floor_to_int(gi), floor_to_int(gj), floor_to_int(gk));
         int64_t v = last_voxel;
         if (key != last_key) {
-            v = tally.slot_of(key);
+            const int64_t at = int64_t(key ^ key >> 18 ^ key >> 39) & (RECENT - 1);
+            if (recent_key[at] == key) {
+                v = recent_voxel[at];
+            } else {
+                v = tally.slot_of(key);
+                recent_key[at] = key;
+                recent_voxel[at] = int32_t(v);
+            }
             last_key = key;
             last_voxel = v;
         }

@@ -95,6 +95,7 @@ class CloudBuilder {
         int64_t mask = 0;
         int shift = 64;  // 64 - log2(slots)
         int64_t n = 0;   // voxels
+        // Per voxel, sized for the most the table holds before it grows (only [0, n) used).
         std::vector<int32_t> ijk;
         std::vector<double> lo, hi;  // (n, 3) the box of its near points (INF, -INF: none)
         std::vector<int32_t> count, near_count;
@@ -105,6 +106,7 @@ class CloudBuilder {
         // The voxel of key, a new one (no point yet) if it has none.
         int64_t slot_of(uint64_t key);
         void rehash(int64_t capacity);
+        void size_for(int64_t capacity);
     };
     // What the first pass over the rows needs (build's locals).
     struct RowPass {
