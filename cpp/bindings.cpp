@@ -585,7 +585,7 @@ void bind_engine(py::module_& m) {
              [](PyVoxelCloud& self, PyEngine& owner, const py::array& points, int64_t frame,
                 const Array<double>& q, double voxel_size, double filter_padding,
                 double max_range, int64_t max_points, double stamp, double persistence,
-                bool keep_points) {
+                bool keep_points, int64_t threads) {
                  const cs::Model& model = owner.engine->model();
                  const bool f32 = py::isinstance<py::array_t<float>>(points);
                  if (!(f32 || py::isinstance<py::array_t<double>>(points)) || points.ndim() != 2 ||
@@ -597,10 +597,11 @@ void bind_engine(py::module_& m) {
                      throw std::invalid_argument("frame: not a link of the engine");
                  if (!(voxel_size > 0.0 && std::isfinite(voxel_size) && filter_padding >= 0.0 &&
                        std::isfinite(filter_padding) && max_range > 0.0 && max_points > 0 &&
-                       std::isfinite(stamp) && persistence >= 0.0 && std::isfinite(persistence)))
+                       std::isfinite(stamp) && persistence >= 0.0 && std::isfinite(persistence) &&
+                       threads >= 0 && threads <= cs::MAX_THREADS))
                      throw std::invalid_argument(
                          "voxel_size, filter_padding, max_range, max_points, stamp, "
-                         "persistence: out of range");
+                         "persistence, threads: out of range");
                  const int64_t bad = cs::unusable_variable(model.kin, q.data(), model.n_joints);
                  if (bad >= 0) raise_joint_state("joint value not usable", 0, bad);
                  cs::CloudPoints cloud = {static_cast<const char*>(points.data()),
@@ -608,7 +609,8 @@ void bind_engine(py::module_& m) {
                                           int64_t(points.strides(1)), f32};
                  const cs::CloudSettings settings = {voxel_size, filter_padding, max_range,
                                                      max_points,  stamp,          persistence,
-                                                     frame,       keep_points};
+                                                     frame,       keep_points,
+                                                     cs::resolve_threads(threads)};
                  std::vector<double> T(16 * model.n_links);
                  {   // the link poses at q, with the engine's joint origins as they are now
                      std::lock_guard<std::mutex> hold(owner.engine->lock());
@@ -632,10 +634,11 @@ void bind_engine(py::module_& m) {
              py::arg("engine"), py::arg("points"), py::arg("frame"), py::arg("q"),
              py::arg("voxel_size"), py::arg("filter_padding"), py::arg("max_range"),
              py::arg("max_points"), py::arg("stamp"), py::arg("persistence"),
-             py::arg("keep_points"),
+             py::arg("keep_points"), py::arg("threads"),
              "Build the next grid from points (n, 3) float32/float64 in link `frame` (-1: the "
              "world), self-filtered at the joint values q against engine's robot "
-             "(cpp/cloud_filter.hpp); return (ticket, stats (points, capped, invalid, "
+             "(cpp/cloud_filter.hpp), the rows' first pass on up to `threads` threads (0: every "
+             "hardware thread; the same grid on any number); return (ticket, stats (points, capped, invalid, "
              "out_of_range, self_filtered, kept_points, voxels, persisted), the points kept "
              "(m, 3) float32 world frame or None). Runs without the interpreter lock.");
 
@@ -962,7 +965,7 @@ void bind_build_kernels(py::module_& m) {
 
 //: Bumped whenever the binding's functions or the packed layouts change; the Python side
 //: refuses an extension built from other sources (collision_sensor/engine/compiled.py).
-constexpr int ENGINE_API = 5;
+constexpr int ENGINE_API = 6;
 
 PYBIND11_MODULE(_engine, m) {
     m.doc() = "collision_sensor's compiled engine (C++17); see collision_sensor.engine.compiled";

@@ -14,8 +14,9 @@
 //               (persistence > 0) the voxels of the previous grid seen within persistence
 //               of stamp whose centre is not removed (the robot may have moved into them)
 // Only the work is organised, never the answer: the points are hashed into their voxels (one
-// pass); a hierarchy over the occupied voxels, each with the box of its own points, is
-// traversed against every body's tree with boxes grown by r, which gives each voxel the
+// pass over the rows, or up to settings.threads passes over contiguous chunks of them, merged
+// in order into what one pass gives); a hierarchy over the occupied voxels, each with the box
+// of its own points, is traversed against every body's tree with boxes grown by r, which gives each voxel the
 // triangles and solids that can come within r of it; a voxel none of whose candidates comes
 // within r of its points' box keeps its points untested, one whose points' box lies within r
 // of a single triangle or solid loses them all untested (the distance to a convex set is
@@ -51,6 +52,8 @@ struct CloudSettings {
     double persistence;     // s; 0: only this cloud
     int64_t frame;          // the engine link the points are in, -1: the world
     bool keep_points;       // write the points not removed (world frame)
+    int64_t threads = 1;    // the rows' first pass on up to this many threads (>= 1; the
+                            // answer is the same on any number)
 };
 
 // What became of a cloud's rows (their sum: points = capped + invalid + out_of_range +
@@ -83,24 +86,55 @@ class CloudBuilder {
         int64_t body, item;
     };
 
-    int64_t slot_of(uint64_t key);
-    void rehash(int64_t capacity);
+    // The voxels of a run of rows: key -> voxel in a hash table (open addressing), voxels
+    // numbered in the order their first point comes, and per voxel its coordinates, its
+    // points, those near the robot and their box.
+    struct Tally {
+        std::vector<uint64_t> keys;
+        std::vector<int32_t> slots;
+        int64_t mask = 0;
+        int shift = 64;  // 64 - log2(slots)
+        int64_t n = 0;   // voxels
+        // Per voxel, sized for the most the table holds before it grows (only [0, n) used).
+        std::vector<int32_t> ijk;
+        std::vector<double> lo, hi;  // (n, 3) the box of its near points (INF, -INF: none)
+        std::vector<int32_t> count, near_count;
+        int64_t invalid = 0, out_of_range = 0;  // rows
+
+        // Empty, with a table of `capacity` slots (a power of 2).
+        void clear(int64_t capacity);
+        // The voxel of key, a new one (no point yet) if it has none.
+        int64_t slot_of(uint64_t key);
+        void rehash(int64_t capacity);
+        void size_for(int64_t capacity);
+    };
+    // What the first pass over the rows needs (build's locals).
+    struct RowPass {
+        const CloudPoints* points;
+        int64_t step;       // row t of the pass is row t step of the cloud
+        double frame[12];   // frame -> world (R row-major, t)
+        double inv, range2;
+        double region_lo[3], region_hi[3];
+    };
+    // Rows [begin, end) of the pass into tally; row_voxel[t]: row t's voxel, -1 if not valid.
+    static void tally_rows(const RowPass& pass, int64_t begin, int64_t end, Tally& tally,
+                           int32_t* row_voxel);
+
     void collect_candidates(const Model& m, const double* T_links, double r);
     int classify(const Model& m, int64_t v, double r);
     bool removed(const Model& m, const double* x, double r, const Nearby* near,
                  int64_t n_near, const double* centre);
 
-    // The hash table: key -> voxel, open addressing.
-    std::vector<uint64_t> keys_;
-    std::vector<int32_t> slots_;
-    int64_t mask_ = 0;
-    // Per voxel of this cloud (V0): coordinates, its points' box, points, class, kept.
-    int64_t n_voxels_ = 0;
-    std::vector<int32_t> ijk_;
-    std::vector<double> lo_, hi_;
-    std::vector<int32_t> count_, near_count_, kept_;  // points; near the robot; kept
+    // The voxels of this cloud (V0) and, per voxel, its class, its points kept, and for the
+    // earlier voxels merged in the stamp they were last seen (-INF: seen in this cloud).
+    Tally tally_;
+    std::vector<int32_t> kept_;
     std::vector<uint8_t> class_;
-    std::vector<double> old_seen_;  // -INF: seen in this cloud
+    std::vector<double> old_seen_;
+    // The first pass on k threads: chunk c >= 1 of the rows tallied in chunks_[c - 1], then
+    // merged into tally_ (chunk_voxel_[c - 1]: its voxels' numbers there).
+    std::vector<Tally> chunks_;
+    std::vector<std::vector<int32_t>> chunk_voxel_;
     // Per taken row: its voxel, -1 when not valid.
     std::vector<int32_t> row_voxel_;
     // The filter's hierarchy (leaves of one voxel) and each voxel's candidates.

@@ -30,7 +30,8 @@ from collision_sensor.engine.motion import FREE, MotionResult, PathResult
 from collision_sensor.engine.trajectory import TrajectoryResult, check_trajectory
 from collision_sensor.engine.obb_tree import forest_view
 from collision_sensor.engine.point_clouds import (
-    NO_STATS, PointCloudStats, PreparedPoints, cloud_arguments, cloud_name, points_array)
+    NO_STATS, PointCloudStats, PreparedPoints, cloud_arguments, cloud_name, cloud_threads,
+    points_array)
 from collision_sensor.engine.robot_block import (
     allowed_names_to_come, build_robot_block, joint_tables, with_virtual_joint, world_frames)
 from collision_sensor.engine.scene_layout import SceneLayout, changed_objects
@@ -328,7 +329,8 @@ class CollisionChecker:
     # ------------------------------------------------------------------ point clouds
     def set_points(self, source: str, points, frame: Optional[str] = None, *,
                    positions: Optional[Positions] = None, stamp: Optional[float] = None,
-                   persistence: float = 0.0, max_range: float = math.inf) -> int:
+                   persistence: float = 0.0, max_range: float = math.inf,
+                   threads: Optional[int] = None) -> int:
         """Make ``points`` the obstacle ``cloud/<source>``: filtered, voxelised, checked
         against every robot link and attached object from the next :meth:`update` on (see
         :mod:`collision_sensor.engine.point_clouds`, which says what a cloud can tell).
@@ -349,6 +351,9 @@ class CollisionChecker:
             earlier clouds of the source) whose centre the robot does not now cover; 0: only
             this cloud.
         :param max_range: drop points farther than this (m) from ``frame``'s origin.
+        :param threads: the pass over the rows (reading them, their voxels) on up to this many
+            threads (0: every hardware thread; default: the setting ``threads``); the voxels,
+            the counts and the verdicts are the same on any number.
         :return: the number of occupied voxels kept.
         :raises PointCloudError: points not (n, 3) numbers, an unknown frame, a bad source or
             argument; nothing changes then.
@@ -356,12 +361,13 @@ class CollisionChecker:
         """
         return self.commit_points(self.prepare_points(
             source, points, frame, positions=positions, stamp=stamp, persistence=persistence,
-            max_range=max_range))
+            max_range=max_range, threads=threads))
 
     def prepare_points(self, source: str, points, frame: Optional[str] = None, *,
                        positions: Optional[Positions] = None, stamp: Optional[float] = None,
                        persistence: float = 0.0, max_range: float = math.inf,
-                       keep_points: bool = False) -> PreparedPoints:
+                       keep_points: bool = False,
+                       threads: Optional[int] = None) -> PreparedPoints:
         """Filter and voxelise a cloud (as :meth:`set_points`) without making it the obstacle:
         the slow part, in C++ with the interpreter released, reading only what queries never
         change, so it may run on another thread while this checker answers queries (one
@@ -387,6 +393,10 @@ class CollisionChecker:
         if stamp is None:
             stamp = time.monotonic()
         max_range, persistence, stamp = cloud_arguments(max_range, persistence, stamp)
+        try:
+            threads = self.config.threads if threads is None else cloud_threads(threads)
+        except PointCloudError as error:
+            raise PointCloudError(f'{name}: {error}') from None
         q = self._q.copy() if positions is None else self._merged(positions)
         cloud = self._clouds.get(name)
         if cloud is None:
@@ -396,7 +406,7 @@ class CollisionChecker:
             ticket, stats, kept = cloud.prepare(
                 self._engine, array, frame_index, q, config.voxel_size,
                 config.self_filter_padding, max_range, config.max_points, stamp, persistence,
-                keep_points)
+                keep_points, threads)
         except JointStateError as error:
             raise JointStateError(self._unusable_message(error.variable, q)) from None
         return PreparedPoints(self, source, cloud, ticket, PointCloudStats(*stats), kept)

@@ -37,9 +37,10 @@ link_padding          {}         ``{link: metres}``, a link's own padding instea
                                  never padded)
 threads               0          threads ``check_batch``, ``update_batch``, ``check_path``
                                  and ``check_spline`` run on (contiguous chunks of the rows,
-                                 the same answers as one thread): 0 every hardware thread of
-                                 the machine (std::thread::hardware_concurrency), 1 the
-                                 calling thread alone, at most 256
+                                 the same answers as one thread), and by default the pass
+                                 over a cloud's rows in ``set_points``: 0 every hardware
+                                 thread of the machine (std::thread::hardware_concurrency),
+                                 1 the calling thread alone, at most 256
 min_chunk_us          200.0      a batch is cut into chunks of at least this much work
                                  (microseconds, estimated from the checker's earlier
                                  batches): a thread costs tens of microseconds to start, so a

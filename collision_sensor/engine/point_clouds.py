@@ -38,6 +38,7 @@ from typing import NamedTuple, Optional, Tuple
 
 import numpy as np
 
+from collision_sensor.engine.checker_config import MAX_THREADS
 from collision_sensor.engine.dynamic_scene import CLOUD_PREFIX  # noqa: F401 - also ours
 from collision_sensor.errors import PointCloudError
 #: Longest source name (characters).
@@ -131,6 +132,18 @@ def points_array(points) -> np.ndarray:
         raise PointCloudError(f'points must have shape (n, 3), got {array.shape}; give one row x, y, '
                          'z per point')
     return array
+
+
+def cloud_threads(threads) -> int:
+    """Return the ``threads`` a cloud's first pass may use, as an int (0: every core).
+
+    :raises PointCloudError: not an integer from 0 to 256.
+    """
+    if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or \
+            not 0 <= threads <= MAX_THREADS:
+        raise PointCloudError(f'threads {threads!r}: give an integer from 0 (every core) to '
+                              f'{MAX_THREADS} (1: the calling thread alone)')
+    return int(threads)
 
 
 def cloud_arguments(max_range, persistence, stamp) -> Tuple[float, float, float]:

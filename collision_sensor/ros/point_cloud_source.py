@@ -57,6 +57,12 @@ ON_TIMEOUT_POLICIES = (CONTACT, IGNORE)
 #: Clouds that may wait for the source's thread; more are dropped and counted (each may hold
 #: megabytes).
 MAX_CLOUD_BACKLOG = 4
+#: Threads a cloud is filtered on: the source's own alone. The node's machine may have two
+#: cores, one of them the joint states' verdicts' (1 kHz); a second cloud thread, niced like
+#: the first, would still take that core's time slices while a cloud is filtered, and the
+#: joint states' p99 latency is the target that clouds must not move (issue 29). The checker's
+#: ``threads`` setting stays the batches'.
+CLOUD_THREADS = 1
 
 
 class PointCloudSource(InputSource):
@@ -117,7 +123,7 @@ class PointCloudSource(InputSource):
             prepared = checker.prepare_points(
                 self.topic, points, frame, positions=positions,
                 persistence=settings.point_cloud_persistence,
-                max_range=settings.point_cloud_max_range)
+                max_range=settings.point_cloud_max_range, threads=CLOUD_THREADS)
         except (PointCloudError, JointStateError) as error:
             reason = printable(error, 500)
 
@@ -202,7 +208,8 @@ class PointCloudSource(InputSource):
                 prepared = checker.prepare_points(
                     self.topic, rows.points, frame, positions=positions,
                     persistence=settings.point_cloud_persistence,
-                    max_range=settings.point_cloud_max_range, keep_points=listening)
+                    max_range=settings.point_cloud_max_range, keep_points=listening,
+                    threads=CLOUD_THREADS)
             except (PointCloudError, JointStateError) as error:
                 self._reject('engine', f'{self.name}: {printable(error, 500)}', notes)
                 return

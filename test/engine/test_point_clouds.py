@@ -381,6 +381,52 @@ def test_incremental_equals_fresh_full_check(erd_share, erd_package_paths):
         assert incremental.colliding_pairs == checker.check(q).colliding_pairs, step
 
 
+@pytest.mark.parametrize('threads', [2, 3, 7])
+def test_threads_give_the_cloud_of_one_thread(erd_share, erd_package_paths, threads):
+    """The rows' first pass split over threads (chunks merged in order) gives what one thread
+    gives, to the bit: voxels (and their order), stats, the points kept (in row order) and the
+    verdicts; over clouds of 150,000 rows (chunks of >= 20,000: up to 7), the robot's own
+    points among them, NaN runs, a voxel's points spread over every chunk, persistence, and
+    points in a link's frame."""
+    one, _ = _checker(erd_share, erd_package_paths, 'panda')
+    many, _ = _checker(erd_share, erd_package_paths, 'panda')
+    rng = np.random.default_rng(290 + threads)
+    for step in range(4):
+        q = _random_state(one, rng)
+        one.check(q)
+        own = surface_points(one, rng, per_element=1500)
+        hand = one.link_poses()['panda_hand'][:3, 3]
+        near = hand + rng.uniform(-0.3, 0.3, (60_000, 3))
+        far = rng.uniform(-1.5, 1.5, (150_000 - len(own) - len(near), 3))
+        points = np.concatenate([own, near, far])
+        points = points[rng.permutation(len(points))].astype(np.float32)
+        for start in rng.integers(0, len(points) - 2000, 20):      # holes, as a camera's
+            points[start:start + int(rng.integers(1, 2000))] = np.nan
+        frame = None
+        if step == 3:   # in the hand's frame
+            T = one.link_poses()['panda_hand']
+            points = ((points - T[:3, 3]) @ T[:3, :3]).astype(np.float32)
+            frame = 'panda_hand'
+        options = dict(positions=q, stamp=float(step), persistence=1.5 if step else 0.0)
+        a = one.prepare_points(SOURCE, points, frame, keep_points=True, threads=1, **options)
+        b = many.prepare_points(SOURCE, points, frame, keep_points=True, threads=threads,
+                                **options)
+        assert a.stats == b.stats, step
+        assert a.stats.self_filtered > 0 and a.stats.invalid > 0
+        assert np.array_equal(a.kept, b.kept), step
+        one.commit_points(a)
+        many.commit_points(b)
+        (centres_a, size), (centres_b, _) = one.cloud_voxels(SOURCE), many.cloud_voxels(SOURCE)
+        assert np.array_equal(centres_a, centres_b), step
+        assert one.update(q).colliding_pairs == many.update(q).colliding_pairs, step
+        near_a, near_b = one.proximity(q, 0.1), many.proximity(q, 0.1)
+        assert [(r.link_a, r.link_b, r.distance) for r in near_a] == \
+            [(r.link_a, r.link_b, r.distance) for r in near_b], step
+        for r, t in zip(near_a, near_b):
+            assert np.array_equal(r.point_a, t.point_a) and np.array_equal(r.point_b, t.point_b)
+    assert a.stats.persisted > 0
+
+
 def test_a_cloud_rechecks_only_its_pairs(panda):
     checker, _ = panda
     rng = np.random.default_rng(17)
@@ -411,6 +457,9 @@ def test_bad_input_and_config(panda):
         checker.set_points(SOURCE, np.zeros((3, 4)))
     with pytest.raises(PointCloudError, match='source'):
         checker.set_points('', np.zeros((3, 3)))
+    for threads in (-1, 257, 1.5, True):
+        with pytest.raises(PointCloudError, match='threads'):
+            checker.set_points(SOURCE, np.zeros((3, 3)), threads=threads)
     assert CLOUD not in checker.scene_object_names
     for key, value in [('voxel_size', 0.0), ('voxel_size', 2.0), ('self_filter_padding', -0.1),
                        ('max_points', 0), ('max_points', 1.5)]:
