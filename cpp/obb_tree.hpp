@@ -78,9 +78,11 @@ int64_t partition(const double* keys, int64_t* order, int64_t start, int64_t end
 //: above, capacity >= 2 m - 1); return its node count and depth.
 //:
 //: The root covers all triangles; a node with more than leaf_size (>= 1) triangles is split in
-//: two along its box's first axis at the mean of its triangles' centroid projections (the
-//: second, then the third axis if a side would be empty; halves of the list if all three
-//: would); each node's box is fit_obb_pca of the vertices beneath it (bounding_volumes.hpp).
+//: two at the mean of its triangles' centroid projections on one of its box's three axes: the
+//: axis whose two halves have the least surface summed (h0 h1 + h1 h2 + h2 h0 of each half's
+//: vertex extents along the node's axes; the first such axis on a tie; an axis that would
+//: leave a side empty is skipped, and halves of the list are taken if all three would); each
+//: node's box is fit_obb_pca of the vertices beneath it (bounding_volumes.hpp).
 //: Throws std::invalid_argument on NaN / infinity in tris, m < 1, leaf_size < 1 or too
 //: small a capacity.
 TreeSize build_obb_tree(const double* tris, int64_t m, int64_t leaf_size, const TreeArrays& out);

@@ -68,9 +68,12 @@ class FclOracle:
                 meshes.append(self._bvh(vertices, faces))
             self.models[name] = meshes
             self.scene_poses[name] = checker._T_world_body[b].copy()
-            self.vertices[name] = [m_tris[0] for m_tris in (
-                self._tris_of_tree(f, f.roots[e]).reshape(-1, 3) for e in range(start, end))]
-            solid = checker.scene_objects[checker.scene_object_names.index(name)].solid
+            # An object has one tree (or none): its own first vertex stands for it, as for links,
+            # never the first of our tree's order, which moves with how the tree is split.
+            obj = checker.scene_objects[checker.scene_object_names.index(name)]
+            self.vertices[name] = [np.asarray(obj.vertices[obj.faces[0, 0]], dtype=np.float64)
+                                   for _ in range(start, end)]
+            solid = obj.solid
             if solid is not None:
                 self.solids[name] = [(self._primitive(solid), np.eye(4))]
 

@@ -2,8 +2,9 @@
 
 Every collision element (one ``<collision>`` of a link, or one scene object) gets its own
 binary OBB tree, built top-down over its triangles: a node's box is fitted to the vertices of
-the triangles beneath it, split along the box's longest-variance axis at the mean of the
-triangle centroids, down to leaves of at most ``leaf_size`` triangles. All trees of a checker
+the triangles beneath it, split at the mean of the triangle centroids along the one of the
+box's three axes whose halves' boxes have the least surface, down to leaves of at most
+``leaf_size`` triangles. All trees of a checker
 live in one :class:`ObbForest`, structure of arrays, so that the compiled traversal indexes
 nodes by integers and never sees a Python object.
 
@@ -90,9 +91,11 @@ def build_tree_kernel(tris, leaf_size, center, axes, half, left, right, first, c
     Python::
 
         root covers all triangles; a node with more than leaf_size triangles is split in two
-        along its box's first axis at the mean centroid projection (other axes, then the
-        halves of the list, if a side would be empty); each node's box is fit_obb_pca of its
-        vertices; nodes are numbered in creation order, children after their parent.
+        at the mean centroid projection on one of its box's axes: of the axes leaving no side
+        empty, the first minimising surface(left) + surface(right), surface(side) = h0 h1 +
+        h1 h2 + h2 h0 of the half extents of the side's vertices along the node's axes (the
+        halves of the list if every axis leaves a side empty); each node's box is fit_obb_pca of its vertices; nodes are
+        numbered in creation order, children after their parent.
 
     :param tris: (m, 3, 3) float64 triangles, m >= 1.
     :param leaf_size: most triangles in a leaf (>= 1).
