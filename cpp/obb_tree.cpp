@@ -35,40 +35,73 @@ int64_t partition(const double* keys, int64_t* order, int64_t start, int64_t end
 
 namespace {
 
-// Write keys[t] = the projection of triangle t's centroid on axis k of the box axes a
-// (column k of the row-major 3x3) for the triangles order[start .. end - 1]; return their mean.
-double project_centroids(const double* centroids, const double* a, int k, double* keys,
-                         const int64_t* order, int64_t start, int64_t end) {
-    double total = 0.0;
+// The three candidate cuts of a node (obb_tree.hpp: the splitting rule), in two passes over
+// its triangles order[start .. end - 1]: first each centroid's projection on the box's three
+// axes (into keys3, (m, 3)) and their means; then, per axis k, the extents along the three
+// axes of the triangles on either side of axis k's mean. Returns the axis whose two sides have
+// the least surface summed (h0 h1 + h1 h2 + h2 h0 of each side's extents), -1 when every axis
+// leaves a side empty (centroids coinciding along it); its mean into *split.
+int best_cut(const double* tris, const double* centroids, const double* a,
+             const int64_t* order, int64_t start, int64_t end, double* keys3, double* split) {
+    double total[3] = {0.0, 0.0, 0.0};
     for (int64_t i = start; i < end; ++i) {
         const int64_t t = order[i];
-        keys[t] = centroids[3 * t + 0] * a[k] + centroids[3 * t + 1] * a[3 + k] +
-                  centroids[3 * t + 2] * a[6 + k];
-        total += keys[t];
+        const double* c = centroids + 3 * t;
+        for (int k = 0; k < 3; ++k) {
+            keys3[3 * t + k] = c[0] * a[k] + c[1] * a[3 + k] + c[2] * a[6 + k];
+            total[k] += keys3[3 * t + k];
+        }
     }
-    return total / static_cast<double>(end - start);
-}
-
-// Half the surface (h0 h1 + h1 h2 + h2 h0) of the box on axes a (row-major 3x3, column k is
-// axis k) around triangles order[start .. end - 1]: the parent's axes stand in for the child's
-// own principal axes, a cheap measure of how large the child's box will be.
-double surface_on_axes(const double* tris, const int64_t* order, int64_t start, int64_t end,
-                       const double* a) {
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    const double n = static_cast<double>(end - start);
+    const double mean[3] = {total[0] / n, total[1] / n, total[2] / n};
+    // lo / hi[k][side][j]: side 0 below axis k's mean, 1 at or above it; j the extent's axis.
+    double lo[3][2][3], hi[3][2][3];
+    int64_t below[3] = {0, 0, 0};
+    for (int k = 0; k < 3; ++k)
+        for (int side = 0; side < 2; ++side)
+            for (int j = 0; j < 3; ++j) {
+                lo[k][side][j] = INFINITY;
+                hi[k][side][j] = -INFINITY;
+            }
     for (int64_t i = start; i < end; ++i) {
-        const double* tri = tris + 9 * order[i];
+        const int64_t t = order[i];
+        const double* tri = tris + 9 * t;
+        double tlo[3] = {INFINITY, INFINITY, INFINITY}, thi[3] = {-INFINITY, -INFINITY, -INFINITY};
         for (int v = 0; v < 3; ++v) {
             const double* x = tri + 3 * v;
-            for (int k = 0; k < 3; ++k) {
-                const double s = x[0] * a[k] + x[1] * a[3 + k] + x[2] * a[6 + k];
-                lo[k] = std::min(lo[k], s);
-                hi[k] = std::max(hi[k], s);
+            for (int j = 0; j < 3; ++j) {
+                const double s = x[0] * a[j] + x[1] * a[3 + j] + x[2] * a[6 + j];
+                tlo[j] = std::min(tlo[j], s);
+                thi[j] = std::max(thi[j], s);
+            }
+        }
+        for (int k = 0; k < 3; ++k) {
+            const int side = keys3[3 * t + k] < mean[k] ? 0 : 1;
+            below[k] += 1 - side;
+            for (int j = 0; j < 3; ++j) {
+                lo[k][side][j] = std::min(lo[k][side][j], tlo[j]);
+                hi[k][side][j] = std::max(hi[k][side][j], thi[j]);
             }
         }
     }
-    const double h0 = 0.5 * (hi[0] - lo[0]), h1 = 0.5 * (hi[1] - lo[1]),
-                 h2 = 0.5 * (hi[2] - lo[2]);
-    return h0 * h1 + h1 * h2 + h2 * h0;
+    int best = -1;
+    double best_surface = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        if (below[k] == 0 || below[k] == end - start) continue;
+        double surface = 0.0;
+        for (int side = 0; side < 2; ++side) {
+            const double h0 = 0.5 * (hi[k][side][0] - lo[k][side][0]);
+            const double h1 = 0.5 * (hi[k][side][1] - lo[k][side][1]);
+            const double h2 = 0.5 * (hi[k][side][2] - lo[k][side][2]);
+            surface += h0 * h1 + h1 * h2 + h2 * h0;
+        }
+        if (best < 0 || surface < best_surface) {
+            best = k;
+            best_surface = surface;
+        }
+    }
+    if (best >= 0) *split = mean[best];
+    return best;
 }
 
 }  // namespace
@@ -102,7 +135,7 @@ TreeSize build_obb_tree(const double* tris, int64_t m, int64_t leaf_size, const 
                 (tris[9 * t + d] + tris[9 * t + 3 + d] + tris[9 * t + 6 + d]) / 3.0;
         }
     }
-    std::vector<double> keys(m);
+    std::vector<double> keys(m), keys3(3 * m);
     std::vector<double> points(9 * m);  // the root's vertices are the most any node gathers
     // Explicit stack of (node, start, end, depth): trees can be deep, and a pending entry is
     // popped before its two children are pushed, so it never holds more than m + 1 entries.
@@ -137,30 +170,16 @@ TreeSize build_obb_tree(const double* tris, int64_t m, int64_t leaf_size, const 
         // descent (scenario 13's two meshes near but apart: 356 box tests a check with the
         // first axis alone, 110 with the best of three). An axis leaving a side empty (all
         // centroids on one side of the mean: only when they coincide along it) is skipped.
-        int64_t cut = p.start;
-        int best_axis = -1;
-        double best_surface = 0.0, best_split = 0.0;
-        for (int k = 0; k < 3; ++k) {
-            const double split =
-                project_centroids(centroids.data(), a, k, keys.data(), order, p.start, p.end);
-            cut = partition(keys.data(), order, p.start, p.end, split);
-            if (!(p.start < cut && cut < p.end)) continue;
-            const double surface = surface_on_axes(tris, order, p.start, cut, a) +
-                                   surface_on_axes(tris, order, cut, p.end, a);
-            if (best_axis < 0 || surface < best_surface) {
-                best_axis = k;
-                best_surface = surface;
-                best_split = split;
+        int64_t cut = p.start + n / 2;  // all centroids coincide along every axis: halves
+        double split = 0.0;
+        const int best = best_cut(tris, centroids.data(), a, order, p.start, p.end,
+                                  keys3.data(), &split);
+        if (best >= 0) {
+            for (int64_t i = p.start; i < p.end; ++i) {
+                const int64_t t = order[i];
+                keys[t] = keys3[3 * t + best];
             }
-        }
-        if (best_axis < 0) {
-            // All centroids coincide along every axis: split the list in halves.
-            cut = p.start + n / 2;
-        } else if (best_axis != 2) {
-            // The order holds the last axis' partition: partition again on the best axis, at
-            // the same split (a mean summed in another order could round to another number).
-            project_centroids(centroids.data(), a, best_axis, keys.data(), order, p.start, p.end);
-            cut = partition(keys.data(), order, p.start, p.end, best_split);
+            cut = partition(keys.data(), order, p.start, p.end, split);
         }
         left[p.node] = n_nodes;
         right[p.node] = n_nodes + 1;
