@@ -368,6 +368,7 @@ REGEX = r'collision_sensor_bench: error: '
                                             'scenarios 1, 2 and 8 run'),
     (['--urdf', 'missing.urdf'], '--urdf "missing.urdf": file not found'),
     (['--urdf', 'URDF', '--package-path', 'nodir'], 'expected NAME=DIR'),
+    (['--scenario', '10', '--motion-parts', 'BX'], '--motion-parts BX: give letters of ABCD'),
     (['--urdf', 'TYPO', '--package-path', 'ERD'], 'did you mean "package://example-robot-data/robots/ur_description/'
                          'meshes/ur5/collision/forearm.stl"'),
 ])
@@ -384,3 +385,17 @@ def test_urdf_errors_are_one_line_naming_the_fix(erd_share, tmp_path, args, word
     lines = [line for line in run.stderr.splitlines() if not line.startswith('[')]
     assert len(lines) == 1 and re.match(REGEX, lines[0]), run.stderr
     assert words in lines[0], lines[0]
+
+
+def test_motion_parts_run_only_the_parts_asked(tmp_path):
+    """--motion-parts D: scenario 10 runs its streams part alone, on the arms' cells."""
+    import dataclasses
+
+    from collision_sensor.tools.bench import scenario_motion
+    from collision_sensor.tools.bench.scenario_settings import Settings
+    settings = dataclasses.replace(Settings.for_run(True, 1998), motion_parts=('D',))
+    section = scenario_motion.run(settings, str(tmp_path))
+    text = '\n'.join(section.lines)
+    assert '#### D.' in text
+    assert not any(f'#### {part}.' in text for part in 'ABC')
+    assert {v.target.split()[1] for v in section.verdicts} == {'panda', 'ur5'}

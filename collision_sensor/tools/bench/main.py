@@ -1,8 +1,8 @@
 """collision_sensor_bench: this package against pinocchio+coal and python-fcl, in one run.
 
-``collision_sensor_bench [--quick] [--scenario N ...] [--seed S] [--markdown FILE]
-[--plot FILE.png] [--urdf FILE [--srdf FILE] [--package-path NAME=DIR ...]
-[--xacro-arg NAME:=VALUE ...]]``
+``collision_sensor_bench [--quick] [--scenario N ...] [--seed S] [--runs N] [--markdown FILE]
+[--plot FILE.png] [--motion-parts LETTERS] [--urdf FILE [--srdf FILE] [--package-path
+NAME=DIR ...] [--xacro-arg NAME:=VALUE ...]]``
 
 With ``--urdf`` the robot scenarios (1, 2 and 8) run on that robot instead of the bundled ones,
 against pinocchio+coal and python-fcl, both loading the same files (pinocchio reads the URDF
@@ -37,6 +37,7 @@ times of scenario 1. Peers are optional: a missing one is reported as missing.
    link) against python-fcl.
 """
 import argparse
+import dataclasses
 import datetime
 import importlib.metadata
 import os
@@ -264,6 +265,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         'run\'s with the range over the runs (default 1)')
     parser.add_argument('--markdown', metavar='FILE', help='also write the table here')
     parser.add_argument('--plot', metavar='FILE.png', help='write the plot here')
+    parser.add_argument('--motion-parts', default='ABCD', metavar='LETTERS',
+                        help='scenario 10\'s parts to run: A certification, B speed against '
+                        'the discretized motion, C python-fcl\'s continuousCollide, D '
+                        'update_motion on the streams (default ABCD)')
     args = parser.parse_args(argv)
     try:
         robot = _user_robot(args)
@@ -271,6 +276,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return _error(str(err))
     numbers = sorted(set(args.scenario or (ROBOT_SCENARIOS if robot else SCENARIOS)))
     settings = Settings.for_run(args.quick, args.seed)
+    parts = tuple(args.motion_parts.upper())
+    if not parts or set(parts) - set('ABCD'):
+        return _error(f'--motion-parts {args.motion_parts}: give letters of ABCD, e.g. BD')
+    settings = dataclasses.replace(settings, motion_parts=tuple(sorted(set(parts))))
 
     def log(message):
         print(f'[{PROG}] {message}', file=sys.stderr, flush=True)

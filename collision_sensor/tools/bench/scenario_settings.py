@@ -23,6 +23,8 @@ class Settings:
         continuousCollide).
     :ivar motion_robots: scenario 10's certification robots (labels of
         ``motion_cells.ROBOTS``; None: all).
+    :ivar motion_parts: scenario 10's parts to run (``A`` certification, ``B`` speed against
+        the discretized motion, ``C`` python-fcl's continuousCollide, ``D`` the streams).
     :ivar thread_rows: rows of scenario 11's batches (one thread against two).
     """
 
@@ -42,6 +44,7 @@ class Settings:
     motion_walk_steps: int = 3000
     ccd_cases: int = 40
     motion_robots: Optional[Tuple[str, ...]] = None
+    motion_parts: Tuple[str, ...] = ('A', 'B', 'C', 'D')
     thread_rows: int = 10_000
 
     @classmethod
