@@ -153,12 +153,16 @@ class RayPool:
         actors: List[_Actor] = []
         here = ray.get_runtime_context().get_node_id()
 
-        def new_actor() -> _Actor:
-            actor = _Actor(remote.remote(spec_ref, self.options))
-            actor.pid, rss, node = ray.get(actor.handle.hello.remote())
-            actor.local = node == here if self.ship is None else not self.ship
-            stats.note_rss(f'pid {actor.pid}', rss)
-            return actor
+        def new_actors(count: int) -> List[_Actor]:
+            # All started before any is waited for: each builds its checker (its trees) as
+            # it starts, so they start side by side, not one after the other.
+            started = [_Actor(remote.remote(spec_ref, self.options)) for _ in range(count)]
+            for actor, (pid, rss, node) in zip(started, ray.get(
+                    [actor.handle.hello.remote() for actor in started])):
+                actor.pid = pid
+                actor.local = node == here if self.ship is None else not self.ship
+                stats.note_rss(f'pid {actor.pid}', rss)
+            return started
 
         def payload(unit: Unit, actor: _Actor):
             if actor.local:
@@ -196,7 +200,7 @@ class RayPool:
                 on_start(index, deaths[index] + 1, actor.pid)
 
         try:
-            actors = [new_actor() for _ in range(stats.workers)]
+            actors = new_actors(stats.workers)
             while remaining:
                 for actor in actors:
                     while pending and len(actor.queue) < DEPTH and not actor.alone:
@@ -231,7 +235,7 @@ class RayPool:
                 except ray.exceptions.RayError as err:
                     remaining -= self._bury(actor, units, pending, deaths, alone, single,
                                             stats, on_record, err)
-                    actors[actors.index(actor)] = new_actor()
+                    actors[actors.index(actor)] = new_actors(1)[0]
                     continue
                 actor.queue.popleft()
                 actor.alone = False
