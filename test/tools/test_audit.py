@@ -302,9 +302,10 @@ def test_ctrl_c_keeps_a_valid_report_that_resume_completes(fleet, serial_records
     root = fleet[0]
     import shutil
     # Enough work left after the third line that the interrupt lands mid-run even on a
-    # loaded machine: six long units (one written, five copies: writing is the slow part).
+    # loaded machine (two test suites side by side left too little with six): sixteen long
+    # units (one written, fifteen copies: writing is the slow part).
     heavy = [_heavy(tmp_path, 'long0')]
-    heavy += [shutil.copy(heavy[0], tmp_path / f'long{k}.csv') for k in range(1, 6)]
+    heavy += [shutil.copy(heavy[0], tmp_path / f'long{k}.csv') for k in range(1, 16)]
     heavy = [str(path) for path in heavy]
     path = tmp_path / 'stopped.jsonl'
     argv = [sys.executable, '-m', 'collision_sensor.tools.offline_check', root, *heavy,
