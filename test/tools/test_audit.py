@@ -301,9 +301,9 @@ def test_ctrl_c_keeps_a_valid_report_that_resume_completes(fleet, serial_records
     import time
     root = fleet[0]
     import shutil
-    # Enough work left after the third line that the interrupt lands mid-run even on a
-    # loaded machine (two test suites side by side left too little with six): sixteen long
-    # units (one written, fifteen copies: writing is the slow part).
+    # Enough work left after the first line that the interrupt lands mid-run even on a
+    # loaded machine: sixteen long units (one written, fifteen copies: writing is the slow
+    # part).
     heavy = [_heavy(tmp_path, 'long0')]
     heavy += [shutil.copy(heavy[0], tmp_path / f'long{k}.csv') for k in range(1, 16)]
     heavy = [str(path) for path in heavy]
@@ -314,15 +314,17 @@ def test_ctrl_c_keeps_a_valid_report_that_resume_completes(fleet, serial_records
     process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                text=True, cwd=str(tmp_path))  # not the source tree: see below
     deadline = time.monotonic() + 120
+    # Interrupted at its first line: the most work left whatever the machine's load (two
+    # suites side by side once finished a run between its third line and the signal).
     while time.monotonic() < deadline and (not path.exists()
-                                           or path.read_text().count('\n') < 3):
-        time.sleep(0.05)
+                                           or path.read_text().count('\n') < 1):
+        time.sleep(0.02)
     process.send_signal(signal.SIGINT)
     _, err = process.communicate(timeout=60)
     assert process.returncode == 130, err
     assert 'stopped; the report' in err and '--resume continues it' in err
     before = [json.loads(line) for line in path.read_text().splitlines()]
-    assert 3 <= len(before) < len(serial_records.records) + len(heavy)
+    assert 1 <= len(before) < len(serial_records.records) + len(heavy)
     # Under colcon test the source tree (the working directory) has no engine.
     done = subprocess.run(argv + ['--resume'], capture_output=True, text=True, timeout=300,
                           cwd=str(tmp_path))
