@@ -1,6 +1,7 @@
 """collision_sensor_check on many recordings: units found, every report line against python-fcl,
 the same lines serially and in local workers, failing units reported, resume, killed workers,
 worker memory, the extras' messages. (Ray: ``test_audit_ray.py``.)"""
+import dataclasses
 import json
 import os
 import signal
@@ -400,3 +401,12 @@ def test_the_settings_digest_is_the_files_contents_not_their_paths(erd_share, tm
     shape.apply_scale(1.01)
     shape.export(mesh)
     assert digest(moved) != here
+
+
+def test_a_unit_is_checked_on_one_core_whatever_the_threads_setting(spec, options):
+    """Units run side by side (--jobs, Ray): each checker's batch calls on one thread, so
+    --jobs N uses N cores; the robot's own settings are kept otherwise."""
+    threaded = dataclasses.replace(spec, config={**(spec.config or {}), 'threads': 2})
+    assert threaded.build().threads == 2
+    for robot in (spec, threaded):
+        assert UnitChecker(robot, options).checker.threads == 1

@@ -39,6 +39,10 @@ from collision_sensor.tools.audit import shipping
 from collision_sensor.tools.audit.units import Unit
 from collision_sensor.tools.recorded_clouds import CloudOptions, CloudReplay
 
+#: Engine threads a unit is checked on: one, since units run side by side (``--jobs``, Ray
+#: actors), each a core; ``--jobs 1`` is then one core too, as its name says.
+UNIT_THREADS = 1
+
 DEMO_ARM_HINT = ('these are the joints of the bundled demo arm, the robot checked when no '
                  '--urdf is given: pass --urdf YOUR_ROBOT.urdf (with --srdf and --package-path '
                  'NAME=DIR as it needs) to check your robot')
@@ -95,10 +99,14 @@ class RobotSpec:
         return cls(model, srdf_model, tuple(objects), dict(config) if config else None,
                    tuple(sorted((package_paths or {}).items())), label or str(urdf), demo)
 
-    def build(self):
-        """Return a new :class:`~collision_sensor.CollisionChecker` of this robot."""
+    def build(self, threads: Optional[int] = None):
+        """Return a new :class:`~collision_sensor.CollisionChecker` of this robot (its batch
+        calls on ``threads`` threads when given, else as its settings say)."""
         from collision_sensor import CollisionChecker
-        return CollisionChecker(self.model, self.srdf, self.scene, self.config)
+        config = dict(self.config or {})
+        if threads is not None:
+            config['threads'] = threads
+        return CollisionChecker(self.model, self.srdf, self.scene, config)
 
     def digest(self, options: 'CheckOptions') -> str:
         """Return 16 hex digits that change with the robot, its settings or the options: a
@@ -391,9 +399,11 @@ class UnitChecker:
 
     @property
     def checker(self):
-        """The checker, with the scene as loaded (rebuilt after a unit changed its scene)."""
+        """The checker, with the scene as loaded (rebuilt after a unit changed its scene).
+        A unit is checked on one core (UNIT_THREADS): the units are what runs in parallel, so
+        ``--jobs N`` uses N cores, not N times the engine's batch threads."""
         if self._checker is None:
-            self._checker = self.spec.build()
+            self._checker = self.spec.build(threads=UNIT_THREADS)
         return self._checker
 
     def check(self, unit: Unit, payload: Optional[shipping.Payload] = None) -> Dict[str, object]:
