@@ -1,6 +1,7 @@
 """collision_sensor_check on many recordings: units found, every report line against python-fcl,
 the same lines serially and in local workers, failing units reported, resume, killed workers,
 worker memory, the extras' messages. (Ray: ``test_audit_ray.py``.)"""
+import contextlib
 import dataclasses
 import json
 import os
@@ -13,7 +14,7 @@ pytest.importorskip('pyarrow')
 
 from collision_sensor.errors import ConfigError  # noqa: E402
 from collision_sensor.tools import offline_check  # noqa: E402
-from collision_sensor.tools.audit import batch, report, shipping  # noqa: E402
+from collision_sensor.tools.audit import batch, local_pool, report, shipping  # noqa: E402
 from collision_sensor.tools.audit.local_pool import LocalPool  # noqa: E402
 from collision_sensor.tools.audit.unit_check import (  # noqa: E402
     CheckOptions, RobotSpec, UnitChecker, record_keys)
@@ -296,43 +297,76 @@ def test_summary_and_plot_of_hand_made_lines(tmp_path):
     assert (tmp_path / 'b.png').read_bytes()[:4] == b'\x89PNG'
 
 
+@contextlib.contextmanager
+def _sigint_as_in_a_terminal():
+    """Children started inside get SIGINT's default action, as a command typed in a terminal:
+    a suite run as a script's background job (``make test &``) ignores SIGINT, the shell's rule
+    for such jobs, and its children inherit that (Python then raises no KeyboardInterrupt)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # SIG_DFL after exec
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def test_ctrl_c_keeps_a_valid_report_that_resume_completes(fleet, serial_records, tmp_path):
+    """Ctrl-C mid-run: exit 130, the report valid JSON lines of finished units, and --resume
+    completes it with the lines of an uninterrupted run. The run is frozen (SIGSTOP, its whole
+    process group) before the signal, so the units left are known, whatever the machine's
+    speed or load; the signal goes to the group, as a terminal's Ctrl-C does (the workers
+    ignore it)."""
+    import shutil
     import subprocess
     import time
     root = fleet[0]
-    import shutil
-    # Enough work left after the first line that the interrupt lands mid-run even on a
-    # loaded machine: sixteen long units (one written, fifteen copies: writing is the slow
-    # part).
+    # Long units (one written, the others copies: writing is the slow part), so that a worker
+    # is seldom idle; what the test relies on is only that they outnumber what workers hold.
     heavy = [_heavy(tmp_path, 'long0')]
     heavy += [shutil.copy(heavy[0], tmp_path / f'long{k}.csv') for k in range(1, 16)]
     heavy = [str(path) for path in heavy]
+    units = len(serial_records.records) + len(heavy)
     path = tmp_path / 'stopped.jsonl'
+    jobs = 2
     argv = [sys.executable, '-m', 'collision_sensor.tools.offline_check', root, *heavy,
             '--joint-map', os.path.join(root, 'joint_map.yaml'), '--report', str(path),
-            '--jobs', '2', '--progress', 'never']
-    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                               text=True, cwd=str(tmp_path))  # not the source tree: see below
-    deadline = time.monotonic() + 120
-    # Interrupted at its first line: the most work left whatever the machine's load (two
-    # suites side by side once finished a run between its third line and the signal).
-    while time.monotonic() < deadline and (not path.exists()
-                                           or path.read_text().count('\n') < 1):
-        time.sleep(0.02)
-    process.send_signal(signal.SIGINT)
+            '--jobs', str(jobs), '--progress', 'never']
+    # A session of its own, as a terminal's foreground job: its process group is the command
+    # and its workers. Not in the source tree: under colcon test that has no engine.
+    with _sigint_as_in_a_terminal():
+        process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                   text=True, cwd=str(tmp_path), start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and process.poll() is None and (
+                not path.exists() or path.read_text().count('\n') < 1):
+            time.sleep(0.02)
+        assert process.poll() is None, f'ended before its first line: {process.stderr.read()}'
+        os.killpg(process.pid, signal.SIGSTOP)
+        # Frozen: the driver writes no line and the workers finish no unit until SIGCONT.
+        # What can still be reported is what the workers hold (the unit each checks and the
+        # next, local_pool.DEPTH); units never handed out are provably left to resume.
+        before = [json.loads(line) for line in path.read_text().splitlines()]
+        assert 1 <= len(before) and len(before) + jobs * local_pool.DEPTH < units, (
+            f'{len(before)} of {units} units reported when the run was frozen: too few '
+            f'left to interrupt (exit {process.poll()})')
+        os.killpg(process.pid, signal.SIGINT)
+    finally:
+        with contextlib.suppress(ProcessLookupError):     # also when an assertion failed
+            os.killpg(process.pid, signal.SIGCONT)
     _, err = process.communicate(timeout=60)
-    assert process.returncode == 130, err
+    assert process.returncode == 130, f'exit {process.returncode}: {err}'
     assert 'stopped; the report' in err and '--resume continues it' in err
-    before = [json.loads(line) for line in path.read_text().splitlines()]
-    assert 1 <= len(before) < len(serial_records.records) + len(heavy)
+    stopped = [json.loads(line) for line in path.read_text().splitlines()]   # valid JSON lines
+    assert stopped[:len(before)] == before
+    assert len(stopped) <= len(before) + jobs * local_pool.DEPTH < units
     # Under colcon test the source tree (the working directory) has no engine.
     done = subprocess.run(argv + ['--resume'], capture_output=True, text=True, timeout=300,
                           cwd=str(tmp_path))
     assert done.returncode == 3, done.stderr
     after = [json.loads(line) for line in path.read_text().splitlines()]
-    assert after[:len(before)] == before
+    assert after[:len(stopped)] == stopped
     lines = audit_fleet.by_source(after)
-    assert len(lines) == len(after) == len(serial_records.records) + len(heavy)
+    assert len(lines) == len(after) == units
     for line in serial_records.records:
         assert lines[line['source']] == line
 
