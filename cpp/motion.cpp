@@ -42,6 +42,7 @@ void MotionWork::size_for(const Model& m) {
     }
     heap.reserve(P);
     front.assign(P, {});
+    front_until.assign(P, {});
     front_cost.assign(P, 0);
     marched.reserve(P);
     prev_gap.assign(P, 0.0);
@@ -215,7 +216,12 @@ class MotionQuery {
     void pair_pose(int64_t a, int64_t b, double* pose);
     bool sides(int64_t p);
     void margin(int64_t p, double h2);
-    WithinResult pair_within(int64_t p, const double* pose, double h, double extra = 0.0);
+    WithinResult pair_within(int64_t p, const double* pose, double m, double h, double crude,
+                             double extra = 0.0);
+    // The crude rate (crude_rate) where the path has one, else 0.
+    double crude_or_none(const SplinePath&, int64_t) { return 0.0; }
+    template <class Path>
+    double crude_or_none(const Path&, int64_t p) { return crude_rate(p); }
     double solid_gap(int64_t a, int64_t b, const double* pose) const;
     bool crude_apart(const SplinePath&, int64_t, const double*, double, double*) {
         return false;
@@ -412,7 +418,12 @@ double MotionQuery::solid_gap(int64_t a, int64_t b, const double* P) const {
 // vertex within its margin of a solid element)? Else over what half-width is it apart? The
 // body boxes first; then the trees from the pair's front (the node pairs where its last
 // descent stopped), kept while it stays small and costs no more than a descent from the roots.
-WithinResult MotionQuery::pair_within(int64_t p, const double* pose, double h, double extra) {
+// A node pair of the front proven apart up to the interval's end already (front_until: its own
+// reach, or the pair's crude rate against its gap, from the midpoint m of the test that proved
+// it) is not tested again. Intervals only move forward along a path, and each proof covers its
+// test's whole interval, so such a node pair is apart over [m - h, m + h].
+WithinResult MotionQuery::pair_within(int64_t p, const double* pose, double m, double h,
+                                      double crude, double extra) {
     const int64_t a = m_.pair_a[p], b = m_.pair_b[p];
     if (m_.is_cloud(b))  // a point cloud's voxels (cloud_queries.hpp)
         return cloud_pair_within(m_, a, *m_.clouds[b], pose, h, extra, w_.margin,
@@ -436,11 +447,27 @@ WithinResult MotionQuery::pair_within(int64_t p, const double* pose, double h, d
         reach = std::min(reach, solid_reach);
     }
     std::vector<int64_t>& front = w_.front[p];
+    std::vector<double>& until = w_.front_until[p];
     const bool from_front = !front.empty();
     int64_t* stack = w_.stack.data();
     int64_t n_seeds = 0;
+    w_.recorded.clear();
+    w_.recorded_reach.clear();
+    // The front's node pairs proven apart over the whole interval already (in this query,
+    // and by at least extra) are not tested again: they stay in the front as they are.
+    std::vector<double>& kept = w_.kept_until;
+    kept.clear();
     if (from_front) {
+        if (until.size() * 2 != front.size()) until.assign(front.size() / 2, -INF);
         for (size_t k = 0; k < front.size(); k += 2) {
+            const double u = until[k / 2];
+            if (extra == 0.0 && u >= m + h) {
+                w_.recorded.push_back(front[k]);
+                w_.recorded.push_back(front[k + 1]);
+                kept.push_back(u);
+                reach = std::min(reach, u - m);
+                continue;
+            }
             int64_t* row = stack + 3 * n_seeds++;
             row[0] = front[k];
             row[1] = front[k + 1];
@@ -456,19 +483,24 @@ WithinResult MotionQuery::pair_within(int64_t p, const double* pose, double h, d
             }
         }
     }
-    w_.recorded.clear();
     const int64_t before = counters_[COUNT_BOX_TESTS];
     WithinResult trees = trees_within(n_seeds, pose, m_.forest, box_test,
                                       c_.view.options.expansion, stack, counters_, h, extra,
-                                      mm, m_.padding[a] + m_.padding[b], &w_.recorded);
+                                      mm, m_.padding[a] + m_.padding[b], &w_.recorded,
+                                      &w_.recorded_reach, crude);
     if (trees.within) return trees;  // an incomplete descent: the front stays as it was
     trees.reach = std::min(trees.reach, reach);
     const int64_t cost = counters_[COUNT_BOX_TESTS] - before;
     if (!from_front) w_.front_cost[p] = cost;
-    if (int64_t(w_.recorded.size()) <= 2 * MOTION_FRONT_MAX && cost <= w_.front_cost[p])
+    if (int64_t(w_.recorded.size()) <= 2 * MOTION_FRONT_MAX && cost <= w_.front_cost[p]) {
         front.swap(w_.recorded);
-    else
+        // The kept node pairs come first in the front, then those tested now.
+        until.swap(kept);
+        for (const double x : w_.recorded_reach) until.push_back(extra == 0.0 ? m + x : -INF);
+    } else {
         front.clear();
+        until.clear();
+    }
     return trees;
 }
 
@@ -612,7 +644,7 @@ int MotionQuery::march_step(MotionWork::March& s, const Path& path, double t_end
         path_speeds(path, m, h2);
         sides(s.p);
         margin(s.p, h2);
-        w = pair_within(s.p, pose, h);
+        w = pair_within(s.p, pose, m, h, crude_or_none(path, s.p));
     }
     if (!w.within) {
         if (hi >= t_end) return MARCH_FREE;
@@ -642,6 +674,7 @@ int64_t MotionQuery::march_pairs(const int64_t* list, int64_t n, const Path& pat
     for (int64_t i = 0; i < n; ++i) {
         const int64_t p = list ? list[i] : i;
         if (!known_apart(p)) w_.front[p].clear();
+        w_.front_until[p].clear();
     }
     const auto later = [](const MotionWork::March& x, const MotionWork::March& y) {
         return x.t > y.t;
@@ -656,7 +689,7 @@ int64_t MotionQuery::march_pairs(const int64_t* list, int64_t n, const Path& pat
         if (known_apart(p)) continue;
         pair_pose(m_.pair_a[p], m_.pair_b[p], pose);
         margin(p, 0.0);
-        if (pair_within(p, pose, 0.0).within) {
+        if (pair_within(p, pose, 0.0, 0.0, crude_or_none(path, p)).within) {
             *best = 0.0;
             return p;
         }
@@ -696,7 +729,7 @@ void MotionQuery::contacts(const int64_t* list, int64_t n, const Path& path, dou
         const int64_t p = list ? list[i] : i;
         pair_pose(m_.pair_a[p], m_.pair_b[p], pose);
         margin(p, 0.0);
-        pairs[p] = pair_within(p, pose, 0.0, extra).within ? 1 : 0;
+        pairs[p] = pair_within(p, pose, t, 0.0, crude_or_none(path, p), extra).within ? 1 : 0;
     }
 }
 
@@ -781,6 +814,7 @@ int64_t check_step_motion(MotionContext& c, const double* q0, const double* q1,
         w.start_apart[p] = w.prev_gap[p] > -INF ? 1 : 0;
         std::vector<int64_t>& front = w.front[p];
         front.clear();
+        w.front_until[p].clear();
         const int64_t rows = fronts.state[2 * p];
         if (!w.start_apart[p] || rows == 0 || rows > MOTION_FRONT_MAX || m.is_cloud(m.pair_b[p]))
             continue;

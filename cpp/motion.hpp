@@ -46,8 +46,11 @@ constexpr double MOTION_BOUND_REL = 1e-9;
 // proven (up to MARCH_FACTOR_MAX) and shrinks by MARCH_SHRINK after each that was not (down
 // to MARCH_FACTOR_MIN). Only the work depends on them, never the answer; measured on the
 // Panda and the UR5 in a cluttered cell (node pairs visited: 7,800 per segment with 1.25, 2,
-// 0.7, 0.25; 6,240 with these).
-constexpr double MARCH_GROW = 1.25, MARCH_FACTOR_MAX = 2.0, MARCH_SHRINK = 0.5,
+// 0.7, 0.25; 6,240 with 1.25, 2, 0.5, 0.75). Once a front's node pairs are kept while proven
+// (pair_within), larger intervals cost less: scenario 10's box tests per Panda segment, per
+// UR5 segment and for the 1,000-waypoint Panda path 2,635 / 5,217 / 89,025 with 1.25, 2;
+// 2,658 / 5,189 / 71,913 with these; 2,699 / 5,465 / 72,713 with 2, 4.
+constexpr double MARCH_GROW = 1.5, MARCH_FACTOR_MAX = 3.0, MARCH_SHRINK = 0.5,
                  MARCH_FACTOR_MIN = 0.75;
 // A pair's test starts from the node pairs where its last descent stopped (its front) while
 // that front has at most this many node pairs and starting there costs no more node pairs
@@ -419,7 +422,7 @@ CS_ALWAYS_INLINE bool node_pair_apart(const double* A, const double* B, const do
                                       const double* Ta, const BoxMotion& ma,
                                       const BoxMotion& mb, double h, double extra,
                                       const MotionMargin& motion, int box_method,
-                                      double* reach) {
+                                      double* reach, double* gap = nullptr) {
     const double rate = ma.rate + mb.rate;
     const double r = h * rate + extra;
     auto zeroth = [&](double gap) {
@@ -431,7 +434,9 @@ CS_ALWAYS_INLINE bool node_pair_apart(const double* A, const double* B, const do
     const double radii = A[BOX_RADIUS] + B[BOX_RADIUS];
     const double bound = (radii + r) * (1.0 + SPHERE_EPS_REL);
     if (dd > bound * bound) {
-        *reach = zeroth(std::sqrt(dd) - radii);
+        const double g = std::sqrt(dd) - radii * (1.0 + SPHERE_EPS_REL);
+        *reach = zeroth(g);
+        if (gap) *gap = g;
         return true;
     }
     double T[12], u[3];
@@ -439,6 +444,7 @@ CS_ALWAYS_INLINE bool node_pair_apart(const double* A, const double* B, const do
     const double g = projected_gap(A, B, T, u);
     if (g > r) {
         *reach = zeroth(g);
+        if (gap) *gap = g;
         return true;
     }
     // No direction: the alternating projection met a point of both boxes, which overlap.
@@ -450,6 +456,7 @@ CS_ALWAYS_INLINE bool node_pair_apart(const double* A, const double* B, const do
                                                   B[BOX_RADIUS], mb);
         if (x >= h) {
             *reach = x;
+            if (gap) *gap = g;
             return true;
         }
     }
@@ -458,7 +465,11 @@ CS_ALWAYS_INLINE bool node_pair_apart(const double* A, const double* B, const do
     const double hb[3] = {B[BOX_HALF] + grow, B[BOX_HALF + 1] + grow, B[BOX_HALF + 2] + grow};
     const bool apart = box_method == BOX_TEST_PAPER ? boxes_disjoint_paper(ha, hb, T, T + 9)
                                                     : boxes_disjoint_sat(ha, hb, T, T + 9);
-    if (apart) *reach = std::max(h, zeroth(std::max(face_gap_of(ha, hb, T), 0.0) + r));
+    if (apart) {
+        const double g = std::max(face_gap_of(ha, hb, T), 0.0) + r;
+        *reach = std::max(h, zeroth(g));
+        if (gap) *gap = g;
+    }
     return apart;
 }
 
@@ -474,18 +485,30 @@ CS_ALWAYS_INLINE bool node_pair_apart(const double* A, const double* B, const do
 // tested apart) is appended to it, (na, nb) each: with no triangles within, they cover every
 // pair of triangles under the seeds once, whatever the pose, so a later test of the pair may
 // start from them instead of the roots (motion.cpp: pair_within keeps them per pair).
+// front_reach: then, for each, a half-width of the parameter over which it stays apart: its
+// own reach, or further by crude (when > 0: a bound of how fast any point of either body
+// moves relative to the other over the whole path, per unit of the parameter, the planning's
+// reach rows) against the gap it was proven apart by, which holds however far the path goes.
 inline WithinResult trees_within(int64_t n_seeds, const double* P, const Forest& f,
                                  int box_method, int expansion, int64_t* stack,
                                  int64_t* counters, double h, double extra,
                                  MotionMargin& motion, double pad,
-                                 std::vector<int64_t>* front = nullptr) {
+                                 std::vector<int64_t>* front = nullptr,
+                                 std::vector<double>* front_reach = nullptr,
+                                 double crude = 0.0) {
     double reach = motion.h2;
     const double* Ta = motion.side[0].T;
     int64_t n_boxes = 0, n_triangles = 0;
-    auto stopped = [front](int64_t na, int64_t nb) {
+    const bool crude_holds = crude > 0.0 && crude < INF;
+    auto stopped = [&](int64_t na, int64_t nb, double x, double gap) {
         if (front) {
             front->push_back(na);
             front->push_back(nb);
+            if (front_reach) {
+                if (crude_holds && gap > extra)
+                    x = std::max(x, (gap - extra) / crude * (1.0 - MOTION_BOUND_REL));
+                front_reach->push_back(x);
+            }
         }
     };
     int64_t top = n_seeds;
@@ -498,10 +521,10 @@ inline WithinResult trees_within(int64_t n_seeds, const double* P, const Forest&
         const BoxMotion& ma = motion.node(f, na, 0);
         const BoxMotion& mb = motion.node(f, nb, 1);
         ++n_boxes;
-        double x;
-        if (node_pair_apart(A, B, P, Ta, ma, mb, h, extra, motion, box_method, &x)) {
+        double x, gap;
+        if (node_pair_apart(A, B, P, Ta, ma, mb, h, extra, motion, box_method, &x, &gap)) {
             reach = std::min(reach, x);
-            stopped(na, nb);
+            stopped(na, nb, x, gap);
             continue;
         }
         const int64_t* node_a = f.node(na);
@@ -511,6 +534,7 @@ inline WithinResult trees_within(int64_t n_seeds, const double* P, const Forest&
         if (leaf_a && leaf_b) {
             const double rate = ma.rate + mb.rate;
             const double r = h * rate + extra;
+            double leaf_reach = motion.h2, leaf_gap = INF;
             Triangle Q;
             for (int64_t ib = node_b[NODE_FIRST]; ib < node_b[NODE_FIRST] + node_b[NODE_COUNT];
                  ++ib) {
@@ -544,9 +568,11 @@ inline WithinResult trees_within(int64_t n_seeds, const double* P, const Forest&
                         return {true, r, std::max(got, 0.0)};
                     }
                     reach = std::min(reach, got);
+                    leaf_reach = std::min(leaf_reach, got);
+                    leaf_gap = std::min(leaf_gap, distance);
                 }
             }
-            stopped(na, nb);
+            stopped(na, nb, leaf_reach, leaf_gap);
             continue;
         }
         const bool expand_a = expand_first(f, na, nb, A, B, leaf_a, leaf_b, level, expansion);
@@ -654,6 +680,10 @@ struct MotionWork {
     MotionMargin margin{};
     std::vector<March> heap;
     std::vector<std::vector<int64_t>> front;  // (P,) each pair's front (pair_within)
+    // (P,) per node pair of the front, the parameter up to which it is proven apart in the
+    // query at hand (-INF: not known; empty while the front was set from elsewhere).
+    std::vector<std::vector<double>> front_until;
+    std::vector<double> recorded_reach, kept_until;
     std::vector<int64_t> front_cost;          // (P,) its last descent's node pairs
     std::vector<int64_t> recorded, stack, marched;
     std::vector<double> prev_gap, prev_sums;  // (P,), (P, 2): update_motion's MotionRecord
