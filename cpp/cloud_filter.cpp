@@ -2,6 +2,7 @@
 #include "cloud_filter.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -26,6 +27,10 @@ constexpr int64_t MIN_TABLE = 4096;
 constexpr int64_t MIN_CHUNK_ROWS = 20000;
 // Entries of the first pass's table of recent voxels (a power of 2).
 constexpr int64_t RECENT = 1024;
+// The fewest near voxels per thread collecting candidates (about 0.4 ms of traversal), and
+// the fewest candidates per thread classifying the voxels (about 0.2 ms of distances).
+constexpr int64_t MIN_NEAR_VOXELS = 256;
+constexpr int64_t MIN_CLASSIFIED = 10000;
 
 uint64_t pack_key(int64_t i, int64_t j, int64_t k) {
     return uint64_t(i + VOXEL_COORD_LIMIT) | uint64_t(j + VOXEL_COORD_LIMIT) << 21 |
@@ -206,24 +211,61 @@ void CloudBuilder::tally_rows(const RowPass& p, int64_t begin, int64_t end, Tall
 // Every (voxel, body, triangle or solid) whose tree node's box, grown by r, may come near the
 // voxel's points' box: the robot's trees against the filter's hierarchy (leaves: one voxel
 // each), both as world-aligned boxes (a node's oriented box at the cloud's state, its world
-// box grown by r: a broad phase; classify measures the distances).
-void CloudBuilder::collect_candidates(const Model& m, const double* T_links, double r) {
-    candidates_.clear();
+// box grown by r: a broad phase; classify measures the distances). The elements are shared
+// out to up to `threads` threads, one at a time to whichever is free (their work differs by
+// orders of magnitude); sorted_ then gathers each voxel's candidates in element order.
+void CloudBuilder::collect_candidates(const Model& m, const double* T_links, double r,
+                                      int64_t threads) {
+    node_world_.resize(6 * m.n_nodes);
+    node_stamp_.resize(m.n_nodes, 0);
+    ++stamp_;
+    elements_.clear();
+    for (int64_t b = 0; b < m.n_links; ++b)
+        for (int64_t e = m.elem_start[b]; e < m.elem_end[b]; ++e) elements_.push_back({b, e});
+    const int64_t n_elements = int64_t(elements_.size());
+    found_.resize(n_elements);
+    const int64_t n_near = int64_t(order_.size());
+    const int64_t k = std::max<int64_t>(
+        1, std::min({threads, n_elements, n_near / MIN_NEAR_VOXELS}));
+    if (int64_t(work_.size()) < k) work_.resize(k);
+    std::atomic<int64_t> next{0};
+    run_chunks(k, [&](int64_t c) {
+        FilterWork& work = work_[c];
+        work.found.clear();
+        for (int64_t i = next++; i < n_elements; i = next++) {
+            const int64_t begin = int64_t(work.found.size());
+            element_candidates(m, T_links, r, elements_[i].first, elements_[i].second, work);
+            found_[i] = {c, begin, int64_t(work.found.size())};
+        }
+    });
+    // By voxel (counting sort), the elements in order.
+    start_.assign(tally_.n + 1, 0);
+    for (const Found& at : found_)
+        for (int64_t j = at.begin; j < at.end; ++j) ++start_[work_[at.thread].found[j].voxel + 1];
+    for (int64_t v = 0; v < tally_.n; ++v) start_[v + 1] += start_[v];
+    sorted_.resize(start_[tally_.n]);
+    std::vector<int64_t>& next_at = work_[0].stack;
+    next_at.assign(start_.begin(), start_.end() - 1);
+    for (const Found& at : found_) {
+        const Candidate* found = work_[at.thread].found.data();
+        for (int64_t j = at.begin; j < at.end; ++j) sorted_[next_at[found[j].voxel]++] = found[j];
+    }
+}
+
+// Element e of body b against the filter's hierarchy: its candidates appended to work.found.
+void CloudBuilder::element_candidates(const Model& m, const double* T_links, double r,
+                                      int64_t b, int64_t e, FilterWork& work) {
     const Forest& f = m.forest;
     const double* tree_boxes = filter_boxes_.data();
     const int64_t* tree_nodes = filter_nodes_.data();
     auto fbox = [&](int64_t n) { return tree_boxes + BOX_WIDTH * n; };
     auto fnode = [&](int64_t n) { return tree_nodes + NODE_WIDTH * n; };
-    node_world_.resize(6 * m.n_nodes);
-    node_stamp_.resize(m.n_nodes, 0);
-    ++stamp_;
-    const double* root = fbox(0);
+    const double* T = T_links + 16 * b;
     // A robot node's world box (centre, half extents), grown by r.
-    auto world_box = [&](int64_t b, int64_t n) {
+    auto world_box = [&](int64_t n) {
         double* out = node_world_.data() + 6 * n;
         if (node_stamp_[n] == stamp_) return out;
         node_stamp_[n] = stamp_;
-        const double* T = T_links + 16 * b;
         const double* box = f.box(n);
         for (int i = 0; i < 3; ++i) {
             double c = T[4 * i + 3], e = r;
@@ -244,72 +286,92 @@ void CloudBuilder::collect_candidates(const Model& m, const double* T_links, dou
                std::fabs(A[1] - B[1]) <= A[4] + B[BOX_HALF + 1] &&
                std::fabs(A[2] - B[2]) <= A[5] + B[BOX_HALF + 2];
     };
-    for (int64_t b = 0; b < m.n_links; ++b) {
-        for (int64_t e = m.elem_start[b]; e < m.elem_end[b]; ++e) {
-            if (!overlap(world_box(b, m.roots[e]), root)) continue;
-            const bool solid = m.elem_solid[SOLID_WIDTH * e] != SOLID_NONE;
-            // The element's triangles against the voxels (its solid, with its root box).
-            for (int pass = 0; pass < (solid ? 2 : 1); ++pass) {
-                stack_.clear();
-                stack_.push_back(m.roots[e]);
-                stack_.push_back(0);
-                while (!stack_.empty()) {
-                    const int64_t nb = stack_.back();
-                    stack_.pop_back();
-                    const int64_t na = stack_.back();
-                    stack_.pop_back();
-                    const double* A = world_box(b, na);
-                    const double* B = fbox(nb);
-                    if (!overlap(A, B)) continue;
-                    const int64_t* node_a = f.node(na);
-                    const int64_t* node_b = fnode(nb);
-                    const bool leaf_a = pass == 1 || node_a[NODE_LEFT] < 0;
-                    const bool leaf_b = node_b[NODE_LEFT] < 0;
-                    if (leaf_a && leaf_b) {
-                        const int64_t voxel = order_[node_b[NODE_FIRST]];
-                        if (pass == 1) {
-                            candidates_.push_back({voxel, b, -1 - e});
-                        } else {
-                            for (int64_t t = node_a[NODE_FIRST];
-                                 t < node_a[NODE_FIRST] + node_a[NODE_COUNT]; ++t)
-                                candidates_.push_back({voxel, b, t});
-                        }
-                        continue;
-                    }
-                    const double ra = A[3] + A[4] + A[5];
-                    const double rb = B[BOX_HALF] + B[BOX_HALF + 1] + B[BOX_HALF + 2];
-                    if (!leaf_a && (leaf_b || ra >= rb)) {
-                        stack_.insert(stack_.end(),
-                                      {node_a[NODE_LEFT], nb, node_a[NODE_RIGHT], nb});
-                    } else {
-                        stack_.insert(stack_.end(),
-                                      {na, node_b[NODE_LEFT], na, node_b[NODE_RIGHT]});
-                    }
+    if (!overlap(world_box(m.roots[e]), fbox(0))) return;
+    std::vector<int64_t>& stack = work.stack;
+    std::vector<Candidate>& out = work.found;
+    const bool solid = m.elem_solid[SOLID_WIDTH * e] != SOLID_NONE;
+    // The element's triangles against the voxels (its solid, with its root box).
+    for (int pass = 0; pass < (solid ? 2 : 1); ++pass) {
+        stack.clear();
+        stack.push_back(m.roots[e]);
+        stack.push_back(0);
+        while (!stack.empty()) {
+            const int64_t nb = stack.back();
+            stack.pop_back();
+            const int64_t na = stack.back();
+            stack.pop_back();
+            const double* A = world_box(na);
+            const double* B = fbox(nb);
+            if (!overlap(A, B)) continue;
+            const int64_t* node_a = f.node(na);
+            const int64_t* node_b = fnode(nb);
+            const bool leaf_a = pass == 1 || node_a[NODE_LEFT] < 0;
+            const bool leaf_b = node_b[NODE_LEFT] < 0;
+            if (leaf_a && leaf_b) {
+                const int64_t voxel = order_[node_b[NODE_FIRST]];
+                if (pass == 1) {
+                    out.push_back({voxel, b, -1 - e});
+                } else {
+                    for (int64_t t = node_a[NODE_FIRST];
+                         t < node_a[NODE_FIRST] + node_a[NODE_COUNT]; ++t)
+                        out.push_back({voxel, b, t});
                 }
+                continue;
+            }
+            const double ra = A[3] + A[4] + A[5];
+            const double rb = B[BOX_HALF] + B[BOX_HALF + 1] + B[BOX_HALF + 2];
+            if (!leaf_a && (leaf_b || ra >= rb)) {
+                stack.insert(stack.end(), {node_a[NODE_LEFT], nb, node_a[NODE_RIGHT], nb});
+            } else {
+                stack.insert(stack.end(), {na, node_b[NODE_LEFT], na, node_b[NODE_RIGHT]});
             }
         }
     }
-    // By voxel (counting sort).
-    start_.assign(tally_.n + 1, 0);
-    for (const Candidate& c : candidates_) ++start_[c.voxel + 1];
-    for (int64_t v = 0; v < tally_.n; ++v) start_[v + 1] += start_[v];
-    sorted_.resize(candidates_.size());
-    std::vector<int64_t>& next = stack_;
-    next.assign(start_.begin(), start_.end() - 1);
-    for (const Candidate& c : candidates_) sorted_[next[c.voxel]++] = c;
+}
+
+// Every voxel's class (class_) and the MIXED ones' nearby lists (near_, near_start_): the
+// voxels in up to `threads` contiguous runs of about as many candidates each, every run's
+// lists in its thread's work, then joined in voxel order (the one thread's lists).
+void CloudBuilder::classify_voxels(const Model& m, double r, int64_t threads) {
+    const int64_t V = tally_.n, total = start_[V];
+    const int64_t k = std::max<int64_t>(1, std::min(threads, total / MIN_CLASSIFIED));
+    if (int64_t(work_.size()) < k) work_.resize(k);
+    near_start_.assign(V + 1, 0);
+    // Run c: voxels [first[c], first[c + 1]), from the first voxel whose candidates start at
+    // or past c total / k.
+    std::vector<int64_t>& first = work_[0].stack;
+    first.assign(k + 1, V);
+    first[0] = 0;
+    for (int64_t c = 1; c < k; ++c)
+        first[c] = std::lower_bound(start_.begin(), start_.end() - 1, c * total / k) -
+                   start_.begin();
+    run_chunks(k, [&](int64_t c) {
+        std::vector<Nearby>& near = work_[c].near;
+        near.clear();
+        for (int64_t v = first[c]; v < first[c + 1]; ++v) {
+            near_start_[v] = int64_t(near.size());
+            if (start_[v] < start_[v + 1]) class_[v] = uint8_t(classify(m, v, r, near));
+        }
+    });
+    near_.clear();
+    for (int64_t c = 0; c < k; ++c) {
+        const int64_t offset = int64_t(near_.size());
+        for (int64_t v = first[c]; v < first[c + 1]; ++v) near_start_[v] += offset;
+        near_.insert(near_.end(), work_[c].near.begin(), work_[c].near.end());
+    }
+    near_start_[V] = int64_t(near_.size());
 }
 
 // Voxel v's class (KEEP, DROP, MIXED) from its candidates, with its nearby list (distances
 // from its points' box centre, nearest first) for MIXED.
-int CloudBuilder::classify(const Model& m, int64_t v, double r) {
+int CloudBuilder::classify(const Model& m, int64_t v, double r, std::vector<Nearby>& near) {
     const double* lo = tally_.lo.data() + 3 * v;
     const double* hi = tally_.hi.data() + 3 * v;
     const double c[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
     const double h0 = 0.5 * (hi[0] - lo[0]), h1 = 0.5 * (hi[1] - lo[1]),
                  h2 = 0.5 * (hi[2] - lo[2]);
     const double h = std::sqrt(h0 * h0 + h1 * h1 + h2 * h2);
-    const int64_t first = near_.size();
-    near_start_[v] = first;
+    const int64_t first = near.size();
     bool far = true, closed_mesh = false;
     for (int64_t k = start_[v]; k < start_[v + 1]; ++k) {
         const Candidate& cand = sorted_[k];
@@ -323,34 +385,34 @@ int CloudBuilder::classify(const Model& m, int64_t v, double r) {
             const double* s = m.elem_solid + SOLID_WIDTH * (-1 - cand.item);
             if (int(s[0]) == SOLID_CLOSED_MESH) {
                 closed_mesh = true;
-                near_.push_back({INF, cand.body, cand.item});
+                near.push_back({INF, cand.body, cand.item});
                 continue;
             }
             d = solid_distance(s, x);
         }
         if (d + h <= r) {
-            near_.resize(first);
+            near.resize(first);
             return DROP;
         }
         far &= d - h > r;
-        near_.push_back({d, cand.body, cand.item});
+        near.push_back({d, cand.body, cand.item});
     }
     if (far) {
         // No surface comes within r of the points' box: every point is on the same side of
         // each closed mesh; the centre tells which.
         bool inside = false;
         if (closed_mesh) {
-            for (int64_t k = first; k < int64_t(near_.size()) && !inside; ++k) {
-                if (near_[k].distance < INF) continue;
+            for (int64_t k = first; k < int64_t(near.size()) && !inside; ++k) {
+                if (near[k].distance < INF) continue;
                 double x[3];
-                apply(body_pose_.data() + 12 * near_[k].body, c, x);
-                inside = inside_solid(m, -1 - near_[k].item, x);
+                apply(body_pose_.data() + 12 * near[k].body, c, x);
+                inside = inside_solid(m, -1 - near[k].item, x);
             }
         }
-        near_.resize(first);
+        near.resize(first);
         return inside ? DROP : KEEP;
     }
-    std::sort(near_.begin() + first, near_.end(),
+    std::sort(near.begin() + first, near.end(),
               [](const Nearby& a, const Nearby& b) { return a.distance < b.distance; });
     return MIXED;
 }
@@ -541,22 +603,17 @@ CloudStats CloudBuilder::build(const Model& m, const double* T_links, const Clou
     }
     build_box_hierarchy(codes_.data(), item_lo_.data(), item_hi_.data(), n_near, 1,
                         filter_nodes_, filter_boxes_);
-    if (n_near > 0) collect_candidates(m, T_links, r);
+    if (n_near > 0) collect_candidates(m, T_links, r, s.threads);
     else start_.assign(V + 1, 0);
 
     // Each near voxel's class (its near points kept, removed, or tested one by one); the
     // others keep theirs. Points are read again only where needed.
     class_.assign(V, KEEP);
     kept_.assign(V, 0);
-    near_.clear();
-    near_start_.assign(V + 1, 0);
+    classify_voxels(m, r, s.threads);
     bool again = kept && s.keep_points;
-    for (int64_t v = 0; v < V; ++v) {
-        near_start_[v] = near_.size();
-        if (start_[v] < start_[v + 1]) class_[v] = uint8_t(classify(m, v, r));
+    for (int64_t v = 0; v < V; ++v)
         again |= class_[v] == MIXED || (class_[v] == DROP && tally_.near_count[v] < tally_.count[v]);
-    }
-    near_start_[V] = near_.size();
     if (kept) kept->clear();
     const bool keep_rows = kept && s.keep_points;
     if (again) {

@@ -52,8 +52,9 @@ struct CloudSettings {
     double persistence;     // s; 0: only this cloud
     int64_t frame;          // the engine link the points are in, -1: the world
     bool keep_points;       // write the points not removed (world frame)
-    int64_t threads = 1;    // the rows' first pass on up to this many threads (>= 1; the
-                            // answer is the same on any number)
+    int64_t threads = 1;    // the rows' first pass, the candidates and the near voxels'
+                            // classes on up to this many threads (>= 1; the answer is the
+                            // same on any number)
 };
 
 // What became of a cloud's rows (their sum: points = capped + invalid + out_of_range +
@@ -120,8 +121,22 @@ class CloudBuilder {
     static void tally_rows(const RowPass& pass, int64_t begin, int64_t end, Tally& tally,
                            int32_t* row_voxel);
 
-    void collect_candidates(const Model& m, const double* T_links, double r);
-    int classify(const Model& m, int64_t v, double r);
+    // One thread's work areas for the candidates and the classes (a cache line apart from
+    // another thread's: their ends are written at every push).
+    struct alignas(64) FilterWork {
+        std::vector<int64_t> stack;
+        std::vector<Candidate> found;  // the candidates of its elements, element after element
+        std::vector<Nearby> near;      // its voxels' nearby lists, in voxel order
+    };
+    // Where an element's candidates went: found[begin, end) of thread `thread`'s work.
+    struct Found {
+        int64_t thread, begin, end;
+    };
+    void collect_candidates(const Model& m, const double* T_links, double r, int64_t threads);
+    void element_candidates(const Model& m, const double* T_links, double r, int64_t b,
+                            int64_t e, FilterWork& work);
+    void classify_voxels(const Model& m, double r, int64_t threads);
+    int classify(const Model& m, int64_t v, double r, std::vector<Nearby>& near);
     bool removed(const Model& m, const double* x, double r, const Nearby* near,
                  int64_t n_near, const double* centre);
 
@@ -144,14 +159,22 @@ class CloudBuilder {
     std::vector<double> item_lo_, item_hi_;
     std::vector<int64_t> filter_nodes_;
     std::vector<double> filter_boxes_;
-    std::vector<Candidate> candidates_, sorted_;
+    // The robot's elements (body, element) in the order one thread visits them, and where
+    // each one's candidates went: each element is traversed by one thread, and sorted_
+    // gathers them in element order, so the list is the one thread's on any number.
+    std::vector<std::pair<int64_t, int64_t>> elements_;
+    std::vector<Found> found_;
+    std::vector<Candidate> sorted_;
     std::vector<int64_t> start_;  // (V0 + 1,) each voxel's candidates in sorted_
-    std::vector<int64_t> stack_;
+    std::vector<FilterWork> work_;  // per thread
     std::vector<Nearby> near_;    // (V0 candidates) by voxel, nearest first
     std::vector<int64_t> near_start_;
     std::vector<double> body_pose_;  // per body: R' (row-major), -R' t: world -> body
-    std::vector<double> node_world_;     // (N, 6) robot nodes' world boxes (centre, half)
-    std::vector<int64_t> node_stamp_;    // (N,) valid where == stamp_
+    // (N, 6) robot nodes' world boxes (centre, half), valid where node_stamp_ == stamp_. A
+    // node belongs to one element's tree (model.cpp checks it), and an element to one thread:
+    // no entry is written by two threads.
+    std::vector<double> node_world_;
+    std::vector<int64_t> node_stamp_;
     int64_t stamp_ = 0;
     // The kept voxels.
     std::vector<int32_t> out_ijk_;

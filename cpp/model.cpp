@@ -67,11 +67,13 @@ void check_indices(const Model& m, int64_t n_joint_pairs, int64_t n_joint_links)
 }
 
 // Each tree's triangle range and depth, walking it from its root (a node reached twice is
-// a cycle, not a tree).
+// a cycle, not a tree, or a node of two trees: each tree's nodes are its own, which the
+// caches keyed by node rely on, e.g. cloud_filter.cpp's world boxes at one body's pose).
 void derive_trees(Model& m) {
     m.elem_tris.assign(2 * m.n_elements, 0);
     m.depth = 1;
     std::vector<std::pair<int64_t, int64_t>> pending;  // (node, its depth)
+    std::vector<uint8_t> reached(m.n_nodes, 0);
     for (int64_t e = 0; e < m.n_elements; ++e) {
         int64_t lo = m.n_triangles, hi = 0;
         pending.assign(1, {m.roots[e], 1});
@@ -79,6 +81,8 @@ void derive_trees(Model& m) {
             require(visits <= m.n_nodes, "nodes", "not a tree");
             const auto [n, level] = pending.back();
             pending.pop_back();
+            require(!reached[n], "nodes", "a node reached twice (a cycle, or two trees share it)");
+            reached[n] = 1;
             m.depth = std::max(m.depth, level);
             const int64_t* node = m.forest.node(n);
             if (node[NODE_LEFT] >= 0) {

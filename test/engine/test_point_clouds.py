@@ -427,6 +427,53 @@ def test_threads_give_the_cloud_of_one_thread(erd_share, erd_package_paths, thre
     assert a.stats.persisted > 0
 
 
+@pytest.fixture(scope='module')
+def camera_clouds():
+    """Scenario 12's cell (a Panda on a table beside a wall, a box nobody modelled) seen by
+    its 640 x 480 depth camera at three random states: (q, (307200, 3) float32 world cloud)."""
+    from collision_sensor.engine.sampling import random_configurations
+    from collision_sensor.tools.bench import scenario_clouds
+    from collision_sensor.tools.bench.scenario_cells import robot_cell
+    from collision_sensor.tools.depth_camera import DepthCamera
+    cell = robot_cell('panda')
+    world = cell.checker()
+    world.apply_scene_changes(scenario_clouds.cell_changes('bench'))
+    states = random_configurations(world, 3, 2929)
+    return cell, scenario_clouds.clouds(world, DepthCamera(noise=0.002),
+                                        scenario_clouds.CAMERA_POSE, states, 2929)
+
+
+@pytest.mark.parametrize('threads', [2, 3, 7])
+def test_threads_give_the_camera_cloud_of_one_thread(camera_clouds, threads):
+    """A real camera's clouds of the Panda (about 1,700 voxels near the robot, 45,000
+    voxel-triangle candidates: the candidates are collected on up to 6 threads, the near
+    voxels classified on up to 4) give on any number of threads what one thread gives, to the
+    bit: stats, the points kept (row order), the voxels (their order), the links in contact,
+    the distances and witness points (min_distance) and the verdicts of the pairs."""
+    cell, clouds = camera_clouds
+    one, many = cell.checker(), cell.checker()
+    for step, (q, cloud) in enumerate(clouds):
+        options = dict(positions=q, stamp=float(step), persistence=0.5 if step else 0.0)
+        a = one.prepare_points(SOURCE, cloud, keep_points=True, threads=1, **options)
+        b = many.prepare_points(SOURCE, cloud, keep_points=True, threads=threads, **options)
+        assert a.stats == b.stats, step
+        assert a.stats.self_filtered > 1000 and a.stats.kept_points > 100_000, a.stats
+        assert np.array_equal(a.kept, b.kept), step
+        one.commit_points(a)
+        many.commit_points(b)
+        (centres_a, size), (centres_b, _) = one.cloud_voxels(SOURCE), many.cloud_voxels(SOURCE)
+        assert np.array_equal(centres_a, centres_b), step
+        result_a, result_b = one.update(q), many.update(q)
+        assert result_a.colliding_pairs == result_b.colliding_pairs, step
+        assert sorted(one.checked_pairs) == sorted(many.checked_pairs)
+        near_a, near_b = one.proximity(q, 0.1), many.proximity(q, 0.1)
+        assert any(CLOUD in (r.link_a, r.link_b) for r in near_a), step
+        assert [(r.link_a, r.link_b, r.distance) for r in near_a] == \
+            [(r.link_a, r.link_b, r.distance) for r in near_b], step
+        for r, t in zip(near_a, near_b):
+            assert np.array_equal(r.point_a, t.point_a) and np.array_equal(r.point_b, t.point_b)
+
+
 def test_a_cloud_rechecks_only_its_pairs(panda):
     checker, _ = panda
     rng = np.random.default_rng(17)
