@@ -31,6 +31,8 @@ constexpr int64_t RECENT = 1024;
 // the fewest candidates per thread classifying the voxels (about 0.2 ms of distances).
 constexpr int64_t MIN_NEAR_VOXELS = 256;
 constexpr int64_t MIN_CLASSIFIED = 10000;
+// Numbers cached per robot node in collect_candidates (its world boxes).
+constexpr int64_t NODE_WORLD = 18;
 
 uint64_t pack_key(int64_t i, int64_t j, int64_t k) {
     return uint64_t(i + VOXEL_COORD_LIMIT) | uint64_t(j + VOXEL_COORD_LIMIT) << 21 |
@@ -210,13 +212,14 @@ void CloudBuilder::tally_rows(const RowPass& p, int64_t begin, int64_t end, Tall
 
 // Every (voxel, body, triangle or solid) whose tree node's box, grown by r, may come near the
 // voxel's points' box: the robot's trees against the filter's hierarchy (leaves: one voxel
-// each), both as world-aligned boxes (a node's oriented box at the cloud's state, its world
-// box grown by r: a broad phase; classify measures the distances). The elements are shared
-// out to up to `threads` threads, one at a time to whichever is free (their work differs by
-// orders of magnitude); sorted_ then gathers each voxel's candidates in element order.
+// each, world-aligned boxes), a robot node's box grown by r at the cloud's state tested on
+// the world's axes and its own (a broad phase; classify measures the distances). The elements
+// are shared out to up to `threads` threads, one at a time to whichever is free (their work
+// differs by orders of magnitude); sorted_ then gathers each voxel's candidates in element
+// order.
 void CloudBuilder::collect_candidates(const Model& m, const double* T_links, double r,
                                       int64_t threads) {
-    node_world_.resize(6 * m.n_nodes);
+    node_world_.resize(NODE_WORLD * m.n_nodes);
     node_stamp_.resize(m.n_nodes, 0);
     ++stamp_;
     elements_.clear();
@@ -261,12 +264,15 @@ void CloudBuilder::element_candidates(const Model& m, const double* T_links, dou
     auto fbox = [&](int64_t n) { return tree_boxes + BOX_WIDTH * n; };
     auto fnode = [&](int64_t n) { return tree_nodes + NODE_WIDTH * n; };
     const double* T = T_links + 16 * b;
-    // A robot node's world box (centre, half extents), grown by r.
+    // A robot node's world-aligned box (centre, half extents) and its own box's world axes
+    // and half extents, both grown by r (NODE_WORLD numbers: c, e, W (W[3k + i]: axis k's
+    // world coordinate i), h).
     auto world_box = [&](int64_t n) {
-        double* out = node_world_.data() + 6 * n;
+        double* out = node_world_.data() + NODE_WORLD * n;
         if (node_stamp_[n] == stamp_) return out;
         node_stamp_[n] = stamp_;
         const double* box = f.box(n);
+        double* W = out + 6;
         for (int i = 0; i < 3; ++i) {
             double c = T[4 * i + 3], e = r;
             for (int k = 0; k < 3; ++k) {
@@ -274,17 +280,35 @@ void CloudBuilder::element_candidates(const Model& m, const double* T_links, dou
                 const double axis = T[4 * i] * box[BOX_AXES + k] +
                                     T[4 * i + 1] * box[BOX_AXES + 3 + k] +
                                     T[4 * i + 2] * box[BOX_AXES + 6 + k];
+                W[3 * k + i] = axis;
                 e += std::fabs(axis) * box[BOX_HALF + k];
             }
             out[i] = c;
             out[3 + i] = e * (1.0 + 1e-9) + 1e-9 * std::fabs(c);  // rounding: err wide
+            out[15 + i] = (box[BOX_HALF + i] + r) * (1.0 + 1e-9) + 1e-9 * std::fabs(c);
         }
         return out;
     };
-    auto overlap = [](const double* A, const double* B) {  // world box vs a box row
-        return std::fabs(A[0] - B[0]) <= A[3] + B[BOX_HALF] &&
-               std::fabs(A[1] - B[1]) <= A[4] + B[BOX_HALF + 1] &&
-               std::fabs(A[2] - B[2]) <= A[5] + B[BOX_HALF + 2];
+    // False when a robot node's box grown by r and a box row of the hierarchy (world-aligned)
+    // are apart on a world axis or on an axis k of the node's box (the row reaches
+    // sum_i |W_k[i]| half_i along it). The node's axes cut 30 % of scenario 12's candidates
+    // (44,518 -> 31,615 on a cloud), which its world box, up to sqrt(3) wider than the node
+    // on each axis when tilted, lets through. Both err wide (rounding).
+    auto overlap = [](const double* A, const double* B) {
+        const double* h = B + BOX_HALF;
+        const double d[3] = {B[0] - A[0], B[1] - A[1], B[2] - A[2]};
+        if (!(std::fabs(d[0]) <= A[3] + h[0] && std::fabs(d[1]) <= A[4] + h[1] &&
+              std::fabs(d[2]) <= A[5] + h[2]))
+            return false;
+        const double slack = 1e-9 * (std::fabs(B[0]) + std::fabs(B[1]) + std::fabs(B[2]));
+        for (int k = 0; k < 3; ++k) {
+            const double* w = A + 6 + 3 * k;
+            const double along = w[0] * d[0] + w[1] * d[1] + w[2] * d[2];
+            const double reach =
+                std::fabs(w[0]) * h[0] + std::fabs(w[1]) * h[1] + std::fabs(w[2]) * h[2];
+            if (std::fabs(along) > A[15 + k] + reach * (1.0 + 1e-9) + slack) return false;
+        }
+        return true;
     };
     if (!overlap(world_box(m.roots[e]), fbox(0))) return;
     std::vector<int64_t>& stack = work.stack;

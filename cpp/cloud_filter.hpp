@@ -170,9 +170,9 @@ class CloudBuilder {
     std::vector<Nearby> near_;    // (V0 candidates) by voxel, nearest first
     std::vector<int64_t> near_start_;
     std::vector<double> body_pose_;  // per body: R' (row-major), -R' t: world -> body
-    // (N, 6) robot nodes' world boxes (centre, half), valid where node_stamp_ == stamp_. A
-    // node belongs to one element's tree (model.cpp checks it), and an element to one thread:
-    // no entry is written by two threads.
+    // (N, 18) robot nodes' world boxes (cloud_filter.cpp: NODE_WORLD), valid where
+    // node_stamp_ == stamp_. A node belongs to one element's tree (model.cpp checks it), and
+    // an element to one thread: no entry is written by two threads.
     std::vector<double> node_world_;
     std::vector<int64_t> node_stamp_;
     int64_t stamp_ = 0;
