@@ -640,48 +640,69 @@ CloudStats CloudBuilder::build(const Model& m, const double* T_links, const Clou
         again |= class_[v] == MIXED || (class_[v] == DROP && tally_.near_count[v] < tally_.count[v]);
     if (kept) kept->clear();
     const bool keep_rows = kept && s.keep_points;
+    // Voxels kept or removed whole need no row read: their counts first.
+    for (int64_t v = 0; v < V; ++v) {
+        if (class_[v] == KEEP) {
+            kept_[v] = tally_.count[v];
+            stats.kept_points += tally_.count[v];
+        } else if (class_[v] == DROP && tally_.near_count[v] == tally_.count[v]) {
+            stats.self_filtered += tally_.count[v];
+        }
+    }
     if (again) {
-        for (int64_t t = 0; t < taken; ++t) {
-            const int64_t v = row_voxel_[t];
-            if (v < 0) continue;
-            const uint8_t c = class_[v];
-            if (c == DROP && tally_.near_count[v] == tally_.count[v]) {
-                ++stats.self_filtered;
-                continue;
+        // The other rows (and every row when they are written) on up to `threads` threads,
+        // contiguous chunks: chunk 0 into kept_ and kept, chunk c >= 1 into rows_[c - 1],
+        // added and appended in chunk order (the one thread's counts and rows).
+        const int64_t k = std::max<int64_t>(
+            1, std::min<int64_t>(s.threads, taken / MIN_CHUNK_ROWS));
+        if (int64_t(rows_.size()) < k - 1) rows_.resize(k - 1);
+        run_chunks(k, [&](int64_t c) {
+            const Chunk rows = chunk_of(c, k, taken);
+            KeptRows* own = c == 0 ? nullptr : &rows_[c - 1];
+            if (own) {
+                own->counts.assign(V, 0);
+                own->points.clear();
+                own->self_filtered = 0;
             }
-            if (c == KEEP && !keep_rows) {  // kept untested: nothing to read
-                ++kept_[v];
-                ++stats.kept_points;
-                continue;
-            }
-            double x[3], w[3];
-            read_row(pts, t * step, x);
-            apply(frame, x, w);
-            if (c != KEEP && in_region(w)) {
-                const double* lo = tally_.lo.data() + 3 * v;
-                const double* hi = tally_.hi.data() + 3 * v;
-                const double centre[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]),
-                                          0.5 * (lo[2] + hi[2])};
-                if (c == DROP || removed(m, w, r, near_.data() + near_start_[v],
-                                         near_start_[v + 1] - near_start_[v], centre)) {
-                    ++stats.self_filtered;
-                    continue;
+            int32_t* counts = own ? own->counts.data() : kept_.data();
+            std::vector<float>* points = own ? &own->points : kept;
+            int64_t self_filtered = 0;
+            for (int64_t t = rows.begin; t < rows.end; ++t) {
+                const int64_t v = row_voxel_[t];
+                if (v < 0) continue;
+                const uint8_t cls = class_[v];
+                if (cls == KEEP ? !keep_rows
+                                : cls == DROP && tally_.near_count[v] == tally_.count[v])
+                    continue;  // counted above
+                double x[3], w[3];
+                read_row(pts, t * step, x);
+                apply(frame, x, w);
+                if (cls != KEEP && in_region(w)) {
+                    const double* lo = tally_.lo.data() + 3 * v;
+                    const double* hi = tally_.hi.data() + 3 * v;
+                    const double centre[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]),
+                                              0.5 * (lo[2] + hi[2])};
+                    if (cls == DROP || removed(m, w, r, near_.data() + near_start_[v],
+                                               near_start_[v + 1] - near_start_[v], centre)) {
+                        ++self_filtered;
+                        continue;
+                    }
                 }
+                if (cls != KEEP) ++counts[v];
+                if (keep_rows)
+                    points->insert(points->end(), {float(w[0]), float(w[1]), float(w[2])});
             }
-            ++kept_[v];
-            ++stats.kept_points;
-            if (keep_rows)
-                kept->insert(kept->end(), {float(w[0]), float(w[1]), float(w[2])});
+            if (own) own->self_filtered = self_filtered;
+            else stats.self_filtered += self_filtered;
+        });
+        for (int64_t c = 1; c < k; ++c) {
+            const KeptRows& from = rows_[c - 1];
+            for (int64_t v = 0; v < V; ++v) kept_[v] += from.counts[v];
+            stats.self_filtered += from.self_filtered;
+            if (keep_rows) kept->insert(kept->end(), from.points.begin(), from.points.end());
         }
-    } else {
-        for (int64_t v = 0; v < V; ++v) {
-            if (class_[v] == DROP) {  // all its points near: removed
-                stats.self_filtered += tally_.count[v];
-            } else {
-                kept_[v] = tally_.count[v];
-                stats.kept_points += tally_.count[v];
-            }
-        }
+        for (int64_t v = 0; v < V; ++v)
+            if (class_[v] != KEEP) stats.kept_points += kept_[v];
     }
 
     // The voxels kept: those with a point kept, and earlier ones whose centre is kept.

@@ -150,6 +150,14 @@ class CloudBuilder {
     // merged into tally_ (chunk_voxel_[c - 1]: its voxels' numbers there).
     std::vector<Tally> chunks_;
     std::vector<std::vector<int32_t>> chunk_voxel_;
+    // The second pass on k threads: chunk c >= 1's counts of points kept per voxel, its
+    // points kept and its count of removed ones.
+    struct alignas(64) KeptRows {
+        std::vector<int32_t> counts;
+        std::vector<float> points;
+        int64_t self_filtered = 0;
+    };
+    std::vector<KeptRows> rows_;
     // Per taken row: its voxel, -1 when not valid.
     std::vector<int32_t> row_voxel_;
     // The filter's hierarchy (leaves of one voxel) and each voxel's candidates.
