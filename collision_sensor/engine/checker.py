@@ -351,9 +351,10 @@ class CollisionChecker:
             earlier clouds of the source) whose centre the robot does not now cover; 0: only
             this cloud.
         :param max_range: drop points farther than this (m) from ``frame``'s origin.
-        :param threads: the pass over the rows (reading them, their voxels) on up to this many
-            threads (0: every hardware thread; default: the setting ``threads``); the voxels,
-            the counts and the verdicts are the same on any number.
+        :param threads: the passes over the rows, the filter's candidates and the near
+            voxels' classes on up to this many threads (0: every hardware thread; default: the
+            setting ``threads``); the voxels, the counts and the verdicts are the same on any
+            number.
         :return: the number of occupied voxels kept.
         :raises PointCloudError: points not (n, 3) numbers, an unknown frame, a bad source or
             argument; nothing changes then.

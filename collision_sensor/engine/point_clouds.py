@@ -135,7 +135,7 @@ def points_array(points) -> np.ndarray:
 
 
 def cloud_threads(threads) -> int:
-    """Return the ``threads`` a cloud's first pass may use, as an int (0: every core).
+    """Return the ``threads`` a cloud's filter may use, as an int (0: every core).
 
     :raises PointCloudError: not an integer from 0 to 256.
     """

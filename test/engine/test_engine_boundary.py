@@ -193,7 +193,10 @@ def test_the_engine_refuses_bad_content_and_options_with_the_packages_errors(pan
             ('pair_b', lambda a: a.__setitem__(0, 10_000), 'pair_'),
             ('parent', lambda a: a.__setitem__(1, 5), 'parent'),
             ('padding', lambda a: a.__setitem__(0, np.nan), 'padding'),
-            ('joint_pairs', lambda a: a.__setitem__(0, -1), 'joint_')]:
+            ('joint_pairs', lambda a: a.__setitem__(0, -1), 'joint_'),
+            # Two elements on one tree: caches keyed by node (the cloud filter's world boxes,
+            # written by the element's thread) need each node in one tree.
+            ('roots', lambda a: a.__setitem__(1, a[0]), 'two trees share it')]:
         bad = arrays[name].copy()
         change(bad)
         with pytest.raises(EngineInputError, match=message):
