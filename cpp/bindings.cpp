@@ -637,8 +637,8 @@ void bind_engine(py::module_& m) {
              py::arg("keep_points"), py::arg("threads"),
              "Build the next grid from points (n, 3) float32/float64 in link `frame` (-1: the "
              "world), self-filtered at the joint values q against engine's robot "
-             "(cpp/cloud_filter.hpp), the rows' first pass on up to `threads` threads (0: every "
-             "hardware thread; the same grid on any number); return (ticket, stats (points, capped, invalid, "
+             "(cpp/cloud_filter.hpp), on up to `threads` threads (0: every hardware thread; the "
+             "same grid on any number); return (ticket, stats (points, capped, invalid, "
              "out_of_range, self_filtered, kept_points, voxels, persisted), the points kept "
              "(m, 3) float32 world frame or None). Runs without the interpreter lock.");
 

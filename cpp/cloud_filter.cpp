@@ -574,14 +574,9 @@ CloudStats CloudBuilder::build(const Model& m, const double* T_links, const Clou
         tally_.invalid += from.invalid;
         tally_.out_of_range += from.out_of_range;
     }
-    if (k > 1) {
-        run_chunks(k - 1, [&](int64_t c) {  // chunk c + 1's rows: the merged numbers
-            const Chunk rows = chunk_of(c + 1, k, taken);
-            const int32_t* to = chunk_voxel_[c].data();
-            for (int64_t t = rows.begin; t < rows.end; ++t)
-                if (row_voxel_[t] >= 0) row_voxel_[t] = to[row_voxel_[t]];
-        });
-    }
+    // Row t of chunk c >= 1 holds its voxel's number in chunks_[c - 1]; the second pass (the
+    // same chunks) reads it through chunk_voxel_[c - 1].
+    const int64_t row_chunks = k;
     stats.invalid = tally_.invalid;
     stats.out_of_range = tally_.out_of_range;
     old_seen_.assign(tally_.n, -INF);
@@ -650,14 +645,14 @@ CloudStats CloudBuilder::build(const Model& m, const double* T_links, const Clou
         }
     }
     if (again) {
-        // The other rows (and every row when they are written) on up to `threads` threads,
-        // contiguous chunks: chunk 0 into kept_ and kept, chunk c >= 1 into rows_[c - 1],
-        // added and appended in chunk order (the one thread's counts and rows).
-        const int64_t k = std::max<int64_t>(
-            1, std::min<int64_t>(s.threads, taken / MIN_CHUNK_ROWS));
+        // The other rows (and every row when they are written) in the first pass's chunks:
+        // chunk 0 into kept_ and kept, chunk c >= 1 into rows_[c - 1], added and appended in
+        // chunk order (the one thread's counts and rows).
+        const int64_t k = row_chunks;
         if (int64_t(rows_.size()) < k - 1) rows_.resize(k - 1);
         run_chunks(k, [&](int64_t c) {
             const Chunk rows = chunk_of(c, k, taken);
+            const int32_t* merged = c == 0 ? nullptr : chunk_voxel_[c - 1].data();
             KeptRows* own = c == 0 ? nullptr : &rows_[c - 1];
             if (own) {
                 own->counts.assign(V, 0);
@@ -668,8 +663,9 @@ CloudStats CloudBuilder::build(const Model& m, const double* T_links, const Clou
             std::vector<float>* points = own ? &own->points : kept;
             int64_t self_filtered = 0;
             for (int64_t t = rows.begin; t < rows.end; ++t) {
-                const int64_t v = row_voxel_[t];
-                if (v < 0) continue;
+                const int64_t u = row_voxel_[t];
+                if (u < 0) continue;
+                const int64_t v = merged ? merged[u] : u;
                 const uint8_t cls = class_[v];
                 if (cls == KEEP ? !keep_rows
                                 : cls == DROP && tally_.near_count[v] == tally_.count[v])

@@ -16,13 +16,16 @@
 // Only the work is organised, never the answer: the points are hashed into their voxels (one
 // pass over the rows, or up to settings.threads passes over contiguous chunks of them, merged
 // in order into what one pass gives); a hierarchy over the occupied voxels, each with the box
-// of its own points, is traversed against every body's tree with boxes grown by r, which gives each voxel the
-// triangles and solids that can come within r of it; a voxel none of whose candidates comes
+// of its own points, is traversed against every body's tree with boxes grown by r (the
+// elements shared out to up to settings.threads threads, gathered in element order), which
+// gives each voxel the triangles and solids that can come within r of it (the same list on
+// any number of threads); a voxel none of whose candidates comes
 // within r of its points' box keeps its points untested, one whose points' box lies within r
 // of a single triangle or solid loses them all untested (the distance to a convex set is
 // convex, so the box's farthest point from it is a corner: within r of its centre plus its half
 // diagonal), and only the points of the voxels in between are tested one by one, nearest
-// candidate first.
+// candidate first (the classes and the second pass on up to settings.threads threads too,
+// merged in order).
 #pragma once
 
 #include <cstdint>
@@ -158,7 +161,8 @@ class CloudBuilder {
         int64_t self_filtered = 0;
     };
     std::vector<KeptRows> rows_;
-    // Per taken row: its voxel, -1 when not valid.
+    // Per taken row: its voxel (for chunk c >= 1 of the first pass, its number in
+    // chunks_[c - 1]), -1 when not valid.
     std::vector<int32_t> row_voxel_;
     // The filter's hierarchy (leaves of one voxel) and each voxel's candidates.
     VoxelSortWork sort_;
