@@ -430,7 +430,7 @@ void export_constants(py::module_& m) {
     CS_EXPORT(LAYOUT_WIDTH)
     CS_EXPORT(QUERY_CHECKED_ONCE) CS_EXPORT(QUERY_CALLS) CS_EXPORT(N_QUERY_FLAGS)
     CS_EXPORT(SOLID_NONE) CS_EXPORT(SOLID_BOX) CS_EXPORT(SOLID_SPHERE) CS_EXPORT(SOLID_CYLINDER)
-    CS_EXPORT(SOLID_CLOSED_MESH) CS_EXPORT(SOLID_WIDTH)
+    CS_EXPORT(SOLID_CLOSED_MESH) CS_EXPORT(SOLID_PROBE) CS_EXPORT(SOLID_WIDTH)
     // obb_tree.hpp: the forest's tables
     CS_EXPORT(BOX_CENTER) CS_EXPORT(BOX_AXES) CS_EXPORT(BOX_HALF) CS_EXPORT(BOX_RADIUS)
     CS_EXPORT(BOX_WIDTH)
@@ -909,6 +909,16 @@ void bind_build_kernels(py::module_& m) {
     }, py::arg("points"),
        "(center (3,), axes (3, 3), half (3,)) of the principal-axes box of points (n, 3).");
 
+    m.def("fit_obb_refined", [points](const Doubles& p) {
+        const py::ssize_t n = points(p, "points");
+        Doubles center(3), axes({3, 3}), half(3);
+        cs::fit_obb_refined(p.data(), n, center.mutable_data(), axes.mutable_data(),
+                            half.mutable_data());
+        return py::make_tuple(center, axes, half);
+    }, py::arg("points"),
+       "(center (3,), axes (3, 3), half (3,)) of the principal-axes box of points (n, 3), "
+       "tightened by the smallest-area rectangle around each principal axis.");
+
     m.def("ritter_sphere", [points](const Doubles& p) {
         const py::ssize_t n = points(p, "points");
         Doubles center(3);
@@ -919,7 +929,7 @@ void bind_build_kernels(py::module_& m) {
     m.def("build_obb_tree",
           [](const Doubles& tris, int64_t leaf_size, Doubles& center, Doubles& axes,
              Doubles& half, Int64s& left, Int64s& right, Int64s& first, Int64s& count,
-             Int64s& order) {
+             Int64s& order, bool refine) {
               expect_shape("tris", tris, {-1, 3, 3});
               const py::ssize_t m_tris = tris.shape(0);
               if (m_tris < 1) throw std::invalid_argument("tris must hold at least one triangle");
@@ -949,7 +959,7 @@ void bind_build_kernels(py::module_& m) {
               cs::TreeSize size;
               {
                   py::gil_scoped_release release;
-                  size = cs::build_obb_tree(t, m_tris, leaf_size, out);
+                  size = cs::build_obb_tree(t, m_tris, leaf_size, out, refine);
               }
               return py::make_tuple(size.nodes, size.depth);
           },
@@ -957,6 +967,7 @@ void bind_build_kernels(py::module_& m) {
           py::arg("axes").noconvert(), py::arg("half").noconvert(), py::arg("left").noconvert(),
           py::arg("right").noconvert(), py::arg("first").noconvert(),
           py::arg("count").noconvert(), py::arg("order").noconvert(),
+          py::arg("refine") = false,
           "Build one OBB tree over tris (m, 3, 3) into preallocated node arrays (2 m - 1 rows); "
           "return (nodes, depth). See collision_sensor.engine.obb_tree.build_tree_kernel.");
 }

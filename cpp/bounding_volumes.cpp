@@ -2,9 +2,11 @@
 #include "bounding_volumes.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <vector>
 
 namespace collision_sensor {
 
@@ -245,6 +247,279 @@ void fit_obb_pca(const double* points, int64_t n, double* center, double* axes, 
     covariance(points, n, C);
     principal_frame(C, axes);
     box_on_axes(points, n, axes, center, half);
+}
+
+namespace {
+
+// Convex hull of 2D points xy (k, 2) by Andrew's monotone chain, counter-clockwise, without
+// collinear points; written to hull (capacity k + 1 rows), its size returned. Sorts xy.
+int64_t hull_2d(std::vector<std::array<double, 2>>& xy, std::vector<std::array<double, 2>>& hull) {
+    std::sort(xy.begin(), xy.end());
+    const int64_t k = static_cast<int64_t>(xy.size());
+    hull.resize(2 * k + 1);
+    auto cross = [](const std::array<double, 2>& o, const std::array<double, 2>& a,
+                    const std::array<double, 2>& b) {
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+    };
+    int64_t h = 0;
+    for (int64_t i = 0; i < k; ++i) {  // lower chain
+        while (h >= 2 && cross(hull[h - 2], hull[h - 1], xy[i]) <= 0.0) --h;
+        hull[h++] = xy[i];
+    }
+    for (int64_t i = k - 2, low = h + 1; i >= 0; --i) {  // upper chain
+        while (h >= low && cross(hull[h - 2], hull[h - 1], xy[i]) <= 0.0) --h;
+        hull[h++] = xy[i];
+    }
+    return h > 1 ? h - 1 : h;  // the last point repeats the first
+}
+
+struct Rectangle {
+    double area, c, s;  // a side along (c, s), unit
+};
+
+// The smallest-area rectangle around a convex polygon hull[0 .. h - 1] (counter-clockwise,
+// h >= 2) with a side on one of its edges; a zero-length edge is skipped.
+Rectangle smallest_rectangle(const std::vector<std::array<double, 2>>& hull, int64_t h) {
+    auto along = [&](int64_t i, double dx, double dy) { return hull[i][0] * dx + hull[i][1] * dy; };
+    auto next = [h](int64_t i) { return i + 1 == h ? 0 : i + 1; };
+    Rectangle best = {INFINITY, 1.0, 0.0};
+    int64_t right = 0, top = 0, left = 0;
+    bool started = false;
+    for (int64_t e = 0; e < h; ++e) {
+        const auto& a = hull[e];
+        const auto& b = hull[next(e)];
+        double dx = b[0] - a[0], dy = b[1] - a[1];
+        const double len = std::sqrt(dx * dx + dy * dy);
+        if (!(len > 0.0)) continue;
+        dx /= len;
+        dy /= len;
+        const double nx = -dy, ny = dx;  // the inside is on the left
+        if (!started) {  // the first edge: the three extremes by a full scan
+            for (int64_t m = 0; m < h; ++m) {
+                if (along(m, dx, dy) > along(right, dx, dy)) right = m;
+                if (along(m, nx, ny) > along(top, nx, ny)) top = m;
+                if (along(m, dx, dy) < along(left, dx, dy)) left = m;
+            }
+            started = true;
+        } else {
+            for (int64_t k = 0; k < h && along(next(right), dx, dy) > along(right, dx, dy); ++k)
+                right = next(right);
+            for (int64_t k = 0; k < h && along(next(top), nx, ny) > along(top, nx, ny); ++k)
+                top = next(top);
+            for (int64_t k = 0; k < h && along(next(left), dx, dy) < along(left, dx, dy); ++k)
+                left = next(left);
+        }
+        const double width = along(right, dx, dy) - along(left, dx, dy);
+        const double height = along(top, nx, ny) - (a[0] * nx + a[1] * ny);
+        const double area = width * height;
+        if (area < best.area) best = {area, dx, dy};
+    }
+    return best;
+}
+
+// Box volume, then surface (flat boxes all have volume 0), as one comparable key.
+bool smaller_box(const double* h, const double* best) {
+    const double v = h[0] * h[1] * h[2], vb = best[0] * best[1] * best[2];
+    if (v != vb) return v < vb;
+    return h[0] * h[1] + h[1] * h[2] + h[2] * h[0] < best[0] * best[1] + best[1] * best[2] +
+                                                         best[2] * best[0];
+}
+
+}  // namespace
+
+namespace {
+
+// The box of one triangle (points (3, 3)) with the least area among those with a side along
+// one of its edges, in its plane (half[2] = 0); left as it is (the principal-axes box) when
+// the triangle has no area or that box is smaller.
+void fit_triangle(const double* points, double* center, double* axes, double* half) {
+    const double* p0 = points;
+    const double* p1 = points + 3;
+    const double* p2 = points + 6;
+    const double e1[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
+    const double e2[3] = {p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]};
+    double nrm[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                     e1[0] * e2[1] - e1[1] * e2[0]};
+    const double nn = std::sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
+    if (!(nn > 0.0)) return;
+    for (double& x : nrm) x /= nn;
+    const double* corner[3] = {p0, p1, p2};
+    double best_area = INFINITY, best_d[3] = {0.0, 0.0, 0.0};
+    for (int e = 0; e < 3; ++e) {
+        const double* a = corner[e];
+        const double* b = corner[(e + 1) % 3];
+        double d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+        const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        if (!(len > 0.0)) continue;
+        for (double& x : d) x /= len;
+        const double w[3] = {nrm[1] * d[2] - nrm[2] * d[1], nrm[2] * d[0] - nrm[0] * d[2],
+                             nrm[0] * d[1] - nrm[1] * d[0]};
+        double lo_u = INFINITY, hi_u = -INFINITY, lo_v = INFINITY, hi_v = -INFINITY;
+        for (const double* x : corner) {
+            const double u = x[0] * d[0] + x[1] * d[1] + x[2] * d[2];
+            const double v = x[0] * w[0] + x[1] * w[1] + x[2] * w[2];
+            lo_u = std::min(lo_u, u);
+            hi_u = std::max(hi_u, u);
+            lo_v = std::min(lo_v, v);
+            hi_v = std::max(hi_v, v);
+        }
+        const double area = (hi_u - lo_u) * (hi_v - lo_v);
+        if (area < best_area) {
+            best_area = area;
+            std::copy(d, d + 3, best_d);
+        }
+    }
+    if (!(best_area < INFINITY)) return;
+    // Axes: the longer in-plane side first, then the other, the normal last (zero extent):
+    // decreasing variance for a flat box, right-handed by frame_from_eigenvectors.
+    const double w[3] = {nrm[1] * best_d[2] - nrm[2] * best_d[1],
+                         nrm[2] * best_d[0] - nrm[0] * best_d[2],
+                         nrm[0] * best_d[1] - nrm[1] * best_d[0]};
+    double V[9];
+    for (int i = 0; i < 3; ++i) {
+        V[3 * i] = best_d[i];
+        V[3 * i + 1] = w[i];
+        V[3 * i + 2] = nrm[i];
+    }
+    double var[2];
+    for (int c = 0; c < 2; ++c) {
+        double m = 0.0, m2 = 0.0;
+        for (const double* x : corner) {
+            const double s = x[0] * V[c] + x[1] * V[3 + c] + x[2] * V[6 + c];
+            m += s;
+            m2 += s * s;
+        }
+        var[c] = m2 / 3.0 - (m / 3.0) * (m / 3.0);
+    }
+    const int64_t order[3] = {var[0] >= var[1] ? 0 : 1, var[0] >= var[1] ? 1 : 0, 2};
+    double cand_axes[9], cand_center[3], cand_half[3];
+    frame_from_eigenvectors(V, order, cand_axes);
+    box_on_axes(points, 3, cand_axes, cand_center, cand_half);
+    if (smaller_box(cand_half, half)) {
+        std::copy(cand_center, cand_center + 3, center);
+        std::copy(cand_axes, cand_axes + 9, axes);
+        std::copy(cand_half, cand_half + 3, half);
+    }
+}
+
+}  // namespace
+
+void fit_obb_refined(const double* points, int64_t n, double* center, double* axes,
+                     double* half) {
+    check_points(points, n);
+    double C[9];
+    covariance(points, n, C);
+    principal_frame(C, axes);
+    box_on_axes(points, n, axes, center, half);
+    if (n < 3) return;
+    if (n == 3) {  // one triangle (a leaf): the rectangle rests on one of its three edges
+        fit_triangle(points, center, axes, half);
+        return;
+    }
+    // At most REFINE_POINTS points (a stride through them) choose the rectangle's angle;
+    // the extents always come from every point, so only the tightness depends on the sample.
+    constexpr int64_t REFINE_POINTS = 128;
+    const int64_t stride = (n + REFINE_POINTS - 1) / REFINE_POINTS;
+    std::vector<std::array<double, 2>> xy, hull;
+    xy.reserve(n / stride + 27);
+    // A sample by stride misses the corners that the rectangles rest on: it also takes the
+    // points extreme along 13 directions of the principal frame (its axes, the diagonals of
+    // its faces and of its box), both ways.
+    std::vector<int64_t> extremes;
+    if (stride > 1) {
+        // Each direction's coordinate is a signed sum of the three axis coordinates.
+        const int signs[13][3] = {{1, 0, 0},  {0, 1, 0},  {0, 0, 1},  {1, 1, 0},  {1, -1, 0},
+                                  {1, 0, 1},  {1, 0, -1}, {0, 1, 1},  {0, 1, -1}, {1, 1, 1},
+                                  {1, 1, -1}, {1, -1, 1}, {1, -1, -1}};
+        int64_t lo[13] = {0}, hi[13] = {0};
+        double lo_v[13], hi_v[13];
+        for (int d = 0; d < 13; ++d) lo_v[d] = INFINITY, hi_v[d] = -INFINITY;
+        for (int64_t i = 0; i < n; ++i) {
+            const double* x = points + 3 * i;
+            const double c0 = x[0] * axes[0] + x[1] * axes[3] + x[2] * axes[6];
+            const double c1 = x[0] * axes[1] + x[1] * axes[4] + x[2] * axes[7];
+            const double c2 = x[0] * axes[2] + x[1] * axes[5] + x[2] * axes[8];
+            for (int d = 0; d < 13; ++d) {
+                const double v = signs[d][0] * c0 + signs[d][1] * c1 + signs[d][2] * c2;
+                if (v < lo_v[d]) lo_v[d] = v, lo[d] = i;
+                if (v > hi_v[d]) hi_v[d] = v, hi[d] = i;
+            }
+        }
+        extremes.assign(lo, lo + 13);
+        extremes.insert(extremes.end(), hi, hi + 13);
+    }
+    // Rounds: a tilted principal axis is kept by every candidate of the first round; the next
+    // keeps each axis of the box found instead, which turns the tilt out (a square prism's
+    // sampled long axis). Up to REFINE_ROUNDS, while a round shrinks the box by REFINE_GAIN.
+    constexpr int REFINE_ROUNDS = 3;
+    constexpr double REFINE_GAIN = 0.001;
+    constexpr int64_t REFINE_SMALL = 48;
+    for (int round = 0; round < REFINE_ROUNDS; ++round) {
+        const double base[9] = {axes[0], axes[1], axes[2], axes[3], axes[4],
+                               axes[5], axes[6], axes[7], axes[8]};
+        // The candidate of least estimated volume: the rectangle's area (on the sample) times
+        // the current box's extent along the axis kept.
+        double best_volume = 8.0 * half[0] * half[1] * half[2];
+        double best_V[9];
+        bool found = false;
+        for (int k = 0; k < 3; ++k) {
+            // Keep the box's axis k; (p, q, w) = (axis k+1, axis k+2, axis k): right-handed.
+            const int ip = (k + 1) % 3, iq = (k + 2) % 3;
+            const double p[3] = {base[ip], base[3 + ip], base[6 + ip]};
+            const double q[3] = {base[iq], base[3 + iq], base[6 + iq]};
+            xy.clear();
+            auto project = [&](int64_t i) {
+                const double* x = points + 3 * i;
+                xy.push_back({x[0] * p[0] + x[1] * p[1] + x[2] * p[2],
+                              x[0] * q[0] + x[1] * q[1] + x[2] * q[2]});
+            };
+            for (int64_t i = 0; i < n; i += stride) project(i);
+            for (const int64_t i : extremes) project(i);
+            const int64_t h = hull_2d(xy, hull);
+            if (h < 2) continue;
+            // The smallest-area rectangle has a side on a hull edge (Freeman & Shapira 1975);
+            // every edge is tried, the other three sides by rotating calipers (Toussaint
+            // 1983): the extreme points along the edge, across it and against it only move
+            // forward around the hull, so all edges cost O(h).
+            const Rectangle r = smallest_rectangle(hull, h);
+            const double best_area = r.area, best_c = r.c, best_s = r.s;
+            const double volume = best_area * 2.0 * half[k];
+            if (!(volume < best_volume)) continue;
+            best_volume = volume;
+            found = true;
+            // u = c p + s q, v = -s p + c q, w = p x q = axis k: columns (u, v, w), right-handed.
+            for (int i = 0; i < 3; ++i) {
+                best_V[3 * i + 0] = best_c * p[i] + best_s * q[i];
+                best_V[3 * i + 1] = -best_s * p[i] + best_c * q[i];
+                best_V[3 * i + 2] = base[3 * i + k];
+            }
+        }
+        if (!found) break;
+        // The box convention: axes by decreasing variance of the points along them, u' C u.
+        double var[3];
+        for (int c = 0; c < 3; ++c) {
+            const double u0 = best_V[c], u1 = best_V[3 + c], u2 = best_V[6 + c];
+            var[c] = u0 * (C[0] * u0 + C[1] * u1 + C[2] * u2) +
+                     u1 * (C[3] * u0 + C[4] * u1 + C[5] * u2) +
+                     u2 * (C[6] * u0 + C[7] * u1 + C[8] * u2);
+        }
+        int64_t order[3] = {0, 1, 2};
+        for (int i = 1; i < 3; ++i)
+            for (int j = i; j > 0 && var[order[j]] > var[order[j - 1]]; --j)
+                std::swap(order[j], order[j - 1]);
+        double cand_axes[9], cand_center[3], cand_half[3];
+        frame_from_eigenvectors(best_V, order, cand_axes);
+        box_on_axes(points, n, cand_axes, cand_center, cand_half);
+        if (!smaller_box(cand_half, half)) break;  // on a sample the estimate can be wrong
+        const double before = half[0] * half[1] * half[2];
+        std::copy(cand_center, cand_center + 3, center);
+        std::copy(cand_axes, cand_axes + 9, axes);
+        std::copy(cand_half, cand_half + 3, half);
+        // Another round where this one gained more than REFINE_GAIN of the volume, for nodes
+        // of more than REFINE_SMALL points (the many small ones gain little from it).
+        if (n <= REFINE_SMALL || !(half[0] * half[1] * half[2] < (1.0 - REFINE_GAIN) * before))
+            break;
+    }
 }
 
 double ritter_sphere(const double* points, int64_t n, double* center) {

@@ -68,6 +68,17 @@ void box_on_axes(const double* points, int64_t n, const double* axes, double* ce
 //: or NaN / infinity.
 void fit_obb_pca(const double* points, int64_t n, double* center, double* axes, double* half);
 
+//: Fit an oriented box by principal axes, then tighten it: with each principal axis kept in
+//: turn, the two others turned to the smallest-area rectangle around the points projected on
+//: the plane they span (a side on an edge of the projection's convex hull); the smallest box
+//: of the four (volume, then surface) is kept, and the same is done around its axes, up to
+//: three rounds while the box shrinks (a sampled principal axis can be tilted); written
+//: under the box convention above. The angle is chosen from at most 512 of the points (a
+//: stride), every edge of their hull tried (rotating calipers); the extents come from all of
+//: them. O(n) plus a sort of the sample. Same arguments and errors as fit_obb_pca.
+void fit_obb_refined(const double* points, int64_t n, double* center, double* axes,
+                     double* half);
+
 //: Return the radius of a near-minimal bounding sphere of points (n, 3) (Ritter 1990), O(n),
 //: and write its centre into center (3,); or the axis-aligned box's circumscribed sphere when
 //: that is smaller. Throws std::invalid_argument on no points or NaN / infinity.

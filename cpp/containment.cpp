@@ -81,14 +81,14 @@ bool contained(const Model& m, int64_t a, int64_t b, const double* P) {
             const int64_t ra = m.roots[ea], rb = m.roots[eb];
             if (spheres(m.forest.box(ra), m.forest.box(rb), P).apart) continue;
             if (solid_a) {  // a vertex of eb, taken to body a: R_ab x + t_ab
-                const double* x = m.forest.tris + 9 * m.elem_tris[2 * eb];
+                const double* x = m.elem_solid + SOLID_WIDTH * eb + SOLID_PROBE;
                 const double y[3] = {P[0] * x[0] + P[1] * x[1] + P[2] * x[2] + P[9],
                                      P[3] * x[0] + P[4] * x[1] + P[5] * x[2] + P[10],
                                      P[6] * x[0] + P[7] * x[1] + P[8] * x[2] + P[11]};
                 if (inside_solid(m, ea, y)) return true;
             }
             if (solid_b) {  // a vertex of ea, taken to body b: R_ab' (x - t_ab)
-                const double* x = m.forest.tris + 9 * m.elem_tris[2 * ea];
+                const double* x = m.elem_solid + SOLID_WIDTH * ea + SOLID_PROBE;
                 const double d0 = x[0] - P[9], d1 = x[1] - P[10], d2 = x[2] - P[11];
                 const double y[3] = {P[0] * d0 + P[3] * d1 + P[6] * d2,
                                      P[1] * d0 + P[4] * d1 + P[7] * d2,
@@ -107,13 +107,13 @@ bool contained_vertex(const Model& m, int64_t a, int64_t b, const double* P, dou
                 m.elem_tris[2 * eb] == m.elem_tris[2 * eb + 1])
                 continue;
             if (m.elem_solid[SOLID_WIDTH * ea] != SOLID_NONE) {  // eb's vertex, in body a
-                const double* v = m.forest.tris + 9 * m.elem_tris[2 * eb];
+                const double* v = m.elem_solid + SOLID_WIDTH * eb + SOLID_PROBE;
                 for (int i = 0; i < 3; ++i)
                     x[i] = P[3 * i] * v[0] + P[3 * i + 1] * v[1] + P[3 * i + 2] * v[2] + P[9 + i];
                 if (inside_solid(m, ea, x)) return true;
             }
             if (m.elem_solid[SOLID_WIDTH * eb] != SOLID_NONE) {  // ea's vertex, in body b
-                const double* v = m.forest.tris + 9 * m.elem_tris[2 * ea];
+                const double* v = m.elem_solid + SOLID_WIDTH * ea + SOLID_PROBE;
                 const double d0 = v[0] - P[9], d1 = v[1] - P[10], d2 = v[2] - P[11];
                 const double y[3] = {P[0] * d0 + P[3] * d1 + P[6] * d2,
                                      P[1] * d0 + P[4] * d1 + P[7] * d2,

@@ -15,8 +15,8 @@
 namespace collision_sensor {
 
 // True iff an element of one body lies in a solid element of the other (pair a, b; body b at
-// pose in a's frame), called once their triangles are known apart: then one vertex decides
-// for the whole element (it cannot be partly inside without its surface meeting the solid's).
+// pose in a's frame), called once their triangles are known apart: then one vertex, the
+// element's test vertex (layout.hpp: SOLID_PROBE), decides for the whole element (it cannot be partly inside without its surface meeting the solid's).
 // Element pairs whose spheres are apart cannot contain one another and are skipped.
 // True iff point x (in element e's body frame) lies in element e's solid: the true box, sphere
 // or cylinder, or a closed mesh by ray parity (the boundary counts). False for no solid.

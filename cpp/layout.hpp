@@ -78,9 +78,12 @@ constexpr int N_QUERY_FLAGS = 2;
 // half extents; sphere: radius; cylinder along z: radius, half length); a closed mesh is with
 // the checker's mesh_containment. Something wholly inside a solid collides with it though no
 // triangles meet (FCL's rule for primitives); a surface mesh contains nothing
-// (containment.hpp).
+// (containment.hpp). Columns SOLID_PROBE .. + 2 of every row (solid or not): the element's
+// test vertex, its mesh's first vertex (faces[0][0]) in its body's frame, the one that decides
+// whether it lies in a solid of another body; never the first of the tree's order, which
+// moves with how the tree is split.
 constexpr int SOLID_NONE = 0, SOLID_BOX = 1, SOLID_SPHERE = 2, SOLID_CYLINDER = 3,
-              SOLID_CLOSED_MESH = 4, SOLID_WIDTH = 16;
+              SOLID_CLOSED_MESH = 4, SOLID_PROBE = 16, SOLID_WIDTH = 19;
 
 // The float64 slots (buffer F): name, group, shape.
 #define CS_FLOAT_SLOTS(X)                                                                     \

@@ -387,21 +387,20 @@ void MotionQuery::margin(int64_t p, double h2) {
 // of the other (containment.hpp's test vertex), INF if neither body has a solid element.
 double MotionQuery::solid_gap(int64_t a, int64_t b, const double* P) const {
     double best = INF;
-    const double* tris = m_.forest.tris;
     for (int64_t ea = m_.elem_start[a]; ea < m_.elem_end[a]; ++ea) {
         for (int64_t eb = m_.elem_start[b]; eb < m_.elem_end[b]; ++eb) {
             if (m_.elem_tris[2 * ea] == m_.elem_tris[2 * ea + 1] ||
                 m_.elem_tris[2 * eb] == m_.elem_tris[2 * eb + 1])
                 continue;  // an element without triangles
             if (m_.elem_solid[SOLID_WIDTH * ea] != SOLID_NONE) {  // eb's vertex, in body a
-                const double* v = tris + 9 * m_.elem_tris[2 * eb];
+                const double* v = m_.elem_solid + SOLID_WIDTH * eb + SOLID_PROBE;
                 double x[3];
                 for (int i = 0; i < 3; ++i)
                     x[i] = P[3 * i] * v[0] + P[3 * i + 1] * v[1] + P[3 * i + 2] * v[2] + P[9 + i];
                 best = std::min(best, solid_distance(m_.elem_solid + SOLID_WIDTH * ea, x));
             }
             if (m_.elem_solid[SOLID_WIDTH * eb] != SOLID_NONE) {  // ea's vertex, in body b
-                const double* v = tris + 9 * m_.elem_tris[2 * ea];
+                const double* v = m_.elem_solid + SOLID_WIDTH * ea + SOLID_PROBE;
                 const double d0 = v[0] - P[9], d1 = v[1] - P[10], d2 = v[2] - P[11];
                 const double y[3] = {P[0] * d0 + P[3] * d1 + P[6] * d2,
                                      P[1] * d0 + P[4] * d1 + P[7] * d2,

@@ -106,7 +106,8 @@ int best_cut(const double* tris, const double* centroids, const double* a,
 
 }  // namespace
 
-TreeSize build_obb_tree(const double* tris, int64_t m, int64_t leaf_size, const TreeArrays& out) {
+TreeSize build_obb_tree(const double* tris, int64_t m, int64_t leaf_size, const TreeArrays& out,
+                        bool refine) {
     if (m < 1) {
         throw std::invalid_argument("OBB tree: a mesh without triangles has no tree");
     }
@@ -154,7 +155,10 @@ TreeSize build_obb_tree(const double* tris, int64_t m, int64_t leaf_size, const 
         const int64_t n = p.end - p.start;
         gather_points(tris, order, p.start, p.end, points.data());
         double* a = axes + 9 * p.node;
-        fit_obb_pca(points.data(), 3 * n, center + 3 * p.node, a, half + 3 * p.node);
+        if (refine)
+            fit_obb_refined(points.data(), 3 * n, center + 3 * p.node, a, half + 3 * p.node);
+        else
+            fit_obb_pca(points.data(), 3 * n, center + 3 * p.node, a, half + 3 * p.node);
         if (n <= leaf_size) {
             left[p.node] = -1;
             right[p.node] = -1;

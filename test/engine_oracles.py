@@ -13,7 +13,6 @@ import pinocchio as pin
 
 from collision_sensor import CollisionChecker
 from collision_sensor.engine.dynamic_scene import AddObject, MoveObject
-from collision_sensor.engine.obb_tree import build_forest
 from collision_sensor.model.exception_list import sorted_pair
 
 #: pinocchio's root joint for an SRDF virtual joint, by type.
@@ -46,12 +45,12 @@ class FclOracle:
                           if self.pin_model.existFrame(name, pin.FrameType.BODY)}
         self.models = {}
         self.solids = {}   # body: [(fcl primitive, T_body_element)]
-        self.vertices = {}  # body: one vertex per element, in the body frame
+        self.vertices = {}  # body: one vertex per element (faces[0, 0]), in the body frame
         for element in checker.model.elements:
             T = element.T_link_element
             vertices = element.vertices @ T[:3, :3].T + T[:3, 3]
             self.models.setdefault(element.link, []).append(self._bvh(vertices, element.faces))
-            self.vertices.setdefault(element.link, []).append(vertices[0])
+            self.vertices.setdefault(element.link, []).append(vertices[element.faces[0, 0]])
             if element.solid is not None:
                 self.solids.setdefault(element.link, []).append((self._primitive(element.solid),
                                                                  T))
@@ -244,9 +243,9 @@ class SceneOracle:
             self.fcl.models[obj.name] = [FclOracle._bvh(obj.vertices, obj.faces)]
             # The contact rule lets one vertex decide containment; for a tessellated
             # primitive partly in the sliver of another's true shape, which one matters. The
-            # engine takes its tree's first triangle's first vertex (as FclOracle does).
-            tree = build_forest([(obj.vertices, obj.faces)], leaf_size=1)
-            self.fcl.vertices[obj.name] = [tree.tris[0, 0]]
+            # engine takes the element's first vertex, faces[0, 0] (as FclOracle does).
+            self.fcl.vertices[obj.name] = [np.asarray(obj.vertices[obj.faces[0, 0]],
+                                                      dtype=np.float64)]
             if obj.solid is not None:
                 self.fcl.solids[obj.name] = [(FclOracle._primitive(obj.solid), np.eye(4))]
             else:

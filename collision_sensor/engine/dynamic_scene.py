@@ -179,15 +179,20 @@ class PlacedObject(NamedTuple):
         return self.obj.name
 
 
-def solid_row(solid: Optional[Solid], faces: np.ndarray, T_body_element: np.ndarray,
-              mesh_containment: bool) -> np.ndarray:
+def solid_row(solid: Optional[Solid], vertices: np.ndarray, faces: np.ndarray,
+              T_body_element: np.ndarray, mesh_containment: bool) -> np.ndarray:
     """The engine's row for one element (``cpp/layout.hpp``: elem_solid, SOLID_*): what it
-    fills, in its body's frame: kind, size (3), R (3, 3), t (3). Primitives are solid; a
-    closed mesh is with ``mesh_containment``.
+    fills, in its body's frame: kind, size (3), R (3, 3), t (3), and its test vertex (3),
+    ``vertices[faces[0, 0]]`` in the body's frame (the vertex that decides whether the element
+    lies in another body's solid). Primitives are solid; a closed mesh is with
+    ``mesh_containment``.
 
     :return: (SOLID_WIDTH,) float64.
     """
     row = np.zeros(engine.SOLID_WIDTH)
+    first = np.asarray(vertices, dtype=np.float64)[int(np.asarray(faces)[0, 0])]
+    row[engine.SOLID_PROBE:engine.SOLID_PROBE + 3] = (T_body_element[:3, :3] @ first
+                                                      + T_body_element[:3, 3])
     if solid is None and mesh_containment and is_closed_surface(faces):
         solid = Solid(mesh_loading.SOLID_CLOSED_MESH)
     if solid is not None:
@@ -196,6 +201,57 @@ def solid_row(solid: Optional[Solid], faces: np.ndarray, T_body_element: np.ndar
         row[4:13] = T_body_element[:3, :3].ravel()
         row[13:16] = T_body_element[:3, 3]
     return row
+
+
+def cover_solid(center: np.ndarray, axes: np.ndarray, half: np.ndarray, row: np.ndarray) -> None:
+    """Grow a box, in place, to hold the true solid of an element's ``row`` (:func:`solid_row`).
+
+    A primitive's tessellation is inscribed in it (``mesh_loading``), and the engine counts a
+    point in the sliver between the two as inside (``cpp/containment.hpp``); a box fitted to
+    the triangles alone can leave part of that sliver out, and then a tree's root box or a
+    body box would prove apart a pair whose solids meet. So the roots and body boxes hold the
+    solids too (the boxes below the root need not: they only prune triangle tests). A closed
+    mesh (its solid is its triangles') or no solid: unchanged.
+
+    :param center: (3,) box centre, ``axes``: (3, 3) its axes as columns, ``half``: (3,) its
+        half extents, in the element's body frame; ``row``: (SOLID_WIDTH,) float64.
+    """
+    kind = int(row[0])
+    if kind not in (engine.SOLID_BOX, engine.SOLID_SPHERE, engine.SOLID_CYLINDER):
+        return
+    size = row[1:4]
+    R = row[4:13].reshape(3, 3)
+    t = row[13:16]
+    for k in range(3):
+        a = axes[:, k]
+        if kind == engine.SOLID_BOX:
+            reach = float(np.abs(a @ R) @ size)
+        elif kind == engine.SOLID_SPHERE:
+            reach = float(size[0])
+        else:  # a cylinder along its z: the end discs' rims
+            z = float(a @ R[:, 2])
+            reach = abs(z) * size[1] + size[0] * math.sqrt(max(0.0, 1.0 - z * z))
+        middle = float(a @ (t - center))
+        lo = min(-half[k], middle - reach)
+        hi = max(half[k], middle + reach)
+        center += a * (0.5 * (lo + hi))  # along a_k only: the other axes' projections stay
+        half[k] = 0.5 * (hi - lo)
+
+
+def solid_radius(row: np.ndarray) -> float:
+    """Return a bound on the distance from the body frame's origin to any point of the solid
+    of ``row`` (0 for none or a closed mesh, whose points are its vertices)."""
+    kind = int(row[0])
+    size = row[1:4]
+    if kind == engine.SOLID_BOX:
+        extent = float(np.linalg.norm(size))
+    elif kind == engine.SOLID_SPHERE:
+        extent = float(size[0])
+    elif kind == engine.SOLID_CYLINDER:
+        extent = math.hypot(size[0], size[1])
+    else:
+        return 0.0
+    return float(np.linalg.norm(row[13:16])) + extent
 
 
 def build_object_block(obj: SceneObject, config) -> ObjectBlock:
@@ -208,12 +264,18 @@ def build_object_block(obj: SceneObject, config) -> ObjectBlock:
     vertices = np.ascontiguousarray(obj.vertices, dtype=np.float64)
     forest = build_forest([(vertices, obj.faces)], leaf_size=config.leaf_size,
                           fit=config.obb_fit_code)
+    row = solid_row(obj.solid, vertices, obj.faces, np.eye(4), config.mesh_containment)
+    cover_solid(forest.center[0], forest.axes[0], forest.half[0], row)
+    grown = 8.0 * np.prod(forest.half[0])
+    if forest.left[0] >= 0:
+        forest.gain[0] += grown - forest.volume[0]
+    forest.volume[0] = grown
     return ObjectBlock(
         boxes=box_table(forest.center, forest.axes, forest.half), nodes=node_table(forest),
         volume=forest.volume, gain=forest.gain, tris=forest.tris,
         depth=int(forest.depth.max()),
-        solid_row=solid_row(obj.solid, obj.faces, np.eye(4), config.mesh_containment),
-        radius=float(np.sqrt((vertices ** 2).sum(axis=1).max())))
+        solid_row=row,
+        radius=max(float(np.sqrt((vertices ** 2).sum(axis=1).max())), solid_radius(row)))
 
 
 def check_geometry(obj, owner: str) -> None:

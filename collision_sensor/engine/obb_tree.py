@@ -23,7 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from collision_sensor.engine.bounding_volumes import OBB_HULL_PCA, OBB_MIN_VOLUME, OBB_PCA, fit_obb
+from collision_sensor.engine.bounding_volumes import (
+    OBB_HULL_PCA, OBB_MIN_VOLUME, OBB_PCA, OBB_REFINED, fit_obb)
 from collision_sensor.engine.compiled import engine
 from collision_sensor.errors import EngineInputError
 
@@ -84,7 +85,8 @@ class ObbForest:
         return sum(getattr(self, name).nbytes for name in self.__dataclass_fields__)
 
 
-def build_tree_kernel(tris, leaf_size, center, axes, half, left, right, first, count, order):
+def build_tree_kernel(tris, leaf_size, center, axes, half, left, right, first, count, order,
+                      refine=False):
     """Build one OBB tree over ``tris`` into preallocated node arrays; return (nodes, depth).
 
     C++ (cpp/obb_tree.cpp, ``engine.build_obb_tree``; runs without the GIL). Contract in plain
@@ -94,8 +96,9 @@ def build_tree_kernel(tris, leaf_size, center, axes, half, left, right, first, c
         at the mean centroid projection on one of its box's axes: of the axes leaving no side
         empty, the first minimising surface(left) + surface(right), surface(side) = h0 h1 +
         h1 h2 + h2 h0 of the half extents of the side's vertices along the node's axes (the
-        halves of the list if every axis leaves a side empty); each node's box is fit_obb_pca of its vertices; nodes are
-        numbered in creation order, children after their parent.
+        halves of the list if every axis leaves a side empty); each node's box is fit_obb_pca
+        of its vertices (fit_obb_refined if refine); nodes are numbered in creation order,
+        children after their parent.
 
     :param tris: (m, 3, 3) float64 triangles, m >= 1.
     :param leaf_size: most triangles in a leaf (>= 1).
@@ -107,7 +110,7 @@ def build_tree_kernel(tris, leaf_size, center, axes, half, left, right, first, c
     dtypes (they are written in place, never copied).
     """
     return engine.build_obb_tree(tris, leaf_size, center, axes, half, left, right, first, count,
-                                 order)
+                                 order, refine)
 
 
 def triangles_of(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -140,7 +143,9 @@ def build_forest(meshes, leaf_size: int = 2, fit: int = OBB_PCA) -> ObbForest:
 
     :param meshes: sequence of ((n, 3) float vertices, (m, 3) int faces), in body frames.
     :param leaf_size: most triangles per leaf.
-    :param fit: OBB_PCA (default, the paper's Wu method), OBB_HULL_PCA or OBB_MIN_VOLUME.
+    :param fit: OBB_PCA (default, the paper's Wu method), OBB_REFINED (the same, tightened
+        around each principal axis, in the same build), OBB_HULL_PCA or OBB_MIN_VOLUME (boxes
+        refitted after the build, in Python: slow).
     :return: the forest; ``roots[i]`` is mesh ``i``'s root node.
     """
     if leaf_size < 1:
@@ -161,7 +166,8 @@ def build_forest(meshes, leaf_size: int = 2, fit: int = OBB_PCA) -> ObbForest:
         count = np.empty(cap, dtype=np.int64)
         order = np.empty(m, dtype=np.int64)
         n_nodes, depth = build_tree_kernel(
-            tris, leaf_size, center, axes, half, left, right, first, count, order)
+            tris, leaf_size, center, axes, half, left, right, first, count, order,
+            refine=fit == OBB_REFINED)
         tris_sorted = tris[order]
         if fit in (OBB_HULL_PCA, OBB_MIN_VOLUME):
             _refit(tris_sorted, center, axes, half, left, right, first, count, n_nodes, fit)

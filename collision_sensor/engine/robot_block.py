@@ -23,7 +23,7 @@ import numpy as np
 from collision_sensor.engine.bounding_volumes import fit_obb
 from collision_sensor.engine.checker_config import CheckerConfig
 from collision_sensor.engine.compiled import engine
-from collision_sensor.engine.dynamic_scene import solid_row
+from collision_sensor.engine.dynamic_scene import cover_solid, solid_radius, solid_row
 from collision_sensor.engine.kinematics import JOINT_PRISMATIC, KinematicTree, variables
 from collision_sensor.engine.motion import motion_kinds
 from collision_sensor.engine.obb_tree import box_table, build_forest, node_table
@@ -94,8 +94,8 @@ def build_robot_block(model: RobotModel, kin: KinematicTree, config: CheckerConf
     for element in model.elements:
         meshes.append((_transformed(element.T_link_element, element.vertices), element.faces))
         owners.append(link_index[element.link])
-        solids.append(solid_row(element.solid, element.faces, element.T_link_element,
-                                config.mesh_containment))
+        solids.append(solid_row(element.solid, element.vertices, element.faces,
+                                element.T_link_element, config.mesh_containment))
     order = np.argsort(np.asarray(owners, dtype=np.int64), kind='stable')
     meshes = [meshes[i] for i in order]
     elem_solid = (np.array([solids[i] for i in order]) if solids
@@ -106,6 +106,12 @@ def build_robot_block(model: RobotModel, kin: KinematicTree, config: CheckerConf
         n_links, dtype=np.int64)
     elem_end = np.cumsum(counts).astype(np.int64)
     elem_start = (elem_end - counts).astype(np.int64)
+    for e, root in enumerate(forest.roots):  # roots hold the true solids (cover_solid)
+        cover_solid(forest.center[root], forest.axes[root], forest.half[root], elem_solid[e])
+        grown = 8.0 * np.prod(forest.half[root])
+        if forest.left[root] >= 0:
+            forest.gain[root] += grown - forest.volume[root]
+        forest.volume[root] = grown
     padding = link_padding(config, model.name, link_names, object_names)
     grow_boxes(forest.half, forest.roots, padding[owners])
 
@@ -119,8 +125,11 @@ def build_robot_block(model: RobotModel, kin: KinematicTree, config: CheckerConf
             faces = np.concatenate([meshes[e][1] + sum(len(c) for c in chunk[:k])
                                     for k, e in enumerate(range(elem_start[b], elem_end[b]))])
             center[b], axes[b], half[b] = fit_obb(points, config.obb_fit_code, faces=faces)
-            half[b] += padding[b]   # the padded link (see grow_boxes)
             vertex_radius[b] = float(np.sqrt((points ** 2).sum(axis=1).max()))
+            for e in range(elem_start[b], elem_end[b]):
+                cover_solid(center[b], axes[b], half[b], elem_solid[e])
+                vertex_radius[b] = max(vertex_radius[b], solid_radius(elem_solid[e]))
+            half[b] += padding[b]   # the padded link (see grow_boxes)
 
     geometric = tuple(name for b, name in enumerate(link_names) if counts[b] > 0)
     exclusions = exception_list(config, model, srdf, link_names, geometric, object_names)

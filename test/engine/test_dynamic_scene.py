@@ -14,6 +14,7 @@ import pytest
 
 import collision_sensor.engine.dynamic_scene as dynamic_scene
 from collision_sensor import CollisionChecker
+from collision_sensor.engine.compiled import engine
 from collision_sensor.engine.dynamic_scene import (
     AddObject, MoveObject, RemoveObject, checked_pose, transform_from_xyz_quaternion)
 from collision_sensor.engine.sampling import random_configurations, sampling_bounds
@@ -93,7 +94,9 @@ def _random_edit(rng, oracle, links, counter):
         rng, 0.7 if link is None else 0.25))
 
 
-@pytest.mark.parametrize('seed', [1, 2])
+# Seeds 5 and 11 failed before the test vertex was the element's own (it was the first of the
+# tree's order, which moved with the box fit) and before root boxes held the true solids.
+@pytest.mark.parametrize('seed', [1, 2, 5, 11])
 def test_random_scene_edits_and_motion_match_scratch_and_fcl(seed):
     model = load_urdf(SMALL_ROBOT, primitive_sections=SETTINGS['primitive_sections'])
     checker = CollisionChecker(model, config=SETTINGS)
@@ -491,3 +494,68 @@ def test_an_added_objects_tree_is_held_once_by_the_engines_buffers():
     block = checker._scene.objects['ball'].block
     assert np.shares_memory(block.tris, checker.packed_array('tris'))
     assert np.shares_memory(block.boxes, checker.packed_array('boxes'))
+
+
+def _true_surface(row, rng, n=4000):
+    """Points on the true primitive of a solid row (its body's frame): box, sphere or
+    cylinder, corners and rims included."""
+    kind, size = int(row[0]), row[1:4]
+    R, t = row[4:13].reshape(3, 3), row[13:16]
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    if kind == engine.SOLID_BOX:
+        local = np.sign(u) * size
+    elif kind == engine.SOLID_SPHERE:
+        local = u * size[0]
+    else:  # the rims of a cylinder's end discs
+        angle = rng.uniform(0, 2 * np.pi, n)
+        local = np.stack([size[0] * np.cos(angle), size[0] * np.sin(angle),
+                          size[1] * np.sign(u[:, 2])], axis=1)
+    return local @ R.T + t
+
+
+def _inside(points, box, slack=1e-12):
+    local = (points - box[engine.BOX_CENTER:engine.BOX_CENTER + 3]) @ box[
+        engine.BOX_AXES:engine.BOX_AXES + 9].reshape(3, 3)
+    return np.all(np.abs(local) <= box[engine.BOX_HALF:engine.BOX_HALF + 3] + slack)
+
+
+@pytest.mark.parametrize('fit', ['refined', 'pca'])
+def test_root_and_body_boxes_hold_the_true_solids_and_rows_name_the_first_vertex(fit):
+    # A tessellated sphere or cylinder is inscribed in its true shape, which counts for
+    # containment: boxes fitted to the triangles alone can leave the sliver between them out,
+    # and a box test would then prove apart a vertex that lies in the solid.
+    config = dict(SETTINGS, obb_fit=fit)
+    model = load_urdf(SMALL_ROBOT, primitive_sections=config['primitive_sections'])
+    checker = CollisionChecker(model, config=config)
+    rng = np.random.default_rng(4)
+    objects = [_random_object(rng, f'obj{i}') for i in range(12)]
+    checker.apply_scene_changes([AddObject(obj, None, (), _random_pose(rng, 0.7))
+                                 for obj in objects])
+    arrays = checker._scene.arrays
+    solids = 0
+    for b in range(len(checker._scene.body_names)):
+        for e in range(checker._scene.elem_start[b], checker._scene.elem_end[b]):
+            row = arrays['elem_solid'][e]
+            if int(row[0]) in (engine.SOLID_BOX, engine.SOLID_SPHERE, engine.SOLID_CYLINDER):
+                points = _true_surface(row, rng)
+                assert _inside(points, arrays['boxes'][arrays['roots'][e]]), (b, e)
+                assert _inside(points, arrays['body_boxes'][b]), (b, e)
+                solids += 1
+    assert solids >= 6
+    # The test vertex of each element: its mesh's first vertex, in the body's frame (a link's
+    # elements in the model's order).
+    for b, link in enumerate(checker._scene.body_names):
+        elements = [element for element in model.elements if element.link == link]
+        for e, element in zip(range(checker._scene.elem_start[b], checker._scene.elem_end[b]),
+                              elements):
+            T = element.T_link_element
+            np.testing.assert_allclose(
+                arrays['elem_solid'][e][engine.SOLID_PROBE:engine.SOLID_PROBE + 3],
+                T[:3, :3] @ element.vertices[element.faces[0, 0]] + T[:3, 3], atol=1e-15)
+    for obj in objects:
+        b = checker._scene.body_index[obj.name]
+        e = checker._scene.elem_start[b]
+        np.testing.assert_array_equal(
+            arrays['elem_solid'][e][engine.SOLID_PROBE:engine.SOLID_PROBE + 3],
+            obj.vertices[obj.faces[0, 0]])

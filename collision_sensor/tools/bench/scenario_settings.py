@@ -37,7 +37,7 @@ class Settings:
     rounds: int = 5
     box_pairs: int = 100_000
     box_repeat: int = 10
-    fits: Tuple[str, ...] = ('pca', 'hull_pca', 'min_volume')
+    fits: Tuple[str, ...] = ('pca', 'refined', 'hull_pca', 'min_volume')
     motion_segments: int = 10_200
     motion_speed_segments: int = 200
     motion_waypoints: int = 1000
@@ -55,7 +55,7 @@ class Settings:
         # min_volume is left out of the smoke run: its Panda build alone takes ~15 s.
         return cls(seed=seed, quick=True, configurations=60, stream_steps=60,
                    scale_configurations=20, terrain_triangles=(1_000, 3_000, 10_000), rounds=2,
-                   box_pairs=2_000, box_repeat=2, fits=('pca', 'hull_pca'),
+                   box_pairs=2_000, box_repeat=2, fits=('pca', 'refined', 'hull_pca'),
                    motion_segments=30, motion_speed_segments=10, motion_waypoints=100,
                    motion_walk_steps=300, ccd_cases=3, motion_robots=('panda', 'ur5', 'z1'),
                    thread_rows=1000)
