@@ -406,6 +406,17 @@ void fit_triangle(const double* points, double* center, double* axes, double* ha
 
 void fit_obb_refined(const double* points, int64_t n, double* center, double* axes,
                      double* half) {
+    // Nodes of 2 to REFINE_FROM / 3 triangles keep the principal box: they are most of a
+    // tree's nodes, and refining them costs most of the build for few box tests saved.
+    constexpr int64_t REFINE_FROM = 48;
+    // At most REFINE_POINTS points (a stride through them) choose the box's axes; the
+    // extents always come from every point, so only the tightness depends on the sample.
+    constexpr int64_t REFINE_POINTS = 256;
+    // Rounds: a tilted principal axis is kept by every candidate of the first round; the next
+    // keeps each axis of the box found instead, which turns the tilt out (a square prism's
+    // sampled long axis). Up to REFINE_ROUNDS, while a round shrinks the box by REFINE_GAIN.
+    constexpr int REFINE_ROUNDS = 3;
+    constexpr double REFINE_GAIN = 0.001;
     check_points(points, n);
     double C[9];
     covariance(points, n, C);
@@ -416,50 +427,53 @@ void fit_obb_refined(const double* points, int64_t n, double* center, double* ax
         fit_triangle(points, center, axes, half);
         return;
     }
-    // At most REFINE_POINTS points (a stride through them) choose the rectangle's angle;
-    // the extents always come from every point, so only the tightness depends on the sample.
-    constexpr int64_t REFINE_POINTS = 128;
+    if (n <= REFINE_FROM) return;
+    // The sample: every point, or a stride through them plus the points extreme along 7
+    // directions of the principal frame (its axes and its box's diagonals), both ways: a
+    // stride misses the corners that the rectangles rest on.
     const int64_t stride = (n + REFINE_POINTS - 1) / REFINE_POINTS;
-    std::vector<std::array<double, 2>> xy, hull;
-    xy.reserve(n / stride + 27);
-    // A sample by stride misses the corners that the rectangles rest on: it also takes the
-    // points extreme along 13 directions of the principal frame (its axes, the diagonals of
-    // its faces and of its box), both ways.
-    std::vector<int64_t> extremes;
+    std::vector<double> gathered;
+    const double* S = points;
+    int64_t ns = n;
     if (stride > 1) {
-        // Each direction's coordinate is a signed sum of the three axis coordinates.
-        const int signs[13][3] = {{1, 0, 0},  {0, 1, 0},  {0, 0, 1},  {1, 1, 0},  {1, -1, 0},
-                                  {1, 0, 1},  {1, 0, -1}, {0, 1, 1},  {0, 1, -1}, {1, 1, 1},
-                                  {1, 1, -1}, {1, -1, 1}, {1, -1, -1}};
-        int64_t lo[13] = {0}, hi[13] = {0};
-        double lo_v[13], hi_v[13];
-        for (int d = 0; d < 13; ++d) lo_v[d] = INFINITY, hi_v[d] = -INFINITY;
+        constexpr int DIRS = 7;
+        const int signs[DIRS][3] = {{1, 0, 0},  {0, 1, 0},   {0, 0, 1},  {1, 1, 1},
+                                    {1, 1, -1}, {1, -1, 1},  {1, -1, -1}};
+        int64_t lo[DIRS] = {0}, hi[DIRS] = {0};
+        double lo_v[DIRS], hi_v[DIRS];
+        for (int d = 0; d < DIRS; ++d) lo_v[d] = INFINITY, hi_v[d] = -INFINITY;
         for (int64_t i = 0; i < n; ++i) {
             const double* x = points + 3 * i;
+            // Each direction's coordinate is a signed sum of the three axis coordinates.
             const double c0 = x[0] * axes[0] + x[1] * axes[3] + x[2] * axes[6];
             const double c1 = x[0] * axes[1] + x[1] * axes[4] + x[2] * axes[7];
             const double c2 = x[0] * axes[2] + x[1] * axes[5] + x[2] * axes[8];
-            for (int d = 0; d < 13; ++d) {
+            for (int d = 0; d < DIRS; ++d) {
                 const double v = signs[d][0] * c0 + signs[d][1] * c1 + signs[d][2] * c2;
                 if (v < lo_v[d]) lo_v[d] = v, lo[d] = i;
                 if (v > hi_v[d]) hi_v[d] = v, hi[d] = i;
             }
         }
-        extremes.assign(lo, lo + 13);
-        extremes.insert(extremes.end(), hi, hi + 13);
+        gathered.reserve(3 * (n / stride + 2 * DIRS + 1));
+        auto take = [&](int64_t i) { gathered.insert(gathered.end(), points + 3 * i, points + 3 * i + 3); };
+        for (int64_t i = 0; i < n; i += stride) take(i);
+        for (int d = 0; d < DIRS; ++d) take(lo[d]), take(hi[d]);
+        S = gathered.data();
+        ns = static_cast<int64_t>(gathered.size() / 3);
     }
-    // Rounds: a tilted principal axis is kept by every candidate of the first round; the next
-    // keeps each axis of the box found instead, which turns the tilt out (a square prism's
-    // sampled long axis). Up to REFINE_ROUNDS, while a round shrinks the box by REFINE_GAIN.
-    constexpr int REFINE_ROUNDS = 3;
-    constexpr double REFINE_GAIN = 0.001;
-    constexpr int64_t REFINE_SMALL = 48;
+    // Rounds on the sample: its box (sample_half) is what each candidate must beat.
+    double frame[9], sample_center[3], sample_half[3];
+    std::copy(axes, axes + 9, frame);
+    box_on_axes(S, ns, frame, sample_center, sample_half);
+    std::vector<std::array<double, 2>> xy, hull;
+    xy.reserve(ns);
+    bool moved = false;
     for (int round = 0; round < REFINE_ROUNDS; ++round) {
-        const double base[9] = {axes[0], axes[1], axes[2], axes[3], axes[4],
-                               axes[5], axes[6], axes[7], axes[8]};
-        // The candidate of least estimated volume: the rectangle's area (on the sample) times
-        // the current box's extent along the axis kept.
-        double best_volume = 8.0 * half[0] * half[1] * half[2];
+        const double base[9] = {frame[0], frame[1], frame[2], frame[3], frame[4],
+                                frame[5], frame[6], frame[7], frame[8]};
+        // The candidate of least volume on the sample: the rectangle's area times the
+        // sample box's extent along the axis kept.
+        double best_volume = 8.0 * sample_half[0] * sample_half[1] * sample_half[2];
         double best_V[9];
         bool found = false;
         for (int k = 0; k < 3; ++k) {
@@ -468,13 +482,11 @@ void fit_obb_refined(const double* points, int64_t n, double* center, double* ax
             const double p[3] = {base[ip], base[3 + ip], base[6 + ip]};
             const double q[3] = {base[iq], base[3 + iq], base[6 + iq]};
             xy.clear();
-            auto project = [&](int64_t i) {
-                const double* x = points + 3 * i;
+            for (int64_t i = 0; i < ns; ++i) {
+                const double* x = S + 3 * i;
                 xy.push_back({x[0] * p[0] + x[1] * p[1] + x[2] * p[2],
                               x[0] * q[0] + x[1] * q[1] + x[2] * q[2]});
-            };
-            for (int64_t i = 0; i < n; i += stride) project(i);
-            for (const int64_t i : extremes) project(i);
+            }
             const int64_t h = hull_2d(xy, hull);
             if (h < 2) continue;
             // The smallest-area rectangle has a side on a hull edge (Freeman & Shapira 1975);
@@ -482,15 +494,14 @@ void fit_obb_refined(const double* points, int64_t n, double* center, double* ax
             // 1983): the extreme points along the edge, across it and against it only move
             // forward around the hull, so all edges cost O(h).
             const Rectangle r = smallest_rectangle(hull, h);
-            const double best_area = r.area, best_c = r.c, best_s = r.s;
-            const double volume = best_area * 2.0 * half[k];
+            const double volume = r.area * 2.0 * sample_half[k];
             if (!(volume < best_volume)) continue;
             best_volume = volume;
             found = true;
-            // u = c p + s q, v = -s p + c q, w = p x q = axis k: columns (u, v, w), right-handed.
+            // u = c p + s q, v = -s p + c q, w = p x q = axis k: columns (u, v, w).
             for (int i = 0; i < 3; ++i) {
-                best_V[3 * i + 0] = best_c * p[i] + best_s * q[i];
-                best_V[3 * i + 1] = -best_s * p[i] + best_c * q[i];
+                best_V[3 * i + 0] = r.c * p[i] + r.s * q[i];
+                best_V[3 * i + 1] = -r.s * p[i] + r.c * q[i];
                 best_V[3 * i + 2] = base[3 * i + k];
             }
         }
@@ -509,16 +520,23 @@ void fit_obb_refined(const double* points, int64_t n, double* center, double* ax
                 std::swap(order[j], order[j - 1]);
         double cand_axes[9], cand_center[3], cand_half[3];
         frame_from_eigenvectors(best_V, order, cand_axes);
-        box_on_axes(points, n, cand_axes, cand_center, cand_half);
-        if (!smaller_box(cand_half, half)) break;  // on a sample the estimate can be wrong
-        const double before = half[0] * half[1] * half[2];
-        std::copy(cand_center, cand_center + 3, center);
-        std::copy(cand_axes, cand_axes + 9, axes);
-        std::copy(cand_half, cand_half + 3, half);
-        // Another round where this one gained more than REFINE_GAIN of the volume, for nodes
-        // of more than REFINE_SMALL points (the many small ones gain little from it).
-        if (n <= REFINE_SMALL || !(half[0] * half[1] * half[2] < (1.0 - REFINE_GAIN) * before))
+        box_on_axes(S, ns, cand_axes, cand_center, cand_half);
+        if (!smaller_box(cand_half, sample_half)) break;
+        const double before = sample_half[0] * sample_half[1] * sample_half[2];
+        std::copy(cand_axes, cand_axes + 9, frame);
+        std::copy(cand_half, cand_half + 3, sample_half);
+        moved = true;
+        if (!(sample_half[0] * sample_half[1] * sample_half[2] < (1.0 - REFINE_GAIN) * before))
             break;
+    }
+    if (!moved) return;
+    // The extents from every point; the principal box stays if it is still the smaller.
+    double cand_center[3], cand_half[3];
+    box_on_axes(points, n, frame, cand_center, cand_half);
+    if (smaller_box(cand_half, half)) {
+        std::copy(cand_center, cand_center + 3, center);
+        std::copy(frame, frame + 9, axes);
+        std::copy(cand_half, cand_half + 3, half);
     }
 }
 

@@ -73,9 +73,11 @@ void fit_obb_pca(const double* points, int64_t n, double* center, double* axes, 
 //: the plane they span (a side on an edge of the projection's convex hull); the smallest box
 //: of the four (volume, then surface) is kept, and the same is done around its axes, up to
 //: three rounds while the box shrinks (a sampled principal axis can be tilted); written
-//: under the box convention above. The angle is chosen from at most 512 of the points (a
-//: stride), every edge of their hull tried (rotating calipers); the extents come from all of
-//: them. O(n) plus a sort of the sample. Same arguments and errors as fit_obb_pca.
+//: under the box convention above. The axes are chosen on at most 256 of the points (a
+//: stride) plus the 14 extremes along the principal axes and box diagonals, every edge of
+//: their hull tried (rotating calipers); the extents come from all of them. One triangle:
+//: the smallest box with a side along an edge; 4 to 48 points: the principal box. O(n)
+//: plus sorts of the sample. Same arguments and errors as fit_obb_pca.
 void fit_obb_refined(const double* points, int64_t n, double* center, double* axes,
                      double* half);
 

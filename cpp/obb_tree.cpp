@@ -155,7 +155,10 @@ TreeSize build_obb_tree(const double* tris, int64_t m, int64_t leaf_size, const 
         const int64_t n = p.end - p.start;
         gather_points(tris, order, p.start, p.end, points.data());
         double* a = axes + 9 * p.node;
-        if (refine)
+        // Refined at the top of the tree only (nodes holding more than 1/64 of its
+        // triangles): those are tested on every descent, and refining every node would make
+        // a large mesh's build several times as long (a 100,000-triangle scene object).
+        if (refine && 64 * n > m)
             fit_obb_refined(points.data(), 3 * n, center + 3 * p.node, a, half + 3 * p.node);
         else
             fit_obb_pca(points.data(), 3 * n, center + 3 * p.node, a, half + 3 * p.node);

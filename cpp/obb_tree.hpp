@@ -82,8 +82,8 @@ int64_t partition(const double* keys, int64_t* order, int64_t start, int64_t end
 //: axis whose two halves have the least surface summed (h0 h1 + h1 h2 + h2 h0 of each half's
 //: vertex extents along the node's axes; the first such axis on a tie; an axis that would
 //: leave a side empty is skipped, and halves of the list are taken if all three would); each
-//: node's box is fit_obb_pca of the vertices beneath it, or fit_obb_refined when refine is
-//: set (bounding_volumes.hpp).
+//: node's box is fit_obb_pca of the vertices beneath it, or, when refine is set, fit_obb_refined
+//: for the nodes holding more than m / 64 triangles (the top of the tree) (bounding_volumes.hpp).
 //: Throws std::invalid_argument on NaN / infinity in tris, m < 1, leaf_size < 1 or too
 //: small a capacity.
 TreeSize build_obb_tree(const double* tris, int64_t m, int64_t leaf_size, const TreeArrays& out,

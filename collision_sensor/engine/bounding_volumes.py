@@ -115,10 +115,12 @@ def fit_obb_refined(points):
     projection's convex hull, Freeman & Shapira 1975); of the principal-axes box and these
     three, the one of least volume (then surface) is kept, and the same is done around its
     axes, up to three rounds while it shrinks; its axes are re-ordered by decreasing variance.
-    The angle is chosen from at most 512 of the points, every edge of their hull tried
-    (rotating calipers); the extents come from every point, so the box always contains them.
-    It keeps the speed of a vertex fit at tree build and gets most of
-    :func:`fit_obb_min_volume`'s
+    The axes are chosen on at most 256 of the points plus the 14 extremes along the principal
+    axes and box diagonals, every edge of their hull tried (rotating calipers); the extents
+    come from every point, so the box always contains them. One triangle: the smallest box
+    with a side along one of its edges; 4 to 48 points: the principal box. Tree builds use it
+    for the top of each tree (nodes over 1/64 of the mesh), which keeps their time near the
+    vertex fit's and gets most of :func:`fit_obb_min_volume`'s
     tightness (``docs/measurements.md``, "Bounding-volume fits").
 
     :param points: (n, 3) float64, n >= 1, finite.

@@ -97,8 +97,8 @@ def build_tree_kernel(tris, leaf_size, center, axes, half, left, right, first, c
         empty, the first minimising surface(left) + surface(right), surface(side) = h0 h1 +
         h1 h2 + h2 h0 of the half extents of the side's vertices along the node's axes (the
         halves of the list if every axis leaves a side empty); each node's box is fit_obb_pca
-        of its vertices (fit_obb_refined if refine); nodes are numbered in creation order,
-        children after their parent.
+        of its vertices (with refine, fit_obb_refined for nodes of more than m / 64
+        triangles); nodes are numbered in creation order, children after their parent.
 
     :param tris: (m, 3, 3) float64 triangles, m >= 1.
     :param leaf_size: most triangles in a leaf (>= 1).
@@ -143,9 +143,9 @@ def build_forest(meshes, leaf_size: int = 2, fit: int = OBB_PCA) -> ObbForest:
 
     :param meshes: sequence of ((n, 3) float vertices, (m, 3) int faces), in body frames.
     :param leaf_size: most triangles per leaf.
-    :param fit: OBB_PCA (default, the paper's Wu method), OBB_REFINED (the same, tightened
-        around each principal axis, in the same build), OBB_HULL_PCA or OBB_MIN_VOLUME (boxes
-        refitted after the build, in Python: slow).
+    :param fit: OBB_PCA (default, the paper's Wu method), OBB_REFINED (the same, the top of
+        each tree tightened around each principal axis, in the same build), OBB_HULL_PCA or
+        OBB_MIN_VOLUME (boxes refitted after the build, in Python: slow).
     :return: the forest; ``roots[i]`` is mesh ``i``'s root node.
     """
     if leaf_size < 1:

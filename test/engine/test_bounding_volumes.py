@@ -268,3 +268,27 @@ def test_bad_shapes_name_the_argument():
         fit_obb_pca(np.zeros((4, 2)))
     with pytest.raises(ValueError, match='C'):
         principal_frame(np.zeros((2, 2)))
+
+
+@pytest.mark.parametrize('robot', [
+    ('panda_description/urdf/panda.urdf', 'panda_description/srdf/panda.srdf', 2000),
+    ('ur_description/urdf/ur5_robot.urdf', 'ur_description/srdf/ur5.srdf', 2000),
+    ('tiago_description/robots/tiago.urdf', None, 40)])
+def test_the_fits_change_the_work_never_the_answers(robot, erd_share, erd_package_paths):
+    # Boxes only prune: every fit must give the statuses of every other, pair for pair, on
+    # random configurations (TIAGo without an SRDF: about 50 colliding pairs each).
+    import os
+    from collision_sensor import CollisionChecker
+    from collision_sensor.engine.sampling import random_configurations
+    urdf, srdf, count = robot
+    root = os.path.join(erd_share, 'robots')
+    checkers = {fit: CollisionChecker.from_urdf(
+        os.path.join(root, urdf), os.path.join(root, srdf) if srdf else None,
+        package_paths=erd_package_paths, config={'obb_fit': fit}) for fit in ('pca', 'refined')}
+    Q = random_configurations(checkers['pca'], count, seed=27)
+    statuses = {fit: checker.check_batch(Q) for fit, checker in checkers.items()}
+    assert statuses['pca'].any()
+    np.testing.assert_array_equal(statuses['pca'], statuses['refined'])
+    # The refined boxes hold less: the sum of their volumes is smaller.
+    volume = {fit: checker.forest.volume.sum() for fit, checker in checkers.items()}
+    assert volume['refined'] < volume['pca']
