@@ -123,7 +123,7 @@ def _fits(section, cell, configurations, settings):
     skipped = [f for f in ('pca', 'refined', 'hull_pca', 'min_volume') if f not in settings.fits]
     section.text('', '#### Bounding-volume fits on the Panda', '',
                  '`hull_pca` and `min_volume` refit the boxes of the `pca` trees; `refined` '
-                 'fits its boxes as the tree is built and splits nodes along them; '
+                 'fits the top of each tree as it is built and cuts nodes along those boxes; '
                  f'{forest.node_count} boxes over {len(forest.tris)} triangles. Volumes in litres (1e-3 m^3); build is '
                  'the whole checker constructor.'
                  + (f' Not measured in --quick: {", ".join(skipped)}.' if skipped else ''))
