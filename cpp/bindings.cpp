@@ -900,24 +900,21 @@ void bind_build_kernels(py::module_& m) {
     }, py::arg("points"), py::arg("axes"),
        "(center (3,), half (3,)) of the smallest box with axes (3, 3) containing points (n, 3).");
 
-    m.def("fit_obb_pca", [points](const Doubles& p) {
-        const py::ssize_t n = points(p, "points");
-        Doubles center(3), axes({3, 3}), half(3);
-        cs::fit_obb_pca(p.data(), n, center.mutable_data(), axes.mutable_data(),
-                        half.mutable_data());
-        return py::make_tuple(center, axes, half);
-    }, py::arg("points"),
-       "(center (3,), axes (3, 3), half (3,)) of the principal-axes box of points (n, 3).");
-
-    m.def("fit_obb_refined", [points](const Doubles& p) {
-        const py::ssize_t n = points(p, "points");
-        Doubles center(3), axes({3, 3}), half(3);
-        cs::fit_obb_refined(p.data(), n, center.mutable_data(), axes.mutable_data(),
-                            half.mutable_data());
-        return py::make_tuple(center, axes, half);
-    }, py::arg("points"),
-       "(center (3,), axes (3, 3), half (3,)) of the principal-axes box of points (n, 3), "
-       "tightened by the smallest-area rectangle around each principal axis.");
+    // A box fit's binding: (center (3,), axes (3, 3), half (3,)) of points (n, 3).
+    using BoxFit = void (*)(const double*, int64_t, double*, double*, double*);
+    const auto box_fit = [points](BoxFit fit) {
+        return [points, fit](const Doubles& p) {
+            const py::ssize_t n = points(p, "points");
+            Doubles center(3), axes({3, 3}), half(3);
+            fit(p.data(), n, center.mutable_data(), axes.mutable_data(), half.mutable_data());
+            return py::make_tuple(center, axes, half);
+        };
+    };
+    m.def("fit_obb_pca", box_fit(cs::fit_obb_pca), py::arg("points"),
+          "(center (3,), axes (3, 3), half (3,)) of the principal-axes box of points (n, 3).");
+    m.def("fit_obb_refined", box_fit(cs::fit_obb_refined), py::arg("points"),
+          "(center (3,), axes (3, 3), half (3,)) of the principal-axes box of points (n, 3), "
+          "tightened by the smallest-area rectangle around each principal axis.");
 
     m.def("ritter_sphere", [points](const Doubles& p) {
         const py::ssize_t n = points(p, "points");
