@@ -421,39 +421,53 @@ void fit_obb_refined(const double* points, int64_t n, double* center, double* ax
     double C[9];
     covariance(points, n, C);
     principal_frame(C, axes);
-    box_on_axes(points, n, axes, center, half);
+    // The sample: every point, or a stride through them plus the points extreme along 7
+    // directions of the principal frame (its axes and its box's diagonals), both ways: a
+    // stride misses the corners that the rectangles rest on.
+    const int64_t stride = (n + REFINE_POINTS - 1) / REFINE_POINTS;
+    if (n <= REFINE_FROM || stride == 1) box_on_axes(points, n, axes, center, half);
     if (n < 3) return;
     if (n == 3) {  // one triangle (a leaf): the rectangle rests on one of its three edges
         fit_triangle(points, center, axes, half);
         return;
     }
     if (n <= REFINE_FROM) return;
-    // The sample: every point, or a stride through them plus the points extreme along 7
-    // directions of the principal frame (its axes and its box's diagonals), both ways: a
-    // stride misses the corners that the rectangles rest on.
-    const int64_t stride = (n + REFINE_POINTS - 1) / REFINE_POINTS;
     std::vector<double> gathered;
     const double* S = points;
     int64_t ns = n;
     if (stride > 1) {
+        // One pass finds the extremes and the principal box (box_on_axes' sums, about the
+        // first point, from the first three directions' extremes).
         constexpr int DIRS = 7;
         const int signs[DIRS][3] = {{1, 0, 0},  {0, 1, 0},   {0, 0, 1},  {1, 1, 1},
                                     {1, 1, -1}, {1, -1, 1},  {1, -1, -1}};
         int64_t lo[DIRS] = {0}, hi[DIRS] = {0};
         double lo_v[DIRS], hi_v[DIRS];
         for (int d = 0; d < DIRS; ++d) lo_v[d] = INFINITY, hi_v[d] = -INFINITY;
+        const double o0 = points[0], o1 = points[1], o2 = points[2];
         for (int64_t i = 0; i < n; ++i) {
-            const double* x = points + 3 * i;
+            const double x0 = points[3 * i + 0] - o0;
+            const double x1 = points[3 * i + 1] - o1;
+            const double x2 = points[3 * i + 2] - o2;
             // Each direction's coordinate is a signed sum of the three axis coordinates.
-            const double c0 = x[0] * axes[0] + x[1] * axes[3] + x[2] * axes[6];
-            const double c1 = x[0] * axes[1] + x[1] * axes[4] + x[2] * axes[7];
-            const double c2 = x[0] * axes[2] + x[1] * axes[5] + x[2] * axes[8];
+            const double c[3] = {x0 * axes[0] + x1 * axes[3] + x2 * axes[6],
+                                 x0 * axes[1] + x1 * axes[4] + x2 * axes[7],
+                                 x0 * axes[2] + x1 * axes[5] + x2 * axes[8]};
             for (int d = 0; d < DIRS; ++d) {
-                const double v = signs[d][0] * c0 + signs[d][1] * c1 + signs[d][2] * c2;
+                const double v = d < 3 ? c[d] : signs[d][0] * c[0] + signs[d][1] * c[1] +
+                                                    signs[d][2] * c[2];
                 if (v < lo_v[d]) lo_v[d] = v, lo[d] = i;
                 if (v > hi_v[d]) hi_v[d] = v, hi[d] = i;
             }
         }
+        double mid[3];
+        for (int k = 0; k < 3; ++k) {
+            half[k] = 0.5 * (hi_v[k] - lo_v[k]);
+            mid[k] = 0.5 * (hi_v[k] + lo_v[k]);
+        }
+        center[0] = o0 + axes[0] * mid[0] + axes[1] * mid[1] + axes[2] * mid[2];
+        center[1] = o1 + axes[3] * mid[0] + axes[4] * mid[1] + axes[5] * mid[2];
+        center[2] = o2 + axes[6] * mid[0] + axes[7] * mid[1] + axes[8] * mid[2];
         gathered.reserve(3 * (n / stride + 2 * DIRS + 1));
         auto take = [&](int64_t i) { gathered.insert(gathered.end(), points + 3 * i, points + 3 * i + 3); };
         for (int64_t i = 0; i < n; i += stride) take(i);

@@ -41,8 +41,10 @@ Options resolved(const Options& o) {
     return out;
 }
 
-// Bring the context's statuses up to date with q (usable): Engine::query's answer.
-int64_t run_query(CheckContext& c, const double* q, bool full) {
+// Bring the context's statuses up to date with q (usable): Engine::query's answer. With
+// moving_only (a full check of a batch's row), only the model's moving pairs are re-checked:
+// the static pairs' statuses must already be those of a full check in this scene.
+int64_t run_query(CheckContext& c, const double* q, bool full, bool moving_only = false) {
     const Model& m = c.model;
     State& s = c.state;
     full = full || s.flags[QUERY_CHECKED_ONCE] == 0;
@@ -56,9 +58,14 @@ int64_t run_query(CheckContext& c, const double* q, bool full) {
     if (!any_moved && !forced) return 0;
     s.flags[QUERY_CHECKED_ONCE] = 1;
     int64_t n;
+    const int64_t* full_list = nullptr;
     if (full) {
         plan_full(c, s.q_last);
         n = m.n_pairs;
+        if (moving_only) {
+            full_list = m.moving_pairs.data();
+            n = int64_t(m.moving_pairs.size());
+        }
         if (forced) clear_forced(s, m.n_pairs);  // every pair is re-checked from scratch
     } else {
         n = any_moved ? plan_update(c, s.q_last) : 0;
@@ -66,7 +73,7 @@ int64_t run_query(CheckContext& c, const double* q, bool full) {
         if (n == 0) return 0;
     }
     bool changed = false;
-    const int64_t rechecked = recheck_pairs(c, n, full, &changed);
+    const int64_t rechecked = recheck_pairs(c, n, full, &changed, full_list);
     return 2 * rechecked + (changed ? 1 : 0);
 }
 
@@ -77,12 +84,13 @@ double seconds_since(Clock::time_point start) {
 }
 
 // Rows [begin, end) of a batch in context c, statuses and codes out; the first row a full
-// check when first_full.
+// check when first_full. Full rows re-check only the moving pairs (the static ones hold the
+// batch's answer for them: static_statuses).
 void run_rows(CheckContext& c, const double* Q, int64_t begin, int64_t end, bool full,
               bool first_full, uint8_t* statuses, int64_t* codes) {
     const int64_t J = c.model.n_joints, P = c.model.n_pairs;
     for (int64_t i = begin; i < end; ++i) {
-        codes[i] = run_query(c, Q + J * i, full || (first_full && i == begin));
+        codes[i] = run_query(c, Q + J * i, full || (first_full && i == begin), full);
         for (int64_t p = 0; p < P; ++p) statuses[P * i + p] = uint8_t(c.state.status[p]);
     }
 }
@@ -226,6 +234,25 @@ int64_t Engine::run(const double* q, bool full, MotionRecord* record) {
     return run_query(c, q, full);
 }
 
+bool Engine::static_statuses(const double* q) {
+    static_status_.assign(model_.n_pairs, 0);
+    if (model_.static_pairs.empty()) return false;
+    Worker& worker = *workers_[0];
+    worker.state.copy_from(state_, model_, false);
+    State& s = worker.state.state();
+    CheckContext c = {model_, s, worker.scratch, options_, nullptr};
+    plan_full(c, q);
+    bool changed = false;
+    recheck_pairs(c, int64_t(model_.static_pairs.size()), true, &changed,
+                  model_.static_pairs.data());
+    bool differs = false;
+    for (const int64_t p : model_.static_pairs) {
+        static_status_[p] = uint8_t(s.status[p] != 0);
+        differs |= (state_.status[p] != 0) != (s.status[p] != 0);
+    }
+    return differs;
+}
+
 void Engine::ready_workers(int64_t k) {
     while (int64_t(workers_.size()) < k)
         workers_.push_back(std::make_unique<Worker>(model_, state_.fronts));
@@ -251,19 +278,24 @@ int64_t Engine::batch(const double* Q, int64_t n, bool full, uint8_t* statuses,
     if (n == 0) return 0;
     if (full) {
         // Each row a full check, whose answer is its own: in the workers' copies of the
-        // carried state (a full check reads of it only the scene's poses).
+        // carried state (a full check reads of it only the scene's poses). The static pairs
+        // are checked once, for every row; the rows re-check the moving ones.
         const int64_t k = chunks(BATCH_FULL, n);
         ready_workers(k);
+        const bool static_changed = static_statuses(Q);
         double first_seconds = 0.0;
         run_chunks(k, [&](int64_t w) {
             const Clock::time_point start = Clock::now();
             Worker& worker = *workers_[w];
             worker.state.copy_from(state_, model_, false);
-            CheckContext c = {model_, worker.state.state(), worker.scratch, options_, nullptr};
+            State& s = worker.state.state();
+            for (const int64_t p : model_.static_pairs) s.status[p] = static_status_[p];
+            CheckContext c = {model_, s, worker.scratch, options_, nullptr};
             const Chunk rows = chunk_of(w, k, n);
             run_rows(c, Q, rows.begin, rows.end, true, false, statuses, codes);
             if (w == 0) first_seconds = seconds_since(start);
         });
+        if (static_changed) codes[0] |= 1;
         planner_.learn(BATCH_FULL, chunk_of(0, k, n).end, first_seconds);
         gather_counters(k);
         restate_changed(n, k, P, statuses, codes);

@@ -162,6 +162,9 @@ class Engine {
     void ready_workers(int64_t k);
     // Add workers 0 .. k - 1's counters to the engine's, and zero theirs.
     void gather_counters(int64_t k);
+    // Check the static pairs (Model::static_pairs) at q in worker 0 (made), their statuses
+    // into static_status_; return whether one differs from the carried state's.
+    bool static_statuses(const double* q);
     // The incremental batch on k >= 2 threads (batch()).
     void update_batch(const double* Q, int64_t n, int64_t k, uint8_t* statuses, int64_t* codes);
     // Segment check i in context c: 1 contact (*t, pairs), 0 free.
@@ -182,6 +185,7 @@ class Engine {
     MotionWork motion_work_;  // the motion checks' own areas, sized on their first use
     std::vector<std::unique_ptr<Worker>> workers_;  // the batches' other contexts
     SplitPlanner planner_;                          // how many chunks a batch is cut into
+    std::vector<uint8_t> static_status_;            // (P,) a full batch's static pairs' answers
     std::vector<std::shared_ptr<VoxelCloud>> clouds_;  // (B,) the clouds Model::clouds show
 };
 

@@ -114,6 +114,12 @@ void derive_bodies(Model& m) {
     m.body_pairs.assign(m.n_pairs, 0);
     std::vector<int64_t> next(m.body_pairs_start.begin(), m.body_pairs_start.end() - 1);
     for (int64_t p = 0; p < m.n_pairs; ++p) m.body_pairs[next[m.pair_b[p]]++] = p;
+    std::vector<uint8_t> moving(m.n_pairs, 0);
+    for (int64_t t = 0; t < m.joint_pairs_start[m.n_joints]; ++t) moving[m.joint_pairs[t]] = 1;
+    m.moving_pairs.clear();
+    m.static_pairs.clear();
+    for (int64_t p = 0; p < m.n_pairs; ++p)
+        (moving[p] ? m.moving_pairs : m.static_pairs).push_back(p);
     m.clouds.assign(m.n_bodies, nullptr);
     m.most_seeds = 1;
     for (int64_t p = 0; p < m.n_pairs; ++p)

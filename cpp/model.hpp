@@ -52,6 +52,10 @@ struct Model {
     std::vector<double> body_reach;    // (B,) |body box centre| + its radius (poses.hpp)
     // Each body's pairs as pair_b: body_pairs[body_pairs_start[b]:body_pairs_start[b + 1]].
     std::vector<int64_t> body_pairs_start, body_pairs;
+    // The pairs with a joint variable on the tree path between their bodies, and the static
+    // others, whose relative pose, and so whose answer, is the same at every configuration
+    // (a fixed base and the world's objects); both ascending.
+    std::vector<int64_t> moving_pairs, static_pairs;
     // (B,) the voxels of each body that is a point cloud (a world object without trees, its
     // grid kept by the engine: voxel_cloud.hpp), else null; set by Engine::attach_cloud.
     std::vector<const VoxelGrid*> clouds;

@@ -102,7 +102,8 @@ TreesResult trees_of_pair(CheckContext& c, const PairRecheck& r) {
 
 }  // namespace
 
-int64_t recheck_pairs(CheckContext& c, int64_t n, bool full, bool* changed) {
+int64_t recheck_pairs(CheckContext& c, int64_t n, bool full, bool* changed,
+                      const int64_t* full_list) {
     const Model& m = c.model;
     State& s = c.state;
     const bool track = !full;
@@ -116,7 +117,7 @@ int64_t recheck_pairs(CheckContext& c, int64_t n, bool full, bool* changed) {
     int64_t* chain = c.scratch.chain.data();
     double pose[POSE_WIDTH];
     for (int64_t t = 0; t < n; ++t) {
-        const int64_t p = full ? t : todo[t];
+        const int64_t p = full ? (full_list ? full_list[t] : t) : todo[t];
         const int64_t a = m.pair_a[p];
         const int64_t b = m.pair_b[p];
         if (track) {

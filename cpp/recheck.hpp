@@ -18,8 +18,9 @@
 
 namespace collision_sensor {
 
-// Re-check pairs scratch.todo[:n] (every pair if full); return how many, and set *changed
-// when a status changed.
-int64_t recheck_pairs(CheckContext& c, int64_t n, bool full, bool* changed);
+// Re-check pairs scratch.todo[:n] (if full: every pair, or the n pairs of full_list, the
+// others keeping their statuses); return how many, and set *changed when a status changed.
+int64_t recheck_pairs(CheckContext& c, int64_t n, bool full, bool* changed,
+                      const int64_t* full_list = nullptr);
 
 }  // namespace collision_sensor

@@ -307,6 +307,58 @@ def test_a_batch_on_two_threads_while_another_thread_updates(erd_share):
     assert got == wanted
 
 
+BASE_PLATE = {'name': 'base_plate', 'box': {'size': [0.6, 0.02, 0.02]},
+              'pose': {'xyz': [0.0, 0.0, 0.07]}}  # through the Panda's fixed base
+
+
+def test_static_pairs_answer_every_row_of_a_batch(erd_share):
+    """A pair with no joint between its bodies (the fixed base and a world object) is checked
+    once per check_batch, its answer every row's: each row is still a single check's on any
+    thread count, before and after the object leaves and comes back (the carried answer then
+    stale), and the row-0 changed bit sees the static pair change."""
+    robots = os.path.join(erd_share, 'robots')
+    urdf, srdf, cell = ROBOTS['panda']
+    scene = {'objects': cell['objects'] + [BASE_PLATE]}
+
+    def build(threads):
+        return CollisionChecker.from_urdf(
+            os.path.join(robots, urdf), srdf=os.path.join(robots, srdf),
+            package_paths={'example-robot-data': erd_share}, scene=scene,
+            config={'threads': threads, 'min_chunk_us': 0})
+
+    reference = build(1)
+    checkers = {t: build(t) for t in (1, 2)}
+    Q = _configurations(reference, 120, seed=21)
+    names = reference.checked_pairs
+    static = ('base_plate', 'panda_link0')
+    assert static in names
+    away, inside = np.eye(4), np.eye(4)
+    away[:3, 3] = (0.0, 0.0, -5.0)
+    inside[:3, 3] = BASE_PLATE['pose']['xyz']
+    for pose, expected in ((None, True), (away, False), (inside, True)):
+        for checker in (reference, *checkers.values()):
+            if pose is not None:
+                checker.move_object('base_plate', pose)
+        wanted = [reference.check(q).colliding_pairs for q in Q]
+        for t, checker in checkers.items():
+            carried = checker._result.colliding_pairs if checker._result else ()
+            statuses, codes = checker._batch(Q, full=True)
+            got = [tuple(names[p] for p in np.flatnonzero(row)) for row in statuses]
+            assert got == wanted, (t, expected)
+            assert all((static in pairs) == expected for pairs in got), t
+            if (static in carried) != expected:
+                assert codes[0] & 1, t
+    # one row repeated: the static pairs' work is done once, not at every row
+    repeated = np.repeat(Q[:1], 40, axis=0)
+    single = _counters(checkers[1])
+    checkers[1].check(Q[0])
+    single = _counters(checkers[1]) - single
+    before = _counters(checkers[1])
+    checkers[1].check_batch(repeated)
+    batch = _counters(checkers[1]) - before
+    assert batch.sum() < 40 * single.sum()
+
+
 def test_the_threads_setting(erd_share):
     """Default: every hardware thread (os.cpu_count()); 1 .. 256 as given; anything else a
     ConfigError naming the setting."""
