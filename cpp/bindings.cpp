@@ -15,15 +15,18 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
+#include <algorithm>
 #include <climits>
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "bounding_volumes.hpp"
 #include "cloud_queries.hpp"
 #include "engine.hpp"
+#include "number_table.hpp"
 #include "obb_tree.hpp"
 #include "proximity.hpp"
 #include "ray_cast.hpp"
@@ -916,6 +919,24 @@ void bind_build_kernels(py::module_& m) {
           "(center (3,), axes (3, 3), half (3,)) of the principal-axes box of points (n, 3), "
           "tightened by the smallest-area rectangle around each principal axis.");
 
+    m.def("parse_number_table", [](const py::bytes& text, int64_t columns) -> py::object {
+        char* data = nullptr;
+        Py_ssize_t size = 0;
+        if (PyBytes_AsStringAndSize(text.ptr(), &data, &size) != 0) throw py::error_already_set();
+        std::vector<double> values;
+        int64_t rows;
+        {
+            py::gil_scoped_release release;  // the bytes are immutable and held by the caller
+            rows = cs::parse_number_table(std::string_view(data, size_t(size)), columns, values);
+        }
+        if (rows < 0) return py::none();
+        py::array_t<double> out({py::ssize_t(rows), py::ssize_t(columns)});
+        std::copy(values.begin(), values.end(), out.mutable_data());
+        return std::move(out);
+    }, py::arg("text"), py::arg("columns"),
+          "(rows, columns) float64 of text (bytes) holding lines of columns comma-separated "
+          "plain decimal numbers, or None for anything else (number_table.hpp).");
+
     m.def("ritter_sphere", [points](const Doubles& p) {
         const py::ssize_t n = points(p, "points");
         Doubles center(3);
@@ -973,7 +994,7 @@ void bind_build_kernels(py::module_& m) {
 
 //: Bumped whenever the binding's functions or the packed layouts change; the Python side
 //: refuses an extension built from other sources (collision_sensor/engine/compiled.py).
-constexpr int ENGINE_API = 6;
+constexpr int ENGINE_API = 7;
 
 PYBIND11_MODULE(_engine, m) {
     m.doc() = "collision_sensor's compiled engine (C++17); see collision_sensor.engine.compiled";

@@ -20,7 +20,7 @@ from collision_sensor.errors import EngineBuildError
 __all__ = ['ENGINE_API', 'EngineBuildError', 'engine', 'load_engine', 'source_digest']
 
 #: The binding's interface version this Python code expects (cpp/bindings.cpp: ENGINE_API).
-ENGINE_API = 6
+ENGINE_API = 7
 _REBUILD = ('rebuild it: "make" (or "pip install -e ." in the source tree, '
             '"colcon build --packages-select collision_sensor" in a workspace)')
 

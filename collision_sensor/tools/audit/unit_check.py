@@ -482,8 +482,8 @@ class UnitChecker:
         checks = [kind(self.options, seq) for kind in checks_for(self.options)]
         events = seq.scene_before() if seq.scene else [()] * len(seq)
         clouds = CloudReplay(seq, self.options.clouds)
-        starts = [0] + [i for i in range(1, len(seq)) if events[i] or clouds.due(i)] \
-            + [len(seq)]
+        starts = [0] + ([i for i in range(1, len(seq)) if events[i] or clouds.due(i)]
+                        if seq.scene or seq.clouds else []) + [len(seq)]
         topic = SceneTopic(package_paths=dict(self.spec.package_paths) or None)
         if seq.scene or seq.clouds:
             self._checker = None   # the next unit gets the scene as loaded
