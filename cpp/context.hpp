@@ -141,6 +141,11 @@ struct CheckContext {
     Scratch& scratch;
     const Options& options;
     MotionRecord* record = nullptr;
+    // A full check tries each pair's carried witness first (the two triangles that met at its
+    // last check): tested at the current pose, they decide only how soon a colliding pair is
+    // found, never its answer. Off for a batch's rows, whose work is one thread's whatever the
+    // chunks (each chunk starts from a copy of the carried witnesses).
+    bool witness_hints = false;
 };
 
 // What a query other than the incremental check may read of an engine: its model and its

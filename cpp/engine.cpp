@@ -230,7 +230,7 @@ int64_t Engine::query(const double* q, bool full) {
 }
 
 int64_t Engine::run(const double* q, bool full, MotionRecord* record) {
-    CheckContext c = {model_, state_, scratch_, options_, record};
+    CheckContext c = {model_, state_, scratch_, options_, record, true};
     return run_query(c, q, full);
 }
 

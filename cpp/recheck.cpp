@@ -139,7 +139,7 @@ int64_t recheck_pairs(CheckContext& c, int64_t n, bool full, bool* changed,
             r.request.expansion = c.options.expansion;
             r.request.track = track;
             r.request.pad = m.padding[a] + m.padding[b];
-            if (track) {
+            if (track || c.witness_hints) {
                 r.request.witness_a = s.witness[2 * p];
                 r.request.witness_b = s.witness[2 * p + 1];
             }

@@ -279,6 +279,31 @@ def test_check_batch_equals_check_and_restores_the_state(panda):
     assert 5 < statuses.any(axis=1).sum() < 295  # both answers occur
 
 
+def test_a_check_tries_each_pairs_last_witness_first(panda):
+    """A full check tests first the two triangles that met at a pair's last check: after a
+    clear state (no witnesses), a colliding state costs more box tests than the same state
+    checked again (a nudge of 1e-9 rad: witnesses from the first), and the answers are one
+    another's and those of a check without witnesses (check_batch's rows)."""
+    from collision_sensor.engine.traversal import COUNT_BOX_TESTS
+    configurations = random_configurations(panda, 200, seed=29)
+    rows = panda.check_batch(configurations)
+    colliding = [q for q, row in zip(configurations, rows) if row.any()]
+    clear = next(q for q, row in zip(configurations, rows) if not row.any())
+    assert len(colliding) >= 5
+    cold = warm = 0
+    for q in colliding[:5]:
+        panda.check(clear)
+        before = panda.counters[COUNT_BOX_TESTS]
+        first = panda.check(q).colliding_pairs
+        cold += panda.counters[COUNT_BOX_TESTS] - before
+        before = panda.counters[COUNT_BOX_TESTS]
+        again = panda.check(q + 1e-9).colliding_pairs
+        warm += panda.counters[COUNT_BOX_TESTS] - before
+        batch = panda.check_batch(q[None])[0]
+        assert again == first == tuple(panda.checked_pairs[p] for p in np.flatnonzero(batch))
+    assert warm < cold
+
+
 def test_batches_reject_non_finite_values_and_change_nothing(panda):
     start = random_configurations(panda, 1, seed=25)[0]
     before = panda.check(start)
