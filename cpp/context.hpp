@@ -143,8 +143,9 @@ struct CheckContext {
     MotionRecord* record = nullptr;
     // A full check tries each pair's carried witness first (the two triangles that met at its
     // last check): tested at the current pose, they decide only how soon a colliding pair is
-    // found, never its answer. Off for a batch's rows, whose work is one thread's whatever the
-    // chunks (each chunk starts from a copy of the carried witnesses).
+    // found, never its answer; its descent, if they do not meet, orders children by distance
+    // as without them. Off for a batch's rows, whose work is one thread's whatever the chunks
+    // (each chunk starts from a copy of the carried witnesses).
     bool witness_hints = false;
 };
 

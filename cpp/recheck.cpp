@@ -139,11 +139,14 @@ int64_t recheck_pairs(CheckContext& c, int64_t n, bool full, bool* changed,
             r.request.expansion = c.options.expansion;
             r.request.track = track;
             r.request.pad = m.padding[a] + m.padding[b];
-            if (track || c.witness_hints) {
+            if (track) {
                 r.request.witness_a = s.witness[2 * p];
                 r.request.witness_b = s.witness[2 * p + 1];
             }
-            const int64_t wa = r.request.witness_a, wb = r.request.witness_b;
+            // The last witness is tested first; a full check's descent then orders children
+            // by distance, not by it (from an unrelated state it would lead astray).
+            const int64_t wa = track || c.witness_hints ? s.witness[2 * p] : -1;
+            const int64_t wb = track || c.witness_hints ? s.witness[2 * p + 1] : -1;
             if (wa >= 0) hit = triangle_pair_collides(m.forest.tris, wa, wb, pose, r.request.pad);
             if (!hit) {
                 const double* A = m.body_box(a);
