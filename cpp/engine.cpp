@@ -95,15 +95,22 @@ void run_rows(CheckContext& c, const double* Q, int64_t begin, int64_t end, bool
     }
 }
 
-// The changed bit of the first row of chunks 1 .. k - 1 as one thread sets it: against the
-// row before (each chunk started from another state).
-void restate_changed(int64_t n, int64_t k, int64_t P, const uint8_t* statuses, int64_t* codes) {
-    for (int64_t c = 1; c < k; ++c) {
-        const int64_t i = chunk_of(c, k, n).begin;
-        const bool changed = std::memcmp(statuses + P * i, statuses + P * (i - 1), P) != 0;
-        codes[i] = (codes[i] & ~int64_t(1)) | (changed ? 1 : 0);
-    }
+// Row i's changed bit (i >= 1) as one thread sets it: against the row before (its block or
+// chunk started from another state).
+void restate_changed_at(int64_t i, int64_t P, const uint8_t* statuses, int64_t* codes) {
+    const bool changed = std::memcmp(statuses + P * i, statuses + P * (i - 1), P) != 0;
+    codes[i] = (codes[i] & ~int64_t(1)) | (changed ? 1 : 0);
 }
+
+// The changed bit of the first row of chunks 1 .. k - 1 as one thread sets it.
+void restate_changed(int64_t n, int64_t k, int64_t P, const uint8_t* statuses, int64_t* codes) {
+    for (int64_t c = 1; c < k; ++c) restate_changed_at(chunk_of(c, k, n).begin, P, statuses, codes);
+}
+
+// A full batch's rows go to the threads in blocks of about n / (threads x
+// FULL_BLOCKS_PER_THREAD) rows, at least FULL_BLOCK_MIN.
+constexpr int64_t FULL_BLOCKS_PER_THREAD = 8;
+constexpr int64_t FULL_BLOCK_MIN = 16;
 
 }  // namespace
 
@@ -283,7 +290,15 @@ int64_t Engine::batch(const double* Q, int64_t n, bool full, uint8_t* statuses,
         const int64_t k = chunks(BATCH_FULL, n);
         ready_workers(k);
         const bool static_changed = static_statuses(Q);
+        // Rows cost unequal time (a row in contact descends further), so the threads take
+        // blocks of rows in turn until none is left, rather than one half each: a thread that
+        // finishes early takes the next block. The answers and the work are the same however
+        // the blocks fall, every row being a full check of its own.
+        const int64_t block = k == 1 ? n : std::max(FULL_BLOCK_MIN, n / (k * FULL_BLOCKS_PER_THREAD));
+        const int64_t n_blocks = (n + block - 1) / block;
+        std::atomic<int64_t> next{0};
         double first_seconds = 0.0;
+        int64_t first_rows = 0;
         run_chunks(k, [&](int64_t w) {
             const Clock::time_point start = Clock::now();
             Worker& worker = *workers_[w];
@@ -291,14 +306,20 @@ int64_t Engine::batch(const double* Q, int64_t n, bool full, uint8_t* statuses,
             State& s = worker.state.state();
             for (const int64_t p : model_.static_pairs) s.status[p] = static_status_[p];
             CheckContext c = {model_, s, worker.scratch, options_, nullptr};
-            const Chunk rows = chunk_of(w, k, n);
-            run_rows(c, Q, rows.begin, rows.end, true, false, statuses, codes);
-            if (w == 0) first_seconds = seconds_since(start);
+            int64_t rows = 0;
+            for (int64_t b = next.fetch_add(1); b < n_blocks; b = next.fetch_add(1)) {
+                const int64_t begin = b * block, end = std::min(n, begin + block);
+                run_rows(c, Q, begin, end, true, false, statuses, codes);
+                rows += end - begin;
+            }
+            if (w == 0) first_seconds = seconds_since(start), first_rows = rows;
         });
+        // Row 0 was the first of whichever thread took it, against the carried statuses (the
+        // static ones apart); every other block's first row is set against the row before.
         if (static_changed) codes[0] |= 1;
-        planner_.learn(BATCH_FULL, chunk_of(0, k, n).end, first_seconds);
+        for (int64_t b = 1; b < n_blocks; ++b) restate_changed_at(b * block, P, statuses, codes);
+        if (first_rows > 0) planner_.learn(BATCH_FULL, first_rows, first_seconds);
         gather_counters(k);
-        restate_changed(n, k, P, statuses, codes);
         return n;
     }
     const int64_t k = options_.motion_tolerance > 0.0 ? 1 : chunks(BATCH_UPDATE, n);
