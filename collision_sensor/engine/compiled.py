@@ -16,6 +16,7 @@ import hashlib
 import os
 
 from collision_sensor.errors import EngineBuildError
+from collision_sensor.model import sequences
 
 __all__ = ['ENGINE_API', 'EngineBuildError', 'engine', 'load_engine', 'source_digest']
 
@@ -69,3 +70,6 @@ def load_engine():
 
 
 engine = load_engine()
+# Recorded CSV files are read by the engine's number parser from now on (the model layer,
+# which reads them, does not import the engine).
+sequences.use_number_table_parser(engine.parse_number_table)

@@ -363,15 +363,46 @@ def _data_rows(reader) -> Iterable:
         yield reader.line_num, [field.strip() for field in fields]
 
 
+#: The fast path's parser of a CSV file's body: (bytes, columns) -> (rows, columns) float64,
+#: or None for anything but lines of plain decimal numbers. The compiled engine registers its
+#: own when it loads (``cpp/number_table.hpp``, by :func:`use_number_table_parser`, from
+#: ``collision_sensor/engine/compiled.py``): this layer does not import the engine. Until
+#: then numpy's ``loadtxt`` reads the file, four to seven times slower.
+_number_table_parser = None
+
+
+def use_number_table_parser(parse) -> None:
+    """Read CSV bodies with ``parse(text: bytes, columns: int)`` (see above; None: numpy's
+    ``loadtxt``)."""
+    global _number_table_parser
+    _number_table_parser = parse
+
+
+def _number_table(body: str, columns: int) -> Optional[np.ndarray]:
+    """The (rows, columns) float64 values of a CSV body, or None where the fast path does not
+    read it."""
+    if _number_table_parser is not None:
+        try:
+            return _number_table_parser(body.encode('ascii'), columns)
+        except UnicodeEncodeError:
+            return None
+    if '#' in body or '"' in body:
+        return None
+    try:
+        values = np.loadtxt(io.StringIO(body), delimiter=',', dtype=np.float64, ndmin=2)
+    except ValueError:
+        return None
+    return values if values.shape[1] == columns else None
+
+
 def _read_csv_fast(path: str, text: str, joint_names: Optional[Sequence[str]]
                    ) -> Optional[JointSequence]:
     """Read a plain CSV file (no quotes, no comments after the header, plain decimal numbers)
-    with the engine's parser (``cpp/number_table.hpp``); return None for anything else or
+    with the fast parser (:func:`use_number_table_parser`); return None for anything else or
     anything wrong, which the exact reader below then reads again and reports line by line.
-    The engine's parser gives the floats Python's ``float`` gives (both correctly rounded;
-    checked by the tests) and reads a 1000-frame file in a fraction of a millisecond, where
-    numpy's ``loadtxt`` took about 4 ms, most of the work of checking it
-    (``collision_sensor_check --jobs``)."""
+    Both fast parsers give the floats Python's ``float`` gives (checked by the tests); the
+    engine's reads a 1000-frame file in about a millisecond, numpy's ``loadtxt`` in 4 to 7,
+    which was most of the work of checking it (``collision_sensor_check --jobs``)."""
     start = 0
     while True:  # the header: the first line neither blank nor a comment
         end = text.find('\n', start)
@@ -390,11 +421,7 @@ def _read_csv_fast(path: str, text: str, joint_names: Optional[Sequence[str]]
         return None
     if joint_names is not None and set(columns[1:]) != set(joint_names):
         return None
-    from collision_sensor.engine.compiled import engine  # the model package runs without it
-    try:
-        values = engine.parse_number_table(body.encode('ascii'), len(columns))
-    except UnicodeEncodeError:
-        return None
+    values = _number_table(body, len(columns))
     if values is None or not len(values) or not np.all(np.isfinite(values)) \
             or np.any(np.diff(values[:, 0]) <= 0.0):
         return None

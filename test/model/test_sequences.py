@@ -230,10 +230,28 @@ def test_a_scene_topic_of_another_type_is_named(tmp_path, seq):
         read_sequence(tmp_path / 's.mcap', scene_topic='/joint_states')
 
 
-def test_the_fast_csv_reader_gives_the_exact_readers_floats(tmp_path):
-    """The engine's parser (the fast path) against Python's float (the exact path) on values
-    of every magnitude, subnormal and largest included, written as repr and as people write
-    them."""
+@pytest.fixture(params=['engine', 'loadtxt'])
+def fast_parser(request):
+    """The fast path's parser: the engine's (registered when it loads), or numpy's loadtxt
+    (before it does)."""
+    from collision_sensor.engine.compiled import engine
+    from collision_sensor.model import sequences
+    sequences.use_number_table_parser(
+        engine.parse_number_table if request.param == 'engine' else None)
+    yield request.param
+    sequences.use_number_table_parser(engine.parse_number_table)
+
+
+def test_the_engine_registers_its_number_parser():
+    from collision_sensor.engine.compiled import engine
+    from collision_sensor.model import sequences
+    assert sequences._number_table_parser is engine.parse_number_table
+
+
+def test_the_fast_csv_reader_gives_the_exact_readers_floats(tmp_path, fast_parser):
+    """The fast path (the engine's parser, or numpy's) against Python's float (the exact path)
+    on values of every magnitude, subnormal and largest included, written as repr and as
+    people write them."""
     from collision_sensor.model import sequences
     rng = np.random.default_rng(7)
     values = np.concatenate([rng.normal(0, 1, 3000), rng.normal(0, 1e-9, 300),
@@ -256,11 +274,17 @@ def test_the_fast_csv_reader_gives_the_exact_readers_floats(tmp_path):
                                   '0,1\n1,0x1p3\n', '0,1\n1,1_000\n', '0,1\n1,inf\n',
                                   '0,1\n1,1e999\n', '0,1\n1,+-2\n', '0,1\n1,2e\n',
                                   '0,1\n1,.\n', '0,1\n1,2\xa0\n', '0,1\n1\n'])
-def test_what_the_fast_reader_refuses_the_exact_reader_judges(tmp_path, body):
+def test_what_the_fast_reader_refuses_the_exact_reader_judges(tmp_path, body, fast_parser):
+    """The engine's parser refuses every one of these bodies; numpy's refuses them or reads
+    what the exact reader reads (it takes a non-breaking space for a blank, as Python does)."""
     from collision_sensor.model import sequences
     path = tmp_path / 'odd.csv'
     path.write_text('time,a\n' + body)
-    assert sequences._read_csv_fast(str(path), path.read_text(), None) is None
+    fast = sequences._read_csv_fast(str(path), path.read_text(), None)
+    if fast_parser == 'engine':
+        assert fast is None
+    elif fast is not None:
+        assert fast == sequences._read_csv(str(path), None)
     try:
         exact = sequences._read_csv(str(path), None)
     except SequenceError as err:
