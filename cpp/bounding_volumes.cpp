@@ -214,6 +214,23 @@ void principal_frame(const double* C, double* axes) {
     frame_from_eigenvectors(V, order, axes);
 }
 
+namespace {
+
+// The box on axes whose projections, about the point o, span [lo[k], hi[k]] along axis k.
+void box_from_projections(const double* o, const double* axes, const double* lo,
+                          const double* hi, double* center, double* half) {
+    double mid[3];
+    for (int k = 0; k < 3; ++k) {
+        half[k] = 0.5 * (hi[k] - lo[k]);
+        mid[k] = 0.5 * (hi[k] + lo[k]);
+    }
+    // center = o + axes @ mid: the mid point of the projections, back in the points' frame.
+    for (int r = 0; r < 3; ++r)
+        center[r] = o[r] + axes[3 * r] * mid[0] + axes[3 * r + 1] * mid[1] + axes[3 * r + 2] * mid[2];
+}
+
+}  // namespace
+
 void box_on_axes(const double* points, int64_t n, const double* axes, double* center,
                  double* half) {
     // Project about the first point so that far-from-origin clouds keep their precision.
@@ -230,15 +247,7 @@ void box_on_axes(const double* points, int64_t n, const double* axes, double* ce
             if (s > hi[k]) hi[k] = s;
         }
     }
-    double mid[3];
-    for (int k = 0; k < 3; ++k) {
-        half[k] = 0.5 * (hi[k] - lo[k]);
-        mid[k] = 0.5 * (hi[k] + lo[k]);
-    }
-    // center = o + axes @ mid: the mid point of the projections, back in the points' frame.
-    center[0] = o0 + axes[0] * mid[0] + axes[1] * mid[1] + axes[2] * mid[2];
-    center[1] = o1 + axes[3] * mid[0] + axes[4] * mid[1] + axes[5] * mid[2];
-    center[2] = o2 + axes[6] * mid[0] + axes[7] * mid[1] + axes[8] * mid[2];
+    box_from_projections(points, axes, lo, hi, center, half);
 }
 
 void fit_obb_pca(const double* points, int64_t n, double* center, double* axes, double* half) {
@@ -460,14 +469,7 @@ void fit_obb_refined(const double* points, int64_t n, double* center, double* ax
                 if (v > hi_v[d]) hi_v[d] = v, hi[d] = i;
             }
         }
-        double mid[3];
-        for (int k = 0; k < 3; ++k) {
-            half[k] = 0.5 * (hi_v[k] - lo_v[k]);
-            mid[k] = 0.5 * (hi_v[k] + lo_v[k]);
-        }
-        center[0] = o0 + axes[0] * mid[0] + axes[1] * mid[1] + axes[2] * mid[2];
-        center[1] = o1 + axes[3] * mid[0] + axes[4] * mid[1] + axes[5] * mid[2];
-        center[2] = o2 + axes[6] * mid[0] + axes[7] * mid[1] + axes[8] * mid[2];
+        box_from_projections(points, axes, lo_v, hi_v, center, half);
         gathered.reserve(3 * (n / stride + 2 * DIRS + 1));
         auto take = [&](int64_t i) { gathered.insert(gathered.end(), points + 3 * i, points + 3 * i + 3); };
         for (int64_t i = 0; i < n; i += stride) take(i);
