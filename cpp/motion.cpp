@@ -2,6 +2,7 @@
 #include "motion.hpp"
 
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
 #include <cstring>
 
@@ -43,6 +44,7 @@ void MotionWork::size_for(const Model& m) {
     heap.reserve(P);
     front.assign(P, {});
     front_until.assign(P, {});
+    front_measure.assign(P, {});
     front_cost.assign(P, 0);
     marched.reserve(P);
     prev_gap.assign(P, 0.0);
@@ -98,6 +100,8 @@ class MotionQuery {
     // largest), var[j] the largest of its segments' (the crude bound's rate, per unit of the
     // parameter everywhere) and E's bound the largest of its straight segments'.
     void polyline_speeds(const PolylinePath& path) {
+        poly_ = &path;
+        w_.rates_pair = -1;
         const int64_t J = m_.n_joints, L = m_.n_links;
         std::fill(w_.var.begin(), w_.var.end(), 0.0);
         std::fill(w_.moving.begin(), w_.moving.end(), uint8_t(0));
@@ -108,6 +112,9 @@ class MotionQuery {
             w_.extension_max =
                 std::max(w_.extension_max, extension_bound(path.Q + J * s, delta));
             for (int64_t j = 0; j < J; ++j) w_.var[j] = std::max(w_.var[j], var[j]);
+            const double* before = w_.poly_cum.data() + J * s;
+            double* after = w_.poly_cum.data() + J * (s + 1);
+            for (int64_t j = 0; j < J; ++j) after[j] = before[j] + var[j];
             for (int64_t k = 0; k < L; ++k) {
                 double* speeds = w_.poly_speeds.data() + 3 * (L * s + k);
                 link_speeds(k, delta, var, speeds);
@@ -246,11 +253,65 @@ class MotionQuery {
     template <class Path>
     int march_step(MotionWork::March& s, const Path& path, double t_end);
 
+    // Along a polyline, pair p's measure: U(t) = sum_j rate_j var_j(t), var_j(t) variable
+    // j's variation along the path up to t (MotionWork::poly_cum, linear within a segment)
+    // and rate_j its reach rows (the crude bound's), so that between parameters u < v the
+    // pair's bodies move relative to each other by at most U(v) - U(u). measure_pair readies
+    // p's (false: it bounds nothing, a floating joint's INF rows); measure_guard is the
+    // rounding of its prefix sums, to take off any gap it is compared with.
+    bool measure_pair(int64_t p);
+    double measure_at(int64_t k) const;  // at waypoint k
+    double measure(double t) const;
+    double measure_guard() const;
+
+    const PolylinePath* poly_ = nullptr;  // the polyline at hand (polyline_speeds)
     MotionContext& c_;
     const Model& m_;
     MotionWork& w_;
     int64_t* counters_;
 };
+
+bool MotionQuery::measure_pair(int64_t p) {
+    const double rate = crude_rate(p);
+    if (!(rate < INF) || !(rate > 0.0)) return false;
+    if (w_.rates_pair == p) return true;
+    const int64_t J = m_.n_joints;
+    const double* reach = m_.reach + J * p;
+    const double* reach_ext = m_.reach_ext + J * p;
+    double* rates = w_.pair_rates.data();
+    for (int64_t j = 0; j < J; ++j)  // a variable that never moves adds nothing (INF rows)
+        rates[j] = w_.var[j] > 0.0 ? (reach[j] + w_.extension_max * reach_ext[j]) *
+                                         (1.0 + MOTION_BOUND_REL)
+                                   : 0.0;
+    w_.rates_pair = p;
+    return true;
+}
+
+double MotionQuery::measure_at(int64_t k) const {
+    const int64_t J = m_.n_joints;
+    const double* c = w_.poly_cum.data() + J * k;
+    const double* rates = w_.pair_rates.data();
+    double u = 0.0;
+    for (int64_t j = 0; j < J; ++j) u += rates[j] * c[j];
+    return u;
+}
+
+double MotionQuery::measure(double t) const {
+    const int64_t k = poly_->segment_of(t);
+    const int64_t J = m_.n_joints;
+    const double* v = poly_->var + J * k;
+    const double* rates = w_.pair_rates.data();
+    double du = 0.0;
+    for (int64_t j = 0; j < J; ++j) du += rates[j] * v[j];
+    const double x = std::min(std::max(t - double(k), 0.0), 1.0);
+    return measure_at(k) + x * du;
+}
+
+double MotionQuery::measure_guard() const {
+    // At most a few ulps of the total per term summed.
+    return 4.0 * double(poly_->segments + m_.n_joints) * DBL_EPSILON *
+           measure_at(poly_->segments);
+}
 
 // Evaluate the link poses at q from now on (computed on demand, link_pose): unless q is the
 // state evaluated already (the pairs' first intervals share their midpoint), whose poses stay.
@@ -447,24 +508,38 @@ WithinResult MotionQuery::pair_within(int64_t p, const double* pose, double m, d
     }
     std::vector<int64_t>& front = w_.front[p];
     std::vector<double>& until = w_.front_until[p];
+    std::vector<double>& until_measure = w_.front_measure[p];
     const bool from_front = !front.empty();
     int64_t* stack = w_.stack.data();
     int64_t n_seeds = 0;
     w_.recorded.clear();
     w_.recorded_reach.clear();
+    w_.recorded_gap.clear();
+    // Along a polyline a node pair proven apart by gap g at m stays so while the pair's
+    // measure (measure_pair) grows by less than g: across waypoints, as far as the segments'
+    // own variations allow, where the crude rate takes the largest of them everywhere.
+    const bool measured = poly_ != nullptr && crude > 0.0 && measure_pair(p);
+    const double guard = measured ? measure_guard() : 0.0;
+    const double measure_end = measured ? measure(m + h) + guard : INF;
     // The front's node pairs proven apart over the whole interval already (in this query,
     // and by at least extra) are not tested again: they stay in the front as they are.
     std::vector<double>& kept = w_.kept_until;
+    std::vector<double>& kept_measure = w_.kept_measure;
     kept.clear();
+    kept_measure.clear();
     if (from_front) {
         if (until.size() * 2 != front.size()) until.assign(front.size() / 2, -INF);
+        if (until_measure.size() * 2 != front.size())
+            until_measure.assign(front.size() / 2, -INF);
         for (size_t k = 0; k < front.size(); k += 2) {
             const double u = until[k / 2];
-            if (extra == 0.0 && u >= m + h) {
+            const double um = until_measure[k / 2];
+            if (extra == 0.0 && (u >= m + h || um > measure_end)) {
                 w_.recorded.push_back(front[k]);
                 w_.recorded.push_back(front[k + 1]);
                 kept.push_back(u);
-                reach = std::min(reach, u - m);
+                kept_measure.push_back(um);
+                reach = std::min(reach, std::max(u, m + h) - m);
                 continue;
             }
             int64_t* row = stack + 3 * n_seeds++;
@@ -486,7 +561,8 @@ WithinResult MotionQuery::pair_within(int64_t p, const double* pose, double m, d
     WithinResult trees = trees_within(n_seeds, pose, m_.forest, box_test,
                                       c_.view.options.expansion, stack, counters_, h, extra,
                                       mm, m_.padding[a] + m_.padding[b], &w_.recorded,
-                                      &w_.recorded_reach, crude);
+                                      &w_.recorded_reach, crude,
+                                      measured ? &w_.recorded_gap : nullptr);
     if (trees.within) return trees;  // an incomplete descent: the front stays as it was
     trees.reach = std::min(trees.reach, reach);
     const int64_t cost = counters_[COUNT_BOX_TESTS] - before;
@@ -496,9 +572,19 @@ WithinResult MotionQuery::pair_within(int64_t p, const double* pose, double m, d
         // The kept node pairs come first in the front, then those tested now.
         until.swap(kept);
         for (const double x : w_.recorded_reach) until.push_back(extra == 0.0 ? m + x : -INF);
+        until_measure.swap(kept_measure);
+        if (measured && extra == 0.0) {
+            const double at = measure(m);
+            for (const double g : w_.recorded_gap)
+                until_measure.push_back(g > guard ? at + (g - guard) * (1.0 - MOTION_BOUND_REL)
+                                                  : -INF);
+        } else {
+            until_measure.resize(until.size(), -INF);
+        }
     } else {
         front.clear();
         until.clear();
+        until_measure.clear();
     }
     return trees;
 }
@@ -583,30 +669,67 @@ bool MotionQuery::crude_apart(int64_t p, const double* pose, double h, double* r
 }
 
 // A polyline's crude bound at the waypoints around s.t (their poses shared by every pair and
-// computed once): the pair is apart on [k - r, k + r] about waypoint k with r its sphere gap
-// there over its crude rate. Takes s.t as far as one of those intervals that holds it goes;
-// false when none takes it further.
+// computed once): a pair whose spheres are g apart at waypoint k stays apart wherever its
+// measure is within g of the measure at k (measure_pair). Takes s.t as far as such a stretch
+// around waypoint floor(s.t) or the next one goes, if it holds s.t; false when none takes it
+// further.
 bool MotionQuery::waypoint_leap(const PolylinePath& path, MotionWork::March& s) {
-    const double rate = crude_rate(s.p);
-    if (!(rate < INF) || !(rate > 0.0)) return false;
-    const int64_t L = m_.n_links;
+    if (!measure_pair(s.p)) return false;
+    const int64_t L = m_.n_links, S = path.segments;
     const int64_t a = m_.pair_a[s.p], b = m_.pair_b[s.p];
-    const double lo = std::floor(s.t);
+    const double u_end = measure_at(S);
+    const double guard = measure_guard();
+    const double u_t = measure(s.t);
+    const int64_t lo = path.segment_of(s.t);
     double best = s.t;
-    for (const double k : {lo, lo + 1.0}) {
-        if (k > path.end()) break;
-        const int64_t i = int64_t(k);
-        double* T = w_.poly_T.data() + 16 * L * i;
-        if (!w_.poly_posed[i]) {
-            forward_kinematics(m_.kin, path.Q + path.n * i, T);
-            w_.poly_posed[i] = 1;
+    for (int64_t k = lo; k <= std::min(lo + 1, S); ++k) {
+        double* T = w_.poly_T.data() + 16 * L * k;
+        if (!w_.poly_posed[k]) {
+            forward_kinematics(m_.kin, path.Q + path.n * k, T);
+            w_.poly_posed[k] = 1;
         }
         const double* Tb = m_.is_world_object(b) ? c_.view.state.poses.T_world_body + 16 * b
                                                  : T + 16 * b;
         double pose[POSE_WIDTH];
         relative_pose(T + 16 * a, Tb, pose);
-        const double r = sphere_gap(s.p, pose) / rate * (1.0 - MOTION_BOUND_REL);
-        if (r > 0.0 && k - r <= s.t) best = std::max(best, k + r);
+        // The bodies' boxes' gap where their spheres meet (a link's sphere is loose).
+        double gap = sphere_gap(s.p, pose);
+        if (!(gap * (1.0 - MOTION_BOUND_REL) - guard > std::fabs(measure_at(k) - u_t))) {
+            double F[12];
+            const double* A = m_.body_box(a);
+            const double* B = m_.body_box(b);
+            box_in_frame(A, B, pose, F);
+            gap = std::max(gap, projected_gap(A, B, F, nullptr));
+        }
+        const double g = gap * (1.0 - MOTION_BOUND_REL) - guard;
+        if (!(g > 0.0)) continue;
+        const double u_k = measure_at(k);
+        if (!(std::fabs(u_k - u_t) < g)) continue;  // waypoint k's stretch must hold s.t
+        // The largest t >= k with U(t) - U(k) <= g: the last waypoint i within, then the
+        // fraction of its segment (U is linear there).
+        if (u_end - u_k <= g) {
+            best = path.end();
+            break;
+        }
+        // Galloping from k (a leap is mostly a few segments), then halving.
+        int64_t i = k, j = S, stride = 1;  // U(i) - u_k <= g < U(j) - u_k
+        while (i + stride < S) {
+            if (measure_at(i + stride) - u_k > g) {
+                j = i + stride;
+                break;
+            }
+            i += stride;
+            stride *= 2;
+        }
+        while (j - i > 1) {
+            const int64_t mid = (i + j) / 2;
+            if (measure_at(mid) - u_k <= g) i = mid;
+            else j = mid;
+        }
+        const double u_i = measure_at(i), u_next = measure_at(i + 1);
+        const double x = u_next > u_i ? (u_k + g - u_i) / (u_next - u_i) : 1.0;
+        best = std::max(best, double(i) + std::min(std::max(x, 0.0), 1.0) *
+                                              (1.0 - MOTION_BOUND_REL));
     }
     if (!(best > s.t)) return false;
     s.t = best;
@@ -674,6 +797,7 @@ int64_t MotionQuery::march_pairs(const int64_t* list, int64_t n, const Path& pat
         const int64_t p = list ? list[i] : i;
         if (!known_apart(p)) w_.front[p].clear();
         w_.front_until[p].clear();
+        w_.front_measure[p].clear();
     }
     const auto later = [](const MotionWork::March& x, const MotionWork::March& y) {
         return x.t > y.t;
@@ -755,6 +879,8 @@ int64_t check_polyline_motion(MotionContext& c, const double* Q, int64_t n, doub
     w.poly_speeds.assign(3 * S * m.n_links, 0.0);
     w.poly_T.resize(16 * (S + 1) * m.n_links);
     w.poly_posed.assign(S + 1, 0);
+    w.poly_cum.assign((S + 1) * J, 0.0);
+    w.pair_rates.assign(J, 0.0);
     PolylinePath path{Q, m.motion_kind, J, S, w.poly_delta.data(), w.poly_var.data(),
                       w.poly_quat0.data()};
     path.prepare();
@@ -814,6 +940,7 @@ int64_t check_step_motion(MotionContext& c, const double* q0, const double* q1,
         std::vector<int64_t>& front = w.front[p];
         front.clear();
         w.front_until[p].clear();
+        w.front_measure[p].clear();
         const int64_t rows = fronts.state[2 * p];
         if (!w.start_apart[p] || rows == 0 || rows > MOTION_FRONT_MAX || m.is_cloud(m.pair_b[p]))
             continue;

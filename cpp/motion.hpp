@@ -489,13 +489,16 @@ CS_ALWAYS_INLINE bool node_pair_apart(const double* A, const double* B, const do
 // own reach, or further by crude (when > 0: a bound of how fast any point of either body
 // moves relative to the other over the whole path, per unit of the parameter, the planning's
 // reach rows) against the gap it was proven apart by, which holds however far the path goes.
+// front_gap: then, for each, that gap less extra (-INF when crude proves nothing): it stays
+// apart while its bodies move relative to each other by less.
 inline WithinResult trees_within(int64_t n_seeds, const double* P, const Forest& f,
                                  int box_method, int expansion, int64_t* stack,
                                  int64_t* counters, double h, double extra,
                                  MotionMargin& motion, double pad,
                                  std::vector<int64_t>* front = nullptr,
                                  std::vector<double>* front_reach = nullptr,
-                                 double crude = 0.0) {
+                                 double crude = 0.0,
+                                 std::vector<double>* front_gap = nullptr) {
     double reach = motion.h2;
     const double* Ta = motion.side[0].T;
     int64_t n_boxes = 0, n_triangles = 0;
@@ -509,6 +512,7 @@ inline WithinResult trees_within(int64_t n_seeds, const double* P, const Forest&
                     x = std::max(x, (gap - extra) / crude * (1.0 - MOTION_BOUND_REL));
                 front_reach->push_back(x);
             }
+            if (front_gap) front_gap->push_back(crude_holds && gap > extra ? gap - extra : -INF);
         }
     };
     int64_t top = n_seeds;
@@ -654,6 +658,12 @@ struct MotionWork {
     // PolylinePath's: its segments' arrays (S, J), and per segment and link the joint's
     // trans, rot and signed speed (S, L, 3) as straight_speeds gives them.
     std::vector<double> poly_delta, poly_var, poly_quat0, poly_speeds;
+    // Each variable's variation summed over the segments before each waypoint (S + 1, J):
+    // how far a pair's bodies can move between two parameters is their difference, weighed
+    // by its reach rows (MotionQuery::measure).
+    std::vector<double> poly_cum;
+    std::vector<double> pair_rates;  // (J,) measure_pair's pair's reach rows, weighed by E
+    int64_t rates_pair = -1;
     // Every link's pose at each waypoint, computed on first use (poly_posed): the crude bound
     // at a waypoint (MotionQuery::waypoint_leap) then costs no kinematics.
     std::vector<double> poly_T;        // (S + 1, L, 16)
@@ -683,7 +693,10 @@ struct MotionWork {
     // (P,) per node pair of the front, the parameter up to which it is proven apart in the
     // query at hand (-INF: not known; empty while the front was set from elsewhere).
     std::vector<std::vector<double>> front_until;
-    std::vector<double> recorded_reach, kept_until;
+    // (P,) along a polyline, the same in the pair's measure (MotionQuery::measure): each node
+    // pair is apart while the measure stays below this (-INF: not known).
+    std::vector<std::vector<double>> front_measure;
+    std::vector<double> recorded_reach, kept_until, recorded_gap, kept_measure;
     std::vector<int64_t> front_cost;          // (P,) its last descent's node pairs
     std::vector<int64_t> recorded, stack, marched;
     std::vector<double> prev_gap, prev_sums;  // (P,), (P, 2): update_motion's MotionRecord

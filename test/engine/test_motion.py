@@ -480,6 +480,35 @@ def test_a_long_path_is_its_segments_checked_one_by_one(cell, request):
     assert contacts >= 2 and free >= 2, (contacts, free)
 
 
+@pytest.mark.parametrize('cell', ['panda_cell', 'ur5_cell'])
+def test_a_path_of_very_unequal_segments_is_its_segments_checked_one_by_one(cell, request):
+    """A pair far from everything leaps over waypoints as far as the segments' own lengths
+    allow (not the longest segment's everywhere): runs of tiny segments between long ones
+    must still say what the segments say one by one, and meet the contract."""
+    checker, oracle = request.getfixturevalue(cell)
+    rng = np.random.default_rng(43)
+    contacts = free = 0
+    for trial in range(16):
+        Q = _walk_path(checker, rng, 80, 1.0)
+        # Segments of 1e-4 to 0.5 rad: most tiny, a few long.
+        steps = np.diff(Q, axis=0)
+        scale = np.exp(rng.uniform(np.log(1e-4), np.log(0.5), len(steps)))
+        steps *= (scale / np.linalg.norm(steps, axis=1))[:, None]
+        Q = np.vstack([Q[:1], Q[0] + np.cumsum(steps, axis=0)])
+        Q = np.clip(Q, checker.kinematics.lower, checker.kinematics.upper)
+        result = checker.check_path(Q)
+        expected = next((i for i in range(len(Q) - 1)
+                         if checker.check_motion(Q[i], Q[i + 1]).in_collision), None)
+        assert result.first_invalid_segment == expected, trial
+        if expected is None:
+            free += 1
+            continue
+        contacts += 1
+        assert assert_motion_against_oracle(checker, oracle, Q[expected], Q[expected + 1],
+                                            result.motion)
+    assert contacts >= 2 and free >= 2, (contacts, free)
+
+
 @pytest.mark.parametrize('kind', ['floating', 'planar'])
 def test_a_moving_base_path_is_its_segments_checked_one_by_one(kind):
     """The same across waypoints where a base turns (slerp, theta the shorter way) and a
