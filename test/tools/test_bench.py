@@ -205,20 +205,23 @@ def test_every_robot_scenario_enumerates_every_urdf_of_the_package():
 
 def test_motion_scenario_judges_every_target_and_its_oracle_finds_no_miss(tmp_path):
     """Scenario 10 in its quick form: every target judged; the correctness ones (nothing
-    missed or false against sampling and python-fcl, continuousCollide's right answers, the
-    mesh cases fcl misses) hold; update_motion answered as check_motion at every step."""
+    missed or false against sampling and python-fcl, check_path as its segments one by one,
+    continuousCollide's right answers, the mesh cases fcl misses) hold; update_motion
+    answered as check_motion at every step."""
     pytest.importorskip('fcl')
     pytest.importorskip('pinocchio')
     from collision_sensor.tools.bench import scenario_motion
     from collision_sensor.tools.bench.scenario_settings import Settings
     section = scenario_motion.run(Settings.for_run(quick=True, seed=3), str(tmp_path))
     names = [v.target.split(':')[0] for v in section.verdicts]
-    assert names == ['S10 certified'] * 2 + ['S10 panda segments'] * 2 + [
+    assert names == ['S10 certified'] * 2 + ['S10 paths'] + ['S10 panda segments'] * 2 + [
         'S10 panda trajectory'] * 2 + ['S10 ur5 segments'] * 2 + ['S10 primitives'] * 2 + [
         'S10 panda alone', 'S10 panda cluttered', 'S10 ur5 alone', 'S10 ur5 cluttered']
     assert all(v.passed is not None for v in section.verdicts)
-    missed, false, primitives = section.verdicts[0], section.verdicts[1], section.verdicts[8]
-    assert missed.passed and false.passed and primitives.passed, (missed, false, primitives)
+    missed, false, paths = section.verdicts[:3]
+    primitives = section.verdicts[9]
+    assert missed.passed and false.passed and paths.passed and primitives.passed, (
+        missed, false, paths, primitives)
     text = '\n'.join(section.lines)
     mesh_rows = [line for line in text.splitlines() if line.startswith('| BVH box')
                  or line.startswith('| Panda hand')]

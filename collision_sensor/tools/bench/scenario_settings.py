@@ -18,6 +18,8 @@ class Settings:
         robots.
     :ivar motion_speed_segments: random segments per robot of scenario 10's speed part.
     :ivar motion_waypoints: waypoints of scenario 10's Panda trajectory.
+    :ivar motion_paths: random paths per robot that scenario 10's certification part checks
+        with ``check_path`` against ``check_motion`` segment by segment.
     :ivar motion_walk_steps: steps of scenario 10's 1 kHz walk (scenario 8's walk).
     :ivar ccd_cases: random translations per pair of primitives (scenario 10, python-fcl's
         continuousCollide).
@@ -41,6 +43,7 @@ class Settings:
     motion_segments: int = 10_200
     motion_speed_segments: int = 200
     motion_waypoints: int = 1000
+    motion_paths: int = 400
     motion_walk_steps: int = 3000
     ccd_cases: int = 40
     motion_robots: Optional[Tuple[str, ...]] = None
@@ -57,5 +60,5 @@ class Settings:
                    scale_configurations=20, terrain_triangles=(1_000, 3_000, 10_000), rounds=2,
                    box_pairs=2_000, box_repeat=2, fits=('pca', 'refined', 'hull_pca'),
                    motion_segments=30, motion_speed_segments=10, motion_waypoints=100,
-                   motion_walk_steps=300, ccd_cases=3, motion_robots=('panda', 'ur5', 'z1'),
+                   motion_paths=5, motion_walk_steps=300, ccd_cases=3, motion_robots=('panda', 'ur5', 'z1'),
                    thread_rows=1000)
