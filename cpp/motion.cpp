@@ -795,7 +795,8 @@ int64_t MotionQuery::march_pairs(const int64_t* list, int64_t n, const Path& pat
     const auto known_apart = [this](int64_t p) { return w_.start_known && w_.start_apart[p]; };
     for (int64_t i = 0; i < n; ++i) {
         const int64_t p = list ? list[i] : i;
-        if (!known_apart(p)) w_.front[p].clear();
+        if (known_apart(p)) continue;  // check_step_motion set its front and proofs
+        w_.front[p].clear();
         w_.front_until[p].clear();
         w_.front_measure[p].clear();
     }
@@ -916,15 +917,21 @@ int64_t check_step_motion(MotionContext& c, const double* q0, const double* q1,
     query.straight_speeds(q0);
     w.marched.clear();
     const int64_t J = m.n_joints;
+    // The step's bound for pair p: sum_j |dq_j| (reach[p, j] + E_max reach_ext[p, j]), how
+    // far any point of either body can move relative to the other over it (in the units of
+    // the pair's travel, planning.hpp).
+    const auto step_bound = [&](int64_t p) {
+        double r = 0.0;
+        const double* reach = m.reach + J * p;
+        const double* reach_ext = m.reach_ext + J * p;
+        for (int64_t j = 0; j < J; ++j)
+            if (w.var[j] > 0.0) r += w.var[j] * (reach[j] + e_max * reach_ext[j]);
+        return r;
+    };
     for (int64_t i = 0; i < n; ++i) {
         const int64_t p = rechecked[i];
         if (s.status[p] == 0 && w.prev_gap[p] > -INF) {
-            // The step's bound: sum_j |dq_j| (reach[p, j] + E_max reach_ext[p, j]).
-            double r = 0.0;
-            const double* reach = m.reach + J * p;
-            const double* reach_ext = m.reach_ext + J * p;
-            for (int64_t j = 0; j < J; ++j)
-                if (w.var[j] > 0.0) r += w.var[j] * (reach[j] + e_max * reach_ext[j]);
+            const double r = step_bound(p);
             const double gaps = w.prev_gap[p] + s.clearance[p];
             if (gaps > r * (1.0 + MOTION_BOUND_REL) || query.step_apart(p, q1, gaps)) continue;
         }
@@ -933,7 +940,10 @@ int64_t check_step_motion(MotionContext& c, const double* q0, const double* q1,
     if (w.marched.empty()) return 0;
     // A marched pair the carried state had apart at q0 (its gap recorded, not -INF) is not
     // checked there again, and its march starts from the node pairs where the query's descent
-    // at q1 stopped (its front: they cover every pair of triangles, whatever the poses).
+    // at q1 stopped (its front: they cover every pair of triangles, whatever the poses). Each
+    // of them is apart at q1 by at least its until less the pair's travel (traversal.hpp:
+    // front_scan), so by more than the step's bound apart all along the step: the march
+    // never tests it (its proof reaches the step's end).
     const Fronts& fronts = s.fronts;
     for (const int64_t p : w.marched) {
         w.start_apart[p] = w.prev_gap[p] > -INF ? 1 : 0;
@@ -945,9 +955,15 @@ int64_t check_step_motion(MotionContext& c, const double* q0, const double* q1,
         if (!w.start_apart[p] || rows == 0 || rows > MOTION_FRONT_MAX || m.is_cloud(m.pair_b[p]))
             continue;
         const int64_t* row = fronts.pairs.data() + 3 * p * fronts.capacity;
+        const double* until = fronts.until.data() + p * fronts.capacity;
+        const double travel = fronts.travel[p];
+        const double r = step_bound(p) * (1.0 + MOTION_BOUND_REL);
+        std::vector<double>& proven = w.front_until[p];
         for (int64_t e = 0; e < rows; ++e) {
             front.push_back(row[3 * e]);
             front.push_back(row[3 * e + 1]);
+            const double margin = until[e] - travel - FRONT_GUARD_REL * std::fabs(until[e]);
+            proven.push_back(margin > r ? 1.0 : -INF);
         }
         w.front_cost[p] = fronts.state[2 * p + 1];
     }

@@ -691,7 +691,8 @@ struct MotionWork {
     std::vector<March> heap;
     std::vector<std::vector<int64_t>> front;  // (P,) each pair's front (pair_within)
     // (P,) per node pair of the front, the parameter up to which it is proven apart in the
-    // query at hand (-INF: not known; empty while the front was set from elsewhere).
+    // query at hand (-INF: not known; empty while the front was set from elsewhere, but for
+    // update_motion's, which check_step_motion sets from the carried front's untils).
     std::vector<std::vector<double>> front_until;
     // (P,) along a polyline, the same in the pair's measure (MotionQuery::measure): each node
     // pair is apart while the measure stays below this (-INF: not known).
