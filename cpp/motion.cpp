@@ -693,8 +693,9 @@ bool MotionQuery::waypoint_leap(const PolylinePath& path, MotionWork::March& s) 
         double pose[POSE_WIDTH];
         relative_pose(T + 16 * a, Tb, pose);
         // The bodies' boxes' gap where their spheres meet (a link's sphere is loose).
+        const double u_k = measure_at(k);
         double gap = sphere_gap(s.p, pose);
-        if (!(gap * (1.0 - MOTION_BOUND_REL) - guard > std::fabs(measure_at(k) - u_t))) {
+        if (!(gap * (1.0 - MOTION_BOUND_REL) - guard > std::fabs(u_k - u_t))) {
             double F[12];
             const double* A = m_.body_box(a);
             const double* B = m_.body_box(b);
@@ -703,7 +704,6 @@ bool MotionQuery::waypoint_leap(const PolylinePath& path, MotionWork::March& s) 
         }
         const double g = gap * (1.0 - MOTION_BOUND_REL) - guard;
         if (!(g > 0.0)) continue;
-        const double u_k = measure_at(k);
         if (!(std::fabs(u_k - u_t) < g)) continue;  // waypoint k's stretch must hold s.t
         // The largest t >= k with U(t) - U(k) <= g: the last waypoint i within, then the
         // fraction of its segment (U is linear there).
