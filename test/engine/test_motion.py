@@ -212,6 +212,51 @@ def test_thin_obstacles_crossed_by_a_fast_motion_are_caught(panda_urdf, panda_sr
     assert checker.update_motion(q1).in_collision
 
 
+BAR_URDF = """<robot name="bar">
+  <link name="base"/>
+  <link name="bar"><collision><origin xyz="0.5 0 0"/>
+    <geometry><box size="1.0 0.004 0.02"/></geometry></collision></link>
+  <joint name="turn" type="revolute"><parent link="base"/><child link="bar"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+</robot>"""
+
+
+def test_update_motion_sweeps_through_a_fin_into_a_near_miss(tmp_path):
+    """A bar turns through a 1 mm fin and stops just short of a second fin of the same mesh:
+    its pair keeps a front at the step's end, whose node pairs at the first fin are a few cm
+    apart there (apart at the end, not all along the way). The swept step must meet the first
+    fin where dense sampling does. The reach bound is tight here (a bar turning about its
+    end), so a front node pair trusted beyond what the step's bound proves misses it."""
+    import trimesh
+    fins = []
+    for angle in (0.5, 0.53):    # radial plates from 0.8 to 1 m, 1 mm thick
+        T = trimesh.transformations.rotation_matrix(angle, [0, 0, 1])
+        T[:3, 3] = T[:3, :3] @ [0.9, 0.0, 0.0]
+        fins.append(trimesh.creation.box(extents=[0.2, 0.001, 0.1], transform=T))
+    path = tmp_path / 'fins.stl'
+    trimesh.util.concatenate(fins).export(str(path))
+    checker = CollisionChecker.from_urdf(BAR_URDF, scene={'objects': [
+        {'name': 'fins', 'mesh': {'filename': str(path)}}]})
+    # Ends between the fins, 5 um to 0.5 mm from the second (a front is kept that near).
+    ends = [th for th in np.linspace(0.52, 0.53, 1001)
+            if 5e-6 < min((r.distance for r in checker.proximity(np.array([th]), 0.001)),
+                          default=1.0) < 5e-4]
+    assert len(ends) > 20
+    swept = 0
+    for th1 in ends[::len(ends) // 6]:
+        for th0 in (0.40, 0.45, 0.49):
+            q0, q1 = np.array([th0]), np.array([th1])
+            checker.check(q0)
+            moved = checker.update_motion(q1)
+            t_sampled, _, _ = sampled_first_contact(checker, q0, q1)
+            assert t_sampled is not None and moved.in_collision, (th0, th1)
+            assert moved.first_contact <= t_sampled + 1e-12, (th0, th1, moved, t_sampled)
+            expected = checker.check_motion(q0, q1)
+            assert abs(moved.first_contact - expected.first_contact) < 1e-4
+            swept += 1
+    assert swept >= 18
+
+
 def test_check_motion_leaves_the_carried_state_as_it_was(panda_cell):
     checker, _ = panda_cell
     q0, q1 = random_segments(checker, 1, seed=5)[0]
