@@ -502,6 +502,25 @@ def _walk_path(checker, rng, n, step):
     return np.array(rows)
 
 
+def _first_segment_not_free(checker, Q):
+    """The first segment of Q that check_motion, one by one, finds not free (None: none)."""
+    return next((i for i in range(len(Q) - 1)
+                 if checker.check_motion(Q[i], Q[i + 1]).in_collision), None)
+
+
+def _path_as_its_segments(checker, oracle, Q, trial):
+    """check_path names the segment the segments checked one by one name, and its contact
+    meets the contract against sampling and python-fcl; returns whether it met contact."""
+    result = checker.check_path(Q)
+    expected = _first_segment_not_free(checker, Q)
+    assert result.first_invalid_segment == expected, trial
+    if expected is None:
+        return False
+    assert assert_motion_against_oracle(checker, oracle, Q[expected], Q[expected + 1],
+                                        result.motion)
+    return True
+
+
 @pytest.mark.parametrize('cell', ['panda_cell', 'ur5_cell'])
 def test_a_long_path_is_its_segments_checked_one_by_one(cell, request):
     """check_path marches the whole polyline at once (pairs far from everything leap over
@@ -512,16 +531,10 @@ def test_a_long_path_is_its_segments_checked_one_by_one(cell, request):
     contacts = free = 0
     for trial in range(12):
         Q = _walk_path(checker, rng, 30, [0.01, 0.02, 0.04, 0.08][trial % 4])
-        result = checker.check_path(Q)
-        expected = next((i for i in range(len(Q) - 1)
-                         if checker.check_motion(Q[i], Q[i + 1]).in_collision), None)
-        assert result.first_invalid_segment == expected, trial
-        if expected is None:
+        if _path_as_its_segments(checker, oracle, Q, trial):
+            contacts += 1
+        else:
             free += 1
-            continue
-        contacts += 1
-        assert assert_motion_against_oracle(checker, oracle, Q[expected], Q[expected + 1],
-                                            result.motion)
     assert contacts >= 2 and free >= 2, (contacts, free)
 
 
@@ -541,16 +554,10 @@ def test_a_path_of_very_unequal_segments_is_its_segments_checked_one_by_one(cell
         steps *= (scale / np.linalg.norm(steps, axis=1))[:, None]
         Q = np.vstack([Q[:1], Q[0] + np.cumsum(steps, axis=0)])
         Q = np.clip(Q, checker.kinematics.lower, checker.kinematics.upper)
-        result = checker.check_path(Q)
-        expected = next((i for i in range(len(Q) - 1)
-                         if checker.check_motion(Q[i], Q[i + 1]).in_collision), None)
-        assert result.first_invalid_segment == expected, trial
-        if expected is None:
+        if _path_as_its_segments(checker, oracle, Q, trial):
+            contacts += 1
+        else:
             free += 1
-            continue
-        contacts += 1
-        assert assert_motion_against_oracle(checker, oracle, Q[expected], Q[expected + 1],
-                                            result.motion)
     assert contacts >= 2 and free >= 2, (contacts, free)
 
 
@@ -585,8 +592,7 @@ def test_a_moving_base_path_is_its_segments_checked_one_by_one(kind):
             rows.append(q)
         Q = np.array(rows)
         result = checker.check_path(Q)
-        expected = next((i for i in range(len(Q) - 1)
-                         if checker.check_motion(Q[i], Q[i + 1]).in_collision), None)
+        expected = _first_segment_not_free(checker, Q)
         assert result.first_invalid_segment == expected
         if expected is not None:
             alone = checker.check_motion(Q[expected], Q[expected + 1])
