@@ -60,6 +60,13 @@ void MotionWork::size_for(const Model& m) {
 
 namespace {
 
+// How far pair p's bodies can move relative to each other per unit of variable j, with E
+// (planning.hpp) at most e: the planning's reach rows, reach[p, j] + e reach_ext[p, j].
+inline double variable_reach(const Model& m, int64_t p, int64_t j, double e) {
+    const int64_t k = m.n_joints * p + j;
+    return m.reach[k] + e * m.reach_ext[k];
+}
+
 // [R_ab, t_ab] = T_world_a^-1 T_world_b = [Ra' Rb, Ra' (tb - ta)] (POSE_WIDTH numbers).
 void relative_pose(const double* Ta, const double* Tb, double* pose) {
     for (int i = 0; i < 3; ++i) {
@@ -275,12 +282,9 @@ bool MotionQuery::measure_pair(int64_t p) {
     const double rate = crude_rate(p);
     if (!(rate < INF) || !(rate > 0.0)) return false;
     if (w_.rates_pair == p) return true;
-    const int64_t J = m_.n_joints;
-    const double* reach = m_.reach + J * p;
-    const double* reach_ext = m_.reach_ext + J * p;
     double* rates = w_.pair_rates.data();
-    for (int64_t j = 0; j < J; ++j)  // a variable that never moves adds nothing (INF rows)
-        rates[j] = w_.var[j] > 0.0 ? (reach[j] + w_.extension_max * reach_ext[j]) *
+    for (int64_t j = 0; j < m_.n_joints; ++j)  // a variable that never moves adds nothing
+        rates[j] = w_.var[j] > 0.0 ? variable_reach(m_, p, j, w_.extension_max) *
                                          (1.0 + MOTION_BOUND_REL)
                                    : 0.0;
     w_.rates_pair = p;
@@ -638,12 +642,9 @@ void MotionQuery::path_speeds(const PolylinePath& path, double t, double h2) {
 double MotionQuery::crude_rate(int64_t p) {
     double& rate = w_.crude[p];
     if (rate < 0.0) {
-        const int64_t J = m_.n_joints;
-        const double* r = m_.reach + J * p;
-        const double* rx = m_.reach_ext + J * p;
         double sum = 0.0;
-        for (int64_t j = 0; j < J; ++j)
-            if (w_.var[j] > 0.0) sum += w_.var[j] * (r[j] + w_.extension_max * rx[j]);
+        for (int64_t j = 0; j < m_.n_joints; ++j)
+            if (w_.var[j] > 0.0) sum += w_.var[j] * variable_reach(m_, p, j, w_.extension_max);
         rate = sum * (1.0 + MOTION_BOUND_REL);
     }
     return rate;
@@ -922,10 +923,8 @@ int64_t check_step_motion(MotionContext& c, const double* q0, const double* q1,
     // the pair's travel, planning.hpp).
     const auto step_bound = [&](int64_t p) {
         double r = 0.0;
-        const double* reach = m.reach + J * p;
-        const double* reach_ext = m.reach_ext + J * p;
         for (int64_t j = 0; j < J; ++j)
-            if (w.var[j] > 0.0) r += w.var[j] * (reach[j] + e_max * reach_ext[j]);
+            if (w.var[j] > 0.0) r += w.var[j] * variable_reach(m, p, j, e_max);
         return r;
     };
     for (int64_t i = 0; i < n; ++i) {
