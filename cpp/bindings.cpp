@@ -274,8 +274,9 @@ struct PyEngine {
     }
 
     py::tuple last_motion() {
-        Array<uint8_t> pairs(py::ssize_t(motion_pairs.size()));
-        std::copy(motion_pairs.begin(), motion_pairs.end(), pairs.mutable_data());
+        py::list pairs;
+        for (size_t p = 0; p < motion_pairs.size(); ++p)
+            if (motion_pairs[p]) pairs.append(py::int_(p));
         return py::make_tuple(motion_t, pairs);
     }
 };
@@ -522,8 +523,9 @@ void bind_engine(py::module_& m) {
              "[0, 1]) until one is not free: (code, segment) as path; -1 - i for a segment i "
              "the engine refuses.")
         .def("last_motion", &PyEngine::last_motion,
-             "The last motion check's (t, pairs (P,) uint8): its first contact's fraction and "
-             "the pairs in contact (or within MOTION_TOUCH_TOLERANCE) there.")
+             "The last motion check's (t, pairs): its first contact's fraction and the "
+             "indices, ascending, of the pairs in contact (or within MOTION_TOUCH_TOLERANCE) "
+             "there.")
         .def("place_attached_body", &PyEngine::place_attached_body, py::arg("b"), py::arg("T"),
              py::arg("pairs"), py::arg("reach"), py::arg("reach_ext"),
              "Give attached object b (a link on a fixed joint) the pose T (4, 4) in its link's "

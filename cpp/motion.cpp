@@ -7,6 +7,7 @@
 #include <cstring>
 
 #include "cloud_queries.hpp"
+#include "convex_sweep.hpp"
 #include "planning.hpp"
 
 namespace collision_sensor {
@@ -48,6 +49,9 @@ void MotionWork::size_for(const Model& m) {
     front_cost.assign(P, 0);
     marched.reserve(P);
     prev_gap.assign(P, 0.0);
+    swept.reserve(P);
+    swept_at.assign(P, NAN);
+    swept_span.assign(P, 0.0);
     start_apart.assign(P, 0);
     prev_sums.assign(2 * P, 0.0);
     // A descent from at most MOTION_FRONT_MAX seeds (or a pair's root pairs) holds at most
@@ -223,6 +227,16 @@ class MotionQuery {
         out[2] = (kind == JOINT_REVOLUTE || kind == JOINT_PRISMATIC)
                      ? m_.kin.multiplier[k] * delta[j]
                      : 0.0;
+    }
+
+    // Pair p along a straight path on which no joint between its bodies turns (sides(p) has
+    // listed them), each body's elements convex hulls: its bodies only translate relative to
+    // each other, and its first contact is a few ray casts (convex_sweep.hpp) instead of a
+    // march: SWEEP_CONTACT (*t), SWEEP_FREE, or SWEEP_UNKNOWN (march it).
+    int sweep(const StraightPath& path, int64_t p, const double* q0, double* t);
+    template <class Path>
+    int sweep(const Path&, int64_t, const double*, double*) {
+        return SWEEP_UNKNOWN;
     }
 
     void evaluate(const double* q);
@@ -593,6 +607,70 @@ WithinResult MotionQuery::pair_within(int64_t p, const double* pose, double m, d
     return trees;
 }
 
+int MotionQuery::sweep(const StraightPath& path, int64_t p, const double* q0, double* t) {
+    const int64_t a = m_.pair_a[p], b = m_.pair_b[p];
+    if (!m_.body_hulls[a] || !m_.body_hulls[b] ||
+        m_.elements(a) * m_.elements(b) > SWEEP_MAX_ELEMENT_PAIRS)
+        return SWEEP_UNKNOWN;
+    for (int s = 0; s < 2; ++s)
+        for (int64_t i = 0; i < w_.side_n[s]; ++i)
+            if (w_.side_rot[s][i] != 0.0) return SWEEP_UNKNOWN;
+    double pose0[POSE_WIDTH], pose1[POSE_WIDTH];
+    evaluate(q0);
+    pair_pose(a, b, pose0);
+    path.at(1.0, w_.q_next.data());
+    evaluate(w_.q_next.data());
+    pair_pose(a, b, pose1);
+    // Sliders alone turn nothing: the rotation is the same at both ends (to rounding).
+    for (int k = 0; k < 9; ++k)
+        if (std::fabs(pose1[k] - pose0[k]) > SWEEP_ROTATION_SLACK) return SWEEP_UNKNOWN;
+    const double d[3] = {pose1[9] - pose0[9], pose1[10] - pose0[10], pose1[11] - pose0[11]};
+    if (d[0] == 0.0 && d[1] == 0.0 && d[2] == 0.0) return SWEEP_FREE;  // apart at the start
+    const double rho = m_.padding[a] + m_.padding[b];
+    const auto hull = [this](int64_t e) {
+        const int64_t first = m_.hull_start[e];
+        return SweepShape{SweepShape::HULL,
+                          {m_.hull_vertices.data() + 3 * first, m_.hull_start[e + 1] - first,
+                           m_.hull_adj_start.data() + first, m_.hull_adj.data(),
+                           m_.hull_seeds.data() + HULL_SEEDS * e},
+                          nullptr};
+    };
+    const auto solid = [this](int64_t e) {
+        const int kind = int(m_.elem_solid[SOLID_WIDTH * e]);
+        return kind == SOLID_BOX || kind == SOLID_SPHERE || kind == SOLID_CYLINDER;
+    };
+    const auto point = [this](int64_t e) {
+        return SweepShape{SweepShape::POINT, {}, m_.elem_solid + SOLID_WIDTH * e + SOLID_PROBE};
+    };
+    const auto true_solid = [this](int64_t e) {
+        return SweepShape{SweepShape::SOLID, {}, m_.elem_solid + SOLID_WIDTH * e};
+    };
+    // The surfaces (the hulls: apart at the start, they first meet on their surfaces), and
+    // each element's test vertex against the other's true solid, as solid_gap counts it.
+    double first = INF;
+    const auto cast = [&](const SweepShape& A, const SweepShape& B, double margin) {
+        double s;
+        // Beyond the first contact found so far nothing counts.
+        const int r = sweep_first_contact(A, B, pose0, pose0 + 9, d, margin, SWEEP_EPS,
+                                          std::min(first, 1.0), &s);
+        if (r == SWEEP_CONTACT) first = std::min(first, s);
+        return r != SWEEP_UNKNOWN;
+    };
+    for (int64_t ea = m_.elem_start[a]; ea < m_.elem_end[a]; ++ea) {
+        for (int64_t eb = m_.elem_start[b]; eb < m_.elem_end[b]; ++eb) {
+            if (!cast(hull(ea), hull(eb), rho)) return SWEEP_UNKNOWN;
+            if (solid(ea) && !cast(true_solid(ea), point(eb), 0.0)) return SWEEP_UNKNOWN;
+            if (solid(eb) && !cast(point(ea), true_solid(eb), 0.0)) return SWEEP_UNKNOWN;
+        }
+    }
+    w_.swept.push_back(p);
+    w_.swept_at[p] = first;
+    w_.swept_span[p] = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (first > 1.0) return SWEEP_FREE;
+    *t = first;
+    return SWEEP_CONTACT;
+}
+
 // A spline's speeds around t (SplinePath::rates over [t - h2, t + h2]).
 void MotionQuery::path_speeds(const SplinePath& path, double t, double h2) {
     for (int64_t k = 0; k < m_.n_links; ++k) {
@@ -793,6 +871,8 @@ int64_t MotionQuery::march_pairs(const int64_t* list, int64_t n, const Path& pat
     double pose[POSE_WIDTH];
     std::vector<MotionWork::March>& heap = w_.heap;
     heap.clear();
+    for (const int64_t p : w_.swept) w_.swept_at[p] = NAN;
+    w_.swept.clear();
     const auto known_apart = [this](int64_t p) { return w_.start_known && w_.start_apart[p]; };
     for (int64_t i = 0; i < n; ++i) {
         const int64_t p = list ? list[i] : i;
@@ -822,7 +902,15 @@ int64_t MotionQuery::march_pairs(const int64_t* list, int64_t n, const Path& pat
     path_speeds(path, 0.5, 0.5);
     for (int64_t i = 0; i < n; ++i) {
         const int64_t p = list ? list[i] : i;
-        if (sides(p)) heap.push_back({p, 0.0, 1.0, 1.0});
+        if (!sides(p)) continue;
+        double t;
+        const int swept = sweep(path, p, q0, &t);
+        if (swept == SWEEP_UNKNOWN) {
+            heap.push_back({p, 0.0, 1.0, 1.0});
+        } else if (swept == SWEEP_CONTACT && t < *best) {
+            *best = t;
+            best_pair = p;
+        }
     }
     std::make_heap(heap.begin(), heap.end(), later);
     while (!heap.empty() && heap.front().t < *best) {
@@ -852,6 +940,13 @@ void MotionQuery::contacts(const int64_t* list, int64_t n, const Path& path, dou
     w_.side_n[0] = w_.side_n[1] = 0;
     for (int64_t i = 0; i < n; ++i) {
         const int64_t p = list ? list[i] : i;
+        // A swept pair is within the tolerance of contact at t when its sweep's first
+        // contact (within SWEEP_EPS of it) is less than the rest of the tolerance away.
+        const double swept = w_.swept_at[p];
+        if (!std::isnan(swept)) {
+            pairs[p] = (swept - t) * w_.swept_span[p] <= extra - SWEEP_EPS ? 1 : 0;
+            continue;
+        }
         pair_pose(m_.pair_a[p], m_.pair_b[p], pose);
         margin(p, 0.0);
         pairs[p] = pair_within(p, pose, t, 0.0, crude_or_none(path, p), extra).within ? 1 : 0;

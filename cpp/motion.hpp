@@ -57,6 +57,14 @@ constexpr double MARCH_GROW = 1.5, MARCH_FACTOR_MAX = 3.0, MARCH_SHRINK = 0.5,
 // than its last descent from the roots did (motion.cpp: pair_within). Work only, never answers:
 // node pairs visited on the Panda in a cluttered cell 6,240 -> 5,240 per segment.
 constexpr int64_t MOTION_FRONT_MAX = 1024;
+// A pair whose bodies only translate relative to each other along a straight motion, both
+// made of convex elements (a primitive, or a convex closed mesh), is swept by ray casts
+// (convex_sweep.hpp) instead of marched, up to this many element pairs; the cast stops within
+// SWEEP_EPS (m) of contact, a tenth of the touching tolerance. The rotation at the two ends
+// must agree to SWEEP_ROTATION_SLACK (rounding: sliders turn nothing), else the pair marches.
+constexpr int64_t SWEEP_MAX_ELEMENT_PAIRS = 16;
+constexpr double SWEEP_EPS = 0.1 * MOTION_TOUCH_TOLERANCE;
+constexpr double SWEEP_ROTATION_SLACK = 1e-12;
 
 // The straight motion from q0 to q1, t in [0, 1]: each variable as its motion kind says
 // (kinematics.hpp: MOTION_*, the interpolation MoveIt uses).
@@ -689,6 +697,10 @@ struct MotionWork {
     std::vector<int64_t> node_stamp[2];     // (N,)
     MotionMargin margin{};
     std::vector<March> heap;
+    // The pairs swept (MotionQuery::sweep) by the query at hand, each one's first contact
+    // (INF: none) and how far its bodies translate relative to each other; NaN for the others.
+    std::vector<int64_t> swept;
+    std::vector<double> swept_at, swept_span;
     std::vector<std::vector<int64_t>> front;  // (P,) each pair's front (pair_within)
     // (P,) per node pair of the front, the parameter up to which it is proven apart in the
     // query at hand (-INF: not known; empty while the front was set from elsewhere, but for

@@ -99,6 +99,29 @@ class FclOracle:
                     return True
         return False
 
+    def solid_gap(self, poses, a, b):
+        """How far a test vertex of one body is from entering a solid primitive of the
+        other (0 inside), by the primitives' own measures (inf: no primitive)."""
+        Ta, Tb = poses[a], poses[b]
+        return min(self._solid_gap(a, b, Ta, Tb), self._solid_gap(b, a, Tb, Ta))
+
+    def _solid_gap(self, a, b, Ta, Tb):
+        gap = np.inf
+        for primitive, T_local in self.solids.get(a, ()):
+            T = Ta @ T_local
+            for vertex in self.vertices[b]:
+                p = T[:3, :3].T @ (Tb[:3, :3] @ vertex + Tb[:3, 3] - T[:3, 3])
+                if isinstance(primitive, fcl.Box):
+                    outside = np.maximum(np.abs(p) - 0.5 * np.asarray(primitive.side), 0.0)
+                    gap = min(gap, float(np.linalg.norm(outside)))
+                elif isinstance(primitive, fcl.Sphere):
+                    gap = min(gap, max(float(np.linalg.norm(p)) - primitive.radius, 0.0))
+                else:
+                    radial = max(float(np.hypot(p[0], p[1])) - primitive.radius, 0.0)
+                    axial = max(abs(float(p[2])) - 0.5 * primitive.lz, 0.0)
+                    gap = min(gap, float(np.hypot(radial, axial)))
+        return gap
+
     @staticmethod
     def _tris_of_tree(forest, root):
         stack, tris = [root], []

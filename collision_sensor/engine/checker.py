@@ -810,13 +810,19 @@ class CollisionChecker:
         :param q_to: the end, the same way.
         :raises JointStateError: as :meth:`check`, naming the end at fault; nothing changes.
         """
-        ends = []
-        for end, positions in (('q_from', q_from), ('q_to', q_to)):
-            try:
-                ends.append(self._merged(positions))
-            except JointStateError as error:
-                raise JointStateError(f'{end}: {error}') from None
-        q0, q1 = ends
+        shape = self._q.shape
+        if (type(q_from) is np.ndarray and type(q_to) is np.ndarray  # noqa: E721 - exact
+                and q_from.shape == shape and q_to.shape == shape
+                and q_from.dtype == np.float64 and q_to.dtype == np.float64):
+            q0, q1 = q_from, q_to   # as they are (the engine copies a strided one)
+        else:
+            ends = []
+            for end, positions in (('q_from', q_from), ('q_to', q_to)):
+                try:
+                    ends.append(self._merged(positions))
+                except JointStateError as error:
+                    raise JointStateError(f'{end}: {error}') from None
+            q0, q1 = ends
         code = self._engine.motion(q0, q1)
         if code < 0:
             j = -1 - code
@@ -904,7 +910,7 @@ class CollisionChecker:
             return FREE
         t, pairs = self._engine.last_motion()
         names = self.checked_pairs
-        return MotionResult(True, float(t), tuple(names[p] for p in np.flatnonzero(pairs)))
+        return MotionResult(True, t, tuple([names[p] for p in pairs]))
 
     def _proximity_records(self, distance: np.ndarray,
                            points: np.ndarray) -> List[ProximityRecord]:

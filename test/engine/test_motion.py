@@ -16,6 +16,7 @@ from collision_sensor import CollisionChecker
 from collision_sensor.engine.dynamic_scene import AddObject
 from collision_sensor.engine.motion import TOUCH_TOLERANCE, interpolate
 from collision_sensor.engine.sampling import random_configurations
+from collision_sensor.engine.traversal import COUNT_BOX_TESTS
 from collision_sensor.engine.trajectory import (
     TrajectoryPoint, polynomial_extremes, spline_coefficients)
 from collision_sensor.errors import JointStateError
@@ -106,13 +107,15 @@ def assert_motion_against_oracle(checker, oracle, q0, q1, result):
 
 def assert_touches(checker, oracle, q0, q1, result):
     """A reported first contact: its state is in contact, or within the touching tolerance of
-    it, by python-fcl."""
+    it, by python-fcl (the triangles' padded distance) or a test vertex's distance to the other
+    body's true primitive (check counts a vertex inside it)."""
     assert 0.0 <= result.first_contact <= 1.0 and result.colliding_pairs
     assert list(result.colliding_pairs) == sorted(result.colliding_pairs)
     q = interpolate(checker.motion_kinds, q0, q1, [result.first_contact])[0]
     poses = oracle.poses(q)
     padding = checker.paddings
-    nearest = min(oracle.pair_distance(poses, a, b) - padding.get(a, 0.0) - padding.get(b, 0.0)
+    nearest = min(min(oracle.pair_distance(poses, a, b) - padding.get(a, 0.0)
+                      - padding.get(b, 0.0), oracle.solid_gap(poses, a, b))
                   if not oracle.contains(poses, a, b) else 0.0
                   for a, b in result.colliding_pairs)
     assert nearest <= TOUCH_TOLERANCE + FCL_SLACK, (result, nearest)
@@ -415,6 +418,83 @@ def test_a_continuous_joint_goes_the_shorter_way_round():
     assert checker.check_motion({'turn': 1.5}, {'turn': -1.5}).in_collision   # through 0
     # The same pose given a turn apart is no motion at all.
     assert not checker.check_motion({'turn': 2.9}, {'turn': 2.9 - 4 * math.pi}).in_collision
+
+
+#: A tool on three sliders and a turn (yaw): with the yaw still, the tool only translates.
+SLIDER = textwrap.dedent('''\
+    <robot name="slider">
+      <link name="base"/><link name="sx"/><link name="sy"/><link name="sz"/>
+      <link name="tool"><collision><origin rpy="0.3 -0.7 1.1"/>
+        <geometry>{geometry}</geometry></collision></link>
+      <joint name="x" type="prismatic"><parent link="base"/><child link="sx"/>
+        <axis xyz="1 0 0"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+      <joint name="y" type="prismatic"><parent link="sx"/><child link="sy"/>
+        <axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+      <joint name="z" type="prismatic"><parent link="sy"/><child link="sz"/>
+        <axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+      <joint name="yaw" type="revolute"><parent link="sz"/><child link="tool"/>
+        <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+    </robot>
+    ''')
+#: Fixed primitives around the origin, turned, and a large ball whose tessellation's faces
+#: lie up to 2.9 mm inside the true sphere (what check counts for a vertex inside it).
+SLIDER_SCENE = {'objects': [
+    {'name': 'block', 'box': {'size': [0.3, 0.05, 0.2]},
+     'pose': {'xyz': [0.4, 0.0, 0.0], 'rpy': [0.2, 0.4, -0.3]}},
+    {'name': 'rod', 'cylinder': {'radius': 0.01, 'length': 0.6},
+     'pose': {'xyz': [-0.3, 0.3, 0.0], 'rpy': [1.2, 0.0, 0.5]}},
+    {'name': 'ball', 'sphere': {'radius': 0.3}, 'pose': {'xyz': [0.0, -0.8, 0.2]}},
+]}
+
+
+@pytest.mark.parametrize('geometry', ['<box size="0.08 0.02 0.05"/>',
+                                      '<cylinder radius="0.03" length="0.1"/>',
+                                      '<sphere radius="0.04"/>', '<box size="0.002 0.002 0.002"/>'])
+@pytest.mark.parametrize('padding', [0.0, 0.01])
+def test_a_sliding_convex_body_is_swept_exactly(geometry, padding, tmp_path):
+    """Bodies that only translate relative to each other (sliders moving, the turn still),
+    both of primitives, are swept by ray casts, not marched: against sampling and python-fcl,
+    the first contact is no later than the first sampled one and touches; the answer is the
+    march's (check_path marches); and the sweep, not a march, did the work. The 2 mm cube's
+    leading corner enters the large ball's true sphere before any triangles meet, which a
+    sweep of the tessellations alone would miss."""
+    urdf = tmp_path / 'slider.urdf'
+    urdf.write_text(SLIDER.format(geometry=geometry))
+    checker = CollisionChecker.from_urdf(str(urdf), scene=SLIDER_SCENE,
+                                         config={'link_padding': {'tool': padding}})
+    oracle = FclOracle(checker, str(urdf))
+    rng = np.random.default_rng(5)
+    targets = [o.T_world_object[:3, 3] for o in checker.scene_objects]
+    contacts = free = 0
+    swept_work = marched_work = 0
+    for trial in range(24):
+        yaw = rng.uniform(-3, 3)
+        target = targets[trial % len(targets)] + rng.normal(0.0, 0.15, 3)
+        if trial % len(targets) == 2:     # at the ball's centre: through the tessellation
+            target = targets[2]
+        direction = rng.normal(size=3)
+        direction /= np.linalg.norm(direction)
+        q0 = np.append(target - 0.7 * direction, yaw)
+        q1 = np.append(target + rng.uniform(-0.5, 0.6) * direction, yaw)
+        if checker.check(q0).in_collision:
+            continue
+        checker.counters[:] = 0
+        result = checker.check_motion(q0, q1)
+        swept_work += checker.counters[COUNT_BOX_TESTS]
+        checker.counters[:] = 0
+        marched = checker.check_path(np.array([q0, q1]))
+        marched_work += checker.counters[COUNT_BOX_TESTS]
+        assert result.in_collision == (marched.first_invalid_segment is not None)
+        if assert_motion_against_oracle(checker, oracle, q0, q1, result):
+            contacts += 1
+        else:
+            free += 1
+    assert contacts >= 8 and free >= 4
+    assert swept_work * 5 < marched_work, (swept_work, marched_work)
+    # A turn on the way: marched, and the same contract.
+    q0, q1 = np.array([0.0, -0.1, 0.2, -1.0]), np.array([0.0, -0.45, 0.2, 1.0])
+    if not checker.check(q0).in_collision:
+        assert_motion_against_oracle(checker, oracle, q0, q1, checker.check_motion(q0, q1))
 
 
 def test_padding_and_attached_objects_count_as_in_check(panda_urdf, panda_srdf,
