@@ -286,10 +286,10 @@ inline int closest_simplex(const double (*y)[3], int n, double* v) {
 // translating by d over the parameter [0, limit] against shape A (a's frame): SWEEP_CONTACT
 // with *s the first parameter at which they are within rho + eps (every earlier one farther
 // than rho apart), SWEEP_FREE (none up to limit), or SWEEP_UNKNOWN (no convergence: decide
-// otherwise).
+// otherwise). Adds its GJK iterations to *steps.
 inline int sweep_first_contact(const SweepShape& A, const SweepShape& B, const double* R,
                                const double* t0, const double* d, double rho, double eps,
-                               double limit, double* s) {
+                               double limit, double* s, int64_t* steps) {
     using namespace sweep_detail;
     int64_t hint_a = -1, hint_b = -1;
     // C's point furthest along u: A's along u less B's (placed) along -u.
@@ -310,6 +310,7 @@ inline int sweep_first_contact(const SweepShape& A, const SweepShape& B, const d
     for (int i = 0; i < 3; ++i) v[i] = -v[i];
     const double reach = rho + eps;
     for (int iteration = 0; iteration < SWEEP_ITERATIONS; ++iteration) {
+        ++*steps;
         const double vv = dot(v, v);
         if (vv <= reach * reach) {
             *s = lambda;

@@ -652,7 +652,8 @@ int MotionQuery::sweep(const StraightPath& path, int64_t p, const double* q0, do
         double s;
         // Beyond the first contact found so far nothing counts.
         const int r = sweep_first_contact(A, B, pose0, pose0 + 9, d, margin, SWEEP_EPS,
-                                          std::min(first, 1.0), &s);
+                                          std::min(first, 1.0), &s,
+                                          &counters_[COUNT_SWEEP_STEPS]);
         if (r == SWEEP_CONTACT) first = std::min(first, s);
         return r != SWEEP_UNKNOWN;
     };
@@ -663,6 +664,7 @@ int MotionQuery::sweep(const StraightPath& path, int64_t p, const double* q0, do
             if (solid(eb) && !cast(point(ea), true_solid(eb), 0.0)) return SWEEP_UNKNOWN;
         }
     }
+    ++counters_[COUNT_SWEEPS];
     w_.swept.push_back(p);
     w_.swept_at[p] = first;
     w_.swept_span[p] = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);

@@ -278,10 +278,14 @@ def run(section: Section, settings, workdir: str, panda: MotionCell) -> None:
     if timing.get('in contact') and timing.get('free'):
         counters = _ccd_work(cases)
         section.text(
-            f'Where the time goes (our counters, per motion): in contact '
-            f'{counters["in contact"][0]:.0f} box and {counters["in contact"][1]:.0f} '
-            f'triangle tests; free {counters["free"][0]:.0f} box and '
-            f'{counters["free"][1]:.0f} triangle tests.')
+            'Where the time goes (our counters, per motion; a translation of two convex '
+            'bodies is swept by GJK ray casts, docs/motion.md): in contact '
+            f'{counters["in contact"][0]:.1f} box and {counters["in contact"][1]:.1f} '
+            f'triangle tests, {counters["in contact"][2]:.2f} pairs swept in '
+            f'{counters["in contact"][3]:.1f} GJK iterations; free '
+            f'{counters["free"][0]:.1f} box and {counters["free"][1]:.1f} triangle tests, '
+            f'{counters["free"][2]:.2f} pairs swept in {counters["free"][3]:.1f} GJK '
+            'iterations.')
     section.judge('S10 primitives: the same answer as continuousCollide (decisive cases '
                   'where it is right)',
                   f'{same_where_fcl_right} of {len(fcl_right)} (fcl wrong on {fcl_wrong} of '
@@ -295,17 +299,20 @@ def run(section: Section, settings, workdir: str, panda: MotionCell) -> None:
 
 
 def _ccd_work(cases):
-    """Box and triangle tests per motion, for motions in contact and free."""
-    from collision_sensor.engine.traversal import COUNT_BOX_TESTS, COUNT_TRIANGLE_TESTS
+    """Box and triangle tests, pairs swept and their GJK iterations per motion, for motions
+    in contact and free."""
+    from collision_sensor.engine.traversal import (
+        COUNT_BOX_TESTS, COUNT_SWEEP_STEPS, COUNT_SWEEPS, COUNT_TRIANGLE_TESTS)
+    columns = [COUNT_BOX_TESTS, COUNT_TRIANGLE_TESTS, COUNT_SWEEPS, COUNT_SWEEP_STEPS]
     work = {}
     for label, truth in (('in contact', True), ('free', False)):
         group = [c for c in cases if c.truth == truth]
-        total = np.zeros(2)
+        total = np.zeros(len(columns))
         for case in group:
             checker = case.check_motion.__self__
             checker.counters[:] = 0
             case.check_motion(case.q_from, case.q_to)
-            total += checker.counters[[COUNT_BOX_TESTS, COUNT_TRIANGLE_TESTS]]
+            total += checker.counters[columns]
         work[label] = total / max(1, len(group))
     return work
 
