@@ -14,9 +14,9 @@ import pytest
 
 from collision_sensor import CollisionChecker
 from collision_sensor.engine.dynamic_scene import AddObject
-from collision_sensor.engine.motion import TOUCH_TOLERANCE, interpolate
+from collision_sensor.engine.motion import FREE, TOUCH_TOLERANCE, interpolate
 from collision_sensor.engine.sampling import random_configurations
-from collision_sensor.engine.traversal import COUNT_BOX_TESTS
+from collision_sensor.engine.traversal import COUNT_BOX_TESTS, COUNT_SWEEPS
 from collision_sensor.engine.trajectory import (
     TrajectoryPoint, polynomial_extremes, spline_coefficients)
 from collision_sensor.errors import JointStateError
@@ -447,26 +447,44 @@ SLIDER_SCENE = {'objects': [
 ]}
 
 
-@pytest.mark.parametrize('geometry', ['<box size="0.08 0.02 0.05"/>',
-                                      '<cylinder radius="0.03" length="0.1"/>',
-                                      '<sphere radius="0.04"/>', '<box size="0.002 0.002 0.002"/>'])
+#: The tool's geometry, and whether it is convex element by element (swept) or not (marched).
+SLIDING_TOOLS = {
+    'box': ('<box size="0.08 0.02 0.05"/>', True),
+    'cylinder': ('<cylinder radius="0.03" length="0.1"/>', True),
+    'ball': ('<sphere radius="0.04"/>', True),
+    '2 mm cube': ('<box size="0.002 0.002 0.002"/>', True),
+    'box and ball': ('<box size="0.05 0.02 0.03"/></geometry></collision><collision>'
+                     '<origin xyz="0 0 0.06"/><geometry><sphere radius="0.02"/>', True),
+    'convex mesh': ('<mesh filename="file://{icosphere}"/>', True),
+    'ring mesh': ('<mesh filename="file://{ring}"/>', False),
+}
+
+
+@pytest.mark.parametrize('tool', list(SLIDING_TOOLS))
 @pytest.mark.parametrize('padding', [0.0, 0.01])
-def test_a_sliding_convex_body_is_swept_exactly(geometry, padding, tmp_path):
+def test_a_sliding_convex_body_is_swept_exactly(tool, padding, tmp_path):
     """Bodies that only translate relative to each other (sliders moving, the turn still),
-    both of primitives, are swept by ray casts, not marched: against sampling and python-fcl,
-    the first contact is no later than the first sampled one and touches; the answer is the
-    march's (check_path marches); and the sweep, not a march, did the work. The 2 mm cube's
-    leading corner enters the large ball's true sphere before any triangles meet, which a
-    sweep of the tessellations alone would miss."""
+    both of convex elements, are swept by ray casts, not marched: against sampling and
+    python-fcl, the first contact is no later than the first sampled one and touches; the
+    answer is the march's (check_path marches); and the sweep, not a march, did the work. The
+    2 mm cube's leading corner enters the large ball's true sphere before any triangles meet,
+    which a sweep of the tessellations alone would miss. A closed mesh counts when convex (an
+    icosphere, with mesh_containment); a ring is not, and marches."""
+    import trimesh
+    geometry, convex = SLIDING_TOOLS[tool]
+    icosphere, ring = tmp_path / 'icosphere.stl', tmp_path / 'ring.stl'
+    trimesh.creation.icosphere(subdivisions=1, radius=0.04).export(str(icosphere))
+    trimesh.creation.annulus(r_min=0.015, r_max=0.04, height=0.05).export(str(ring))
     urdf = tmp_path / 'slider.urdf'
-    urdf.write_text(SLIDER.format(geometry=geometry))
+    urdf.write_text(SLIDER.format(geometry=geometry.format(icosphere=icosphere, ring=ring)))
     checker = CollisionChecker.from_urdf(str(urdf), scene=SLIDER_SCENE,
-                                         config={'link_padding': {'tool': padding}})
+                                         config={'link_padding': {'tool': padding},
+                                                 'mesh_containment': True})
     oracle = FclOracle(checker, str(urdf))
     rng = np.random.default_rng(5)
     targets = [o.T_world_object[:3, 3] for o in checker.scene_objects]
     contacts = free = 0
-    swept_work = marched_work = 0
+    swept_work = marched_work = sweeps = 0
     for trial in range(24):
         yaw = rng.uniform(-3, 3)
         target = targets[trial % len(targets)] + rng.normal(0.0, 0.15, 3)
@@ -481,6 +499,7 @@ def test_a_sliding_convex_body_is_swept_exactly(geometry, padding, tmp_path):
         checker.counters[:] = 0
         result = checker.check_motion(q0, q1)
         swept_work += checker.counters[COUNT_BOX_TESTS]
+        sweeps += checker.counters[COUNT_SWEEPS]
         checker.counters[:] = 0
         marched = checker.check_path(np.array([q0, q1]))
         marched_work += checker.counters[COUNT_BOX_TESTS]
@@ -490,7 +509,21 @@ def test_a_sliding_convex_body_is_swept_exactly(geometry, padding, tmp_path):
         else:
             free += 1
     assert contacts >= 8 and free >= 4
-    assert swept_work * 5 < marched_work, (swept_work, marched_work)
+    if convex:
+        assert sweeps >= contacts + free and swept_work * 5 < marched_work, (
+            sweeps, swept_work, marched_work)
+    else:
+        assert sweeps == 0
+        # Threaded on a thin rod through its hole: free, where its hull would meet the rod.
+        straight = tmp_path / 'straight.urdf'
+        straight.write_text(SLIDER.format(geometry=geometry.format(ring=ring)).replace(
+            'rpy="0.3 -0.7 1.1"', 'rpy="0 0 0"'))
+        threaded = CollisionChecker.from_urdf(
+            str(straight), config={'mesh_containment': True}, scene={'objects': [
+                {'name': 'wire', 'cylinder': {'radius': 0.005, 'length': 0.6}}]})
+        q0, q1 = np.array([0.0, 0.0, -0.5, 0.3]), np.array([0.0, 0.0, 0.5, 0.3])
+        assert not threaded.check(0.5 * (q0 + q1)).in_collision   # the ring around it
+        assert threaded.check_motion(q0, q1) == FREE
     # A turn on the way: marched, and the same contract.
     q0, q1 = np.array([0.0, -0.1, 0.2, -1.0]), np.array([0.0, -0.45, 0.2, 1.0])
     if not checker.check(q0).in_collision:
