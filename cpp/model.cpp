@@ -130,120 +130,6 @@ void derive_bodies(Model& m) {
         m.most_seeds = std::max(m.most_seeds, m.elements(m.pair_a[p]) * m.elements(m.pair_b[p]));
 }
 
-// A closed mesh is taken for a hull after a test of every face plane against every vertex:
-// up to this many triangles (primitives are convex by construction and not tested).
-constexpr int64_t HULL_TEST_MAX_TRIANGLES = 2048;
-// Vertices within this fraction of the mesh's extent of a face plane's far side count as on
-// it (rounding of coplanar vertices).
-constexpr double HULL_FLAT_REL = 1e-9;
-
-// Element e's distinct vertices, and each triangle's corners as their indices; false when e
-// is not a closed convex element (elem_solid none, too few or too many triangles, a vertex on
-// both sides of a face plane).
-bool element_hull(const Model& m, int64_t e, std::vector<double>& vertices,
-                  std::vector<int64_t>& corners) {
-    const int kind = int(m.elem_solid[SOLID_WIDTH * e]);
-    const int64_t lo = m.elem_tris[2 * e], hi = m.elem_tris[2 * e + 1];
-    if (kind == SOLID_NONE || hi - lo < 4) return false;
-    if (kind == SOLID_CLOSED_MESH && hi - lo > HULL_TEST_MAX_TRIANGLES) return false;
-    std::vector<std::array<double, 3>> points;
-    points.reserve(3 * (hi - lo));
-    for (int64_t t = lo; t < hi; ++t)
-        for (int k = 0; k < 3; ++k) {
-            const double* x = m.forest.tris + 9 * t + 3 * k;
-            points.push_back({x[0], x[1], x[2]});
-        }
-    std::vector<std::array<double, 3>> distinct(points);
-    std::sort(distinct.begin(), distinct.end());
-    distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
-    corners.resize(points.size());
-    for (size_t i = 0; i < points.size(); ++i)
-        corners[i] = std::lower_bound(distinct.begin(), distinct.end(), points[i]) -
-                     distinct.begin();
-    if (kind == SOLID_CLOSED_MESH) {
-        const double inf = std::numeric_limits<double>::infinity();
-        double lower[3] = {inf, inf, inf}, upper[3] = {-inf, -inf, -inf};
-        for (const auto& x : distinct)
-            for (int i = 0; i < 3; ++i) {
-                lower[i] = std::min(lower[i], x[i]);
-                upper[i] = std::max(upper[i], x[i]);
-            }
-        const double flat =
-            HULL_FLAT_REL * std::max({upper[0] - lower[0], upper[1] - lower[1], upper[2] - lower[2]});
-        for (int64_t t = lo; t < hi; ++t) {
-            const double* a = m.forest.tris + 9 * t;
-            const double u[3] = {a[3] - a[0], a[4] - a[1], a[5] - a[2]};
-            const double w[3] = {a[6] - a[0], a[7] - a[1], a[8] - a[2]};
-            double n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2],
-                           u[0] * w[1] - u[1] * w[0]};
-            const double length = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-            if (!(length > 0.0)) continue;  // a degenerate triangle has no plane
-            double above = 0.0, below = 0.0;
-            for (const auto& x : distinct) {
-                const double h = (n[0] * (x[0] - a[0]) + n[1] * (x[1] - a[1]) +
-                                  n[2] * (x[2] - a[2])) / length;
-                above = std::max(above, h);
-                below = std::min(below, h);
-            }
-            if (above > flat && below < -flat) return false;
-        }
-    }
-    vertices.clear();
-    for (const auto& x : distinct) vertices.insert(vertices.end(), x.begin(), x.end());
-    return true;
-}
-
-void derive_hulls(Model& m) {
-    m.hull_start.assign(m.n_elements + 1, 0);
-    m.hull_vertices.clear();
-    m.hull_adj_start.assign(1, 0);
-    m.hull_adj.clear();
-    m.hull_seeds.assign(HULL_SEEDS * m.n_elements, 0);
-    std::vector<double> vertices;
-    std::vector<int64_t> corners;
-    std::vector<std::pair<int64_t, int64_t>> edges;
-    for (int64_t e = 0; e < m.n_elements; ++e) {
-        m.hull_start[e + 1] = m.hull_start[e];
-        if (!element_hull(m, e, vertices, corners)) continue;
-        const int64_t n = int64_t(vertices.size() / 3);
-        edges.clear();
-        for (size_t t = 0; t < corners.size(); t += 3)
-            for (int k = 0; k < 3; ++k) {
-                const int64_t i = corners[t + k], j = corners[t + (k + 1) % 3];
-                if (i == j) continue;
-                edges.push_back({i, j});
-                edges.push_back({j, i});
-            }
-        std::sort(edges.begin(), edges.end());
-        edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
-        size_t next = 0;
-        for (int64_t i = 0; i < n; ++i) {
-            while (next < edges.size() && edges[next].first == i)
-                m.hull_adj.push_back(edges[next++].second);
-            m.hull_adj_start.push_back(int64_t(m.hull_adj.size()));
-        }
-        for (int k = 0; k < HULL_SEEDS; ++k) {
-            const double* u = hull_seed_direction(k);
-            int64_t best = 0;
-            for (int64_t i = 1; i < n; ++i)
-                if (u[0] * vertices[3 * i] + u[1] * vertices[3 * i + 1] + u[2] * vertices[3 * i + 2] >
-                    u[0] * vertices[3 * best] + u[1] * vertices[3 * best + 1] +
-                        u[2] * vertices[3 * best + 2])
-                    best = i;
-            m.hull_seeds[HULL_SEEDS * e + k] = best;
-        }
-        m.hull_vertices.insert(m.hull_vertices.end(), vertices.begin(), vertices.end());
-        m.hull_start[e + 1] = m.hull_start[e] + n;
-    }
-    m.body_hulls.assign(m.n_bodies, 0);
-    for (int64_t b = 0; b < m.n_bodies; ++b) {
-        bool all = m.elements(b) > 0;
-        for (int64_t e = m.elem_start[b]; e < m.elem_end[b]; ++e)
-            all = all && m.hull_start[e + 1] > m.hull_start[e];
-        m.body_hulls[b] = all ? 1 : 0;
-    }
-}
-
 }  // namespace
 
 Model make_model(const ResolvedLayout& r) {
@@ -283,8 +169,106 @@ Model make_model(const ResolvedLayout& r) {
     check_indices(m, r.dims[DIM_JOINT_PAIRS], r.dims[DIM_JOINT_LINKS]);
     derive_trees(m);
     derive_bodies(m);
-    derive_hulls(m);
     return m;
+}
+
+
+namespace {
+
+// A closed mesh is taken for a hull after a test of every face plane against every vertex:
+// up to this many triangles (primitives are convex by construction and not tested).
+constexpr int64_t HULL_TEST_MAX_TRIANGLES = 2048;
+// Vertices within this fraction of the mesh's extent of a face plane's far side count as on
+// it (rounding of coplanar vertices).
+constexpr double HULL_FLAT_REL = 1e-9;
+
+// Is every vertex of the closed mesh on one side of each of its triangles' planes?
+bool closed_mesh_convex(const Model& m, int64_t lo, int64_t hi,
+                        const std::vector<std::array<double, 3>>& distinct) {
+    const double inf = std::numeric_limits<double>::infinity();
+    double lower[3] = {inf, inf, inf}, upper[3] = {-inf, -inf, -inf};
+    for (const auto& x : distinct)
+        for (int i = 0; i < 3; ++i) {
+            lower[i] = std::min(lower[i], x[i]);
+            upper[i] = std::max(upper[i], x[i]);
+        }
+    const double flat = HULL_FLAT_REL * std::max({upper[0] - lower[0], upper[1] - lower[1],
+                                                  upper[2] - lower[2]});
+    for (int64_t t = lo; t < hi; ++t) {
+        const double* a = m.forest.tris + 9 * t;
+        const double u[3] = {a[3] - a[0], a[4] - a[1], a[5] - a[2]};
+        const double w[3] = {a[6] - a[0], a[7] - a[1], a[8] - a[2]};
+        const double n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2],
+                             u[0] * w[1] - u[1] * w[0]};
+        const double length = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        if (!(length > 0.0)) continue;  // a degenerate triangle has no plane
+        double above = 0.0, below = 0.0;
+        for (const auto& x : distinct) {
+            const double h =
+                (n[0] * (x[0] - a[0]) + n[1] * (x[1] - a[1]) + n[2] * (x[2] - a[2])) / length;
+            above = std::max(above, h);
+            below = std::min(below, h);
+        }
+        if (above > flat && below < -flat) return false;
+    }
+    return true;
+}
+
+}  // namespace
+
+bool element_hull(const Model& m, int64_t e, Hull& out) {
+    const int kind = int(m.elem_solid[SOLID_WIDTH * e]);
+    const int64_t lo = m.elem_tris[2 * e], hi = m.elem_tris[2 * e + 1];
+    if (kind == SOLID_NONE || hi - lo < 4) return false;
+    if (kind == SOLID_CLOSED_MESH && hi - lo > HULL_TEST_MAX_TRIANGLES) return false;
+    std::vector<std::array<double, 3>> corners;
+    corners.reserve(3 * (hi - lo));
+    for (int64_t t = lo; t < hi; ++t)
+        for (int k = 0; k < 3; ++k) {
+            const double* x = m.forest.tris + 9 * t + 3 * k;
+            corners.push_back({x[0], x[1], x[2]});
+        }
+    std::vector<std::array<double, 3>> distinct(corners);
+    std::sort(distinct.begin(), distinct.end());
+    distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
+    if (kind == SOLID_CLOSED_MESH && !closed_mesh_convex(m, lo, hi, distinct)) return false;
+    const auto index = [&](const std::array<double, 3>& x) {
+        return int64_t(std::lower_bound(distinct.begin(), distinct.end(), x) - distinct.begin());
+    };
+    std::vector<std::pair<int64_t, int64_t>> edges;
+    for (size_t t = 0; t < corners.size(); t += 3)
+        for (int k = 0; k < 3; ++k) {
+            const int64_t i = index(corners[t + k]), j = index(corners[t + (k + 1) % 3]);
+            if (i == j) continue;
+            edges.push_back({i, j});
+            edges.push_back({j, i});
+        }
+    std::sort(edges.begin(), edges.end());
+    edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+    const int64_t n = int64_t(distinct.size());
+    out.vertices.clear();
+    for (const auto& x : distinct) out.vertices.insert(out.vertices.end(), x.begin(), x.end());
+    out.adj_start.assign(1, 0);
+    out.adj.clear();
+    size_t next = 0;
+    for (int64_t i = 0; i < n; ++i) {
+        while (next < edges.size() && edges[next].first == i) out.adj.push_back(edges[next++].second);
+        out.adj_start.push_back(int64_t(out.adj.size()));
+    }
+    out.seeds.assign(HULL_SEEDS, 0);
+    for (int k = 0; k < HULL_SEEDS; ++k) {
+        const double* u = hull_seed_direction(k);
+        double top = -std::numeric_limits<double>::infinity();
+        for (int64_t i = 0; i < n; ++i) {
+            const double* x = out.vertices.data() + 3 * i;
+            const double along = u[0] * x[0] + u[1] * x[1] + u[2] * x[2];
+            if (along > top) {
+                top = along;
+                out.seeds[k] = i;
+            }
+        }
+    }
+    return true;
 }
 
 }  // namespace collision_sensor

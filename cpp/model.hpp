@@ -59,16 +59,6 @@ struct Model {
     // (B,) the voxels of each body that is a point cloud (a world object without trees, its
     // grid kept by the engine: voxel_cloud.hpp), else null; set by Engine::attach_cloud.
     std::vector<const VoxelGrid*> clouds;
-    // Each element's convex hull, for motion's sweeps of bodies in relative translation
-    // (convex_sweep.hpp): the distinct vertices of a primitive's tessellation, or of a closed
-    // mesh every face plane of which has them all on one side, in its body's frame:
-    // hull_vertices[3 hull_start[e] : 3 hull_start[e + 1]]; none for other elements. Each
-    // vertex's neighbours along the triangles' edges (local indices):
-    // hull_adj[hull_adj_start[v] : hull_adj_start[v + 1]], v counted over all hulls.
-    std::vector<double> hull_vertices;
-    std::vector<int64_t> hull_start, hull_adj_start, hull_adj;
-    std::vector<int64_t> hull_seeds;  // (E, HULL_SEEDS) convex_sweep.hpp's climbs' starts
-    std::vector<uint8_t> body_hulls;  // (B,) 1 where body b has elements, each with a hull
     int64_t depth;       // the deepest tree's depth (a lone leaf: 1)
     int64_t most_seeds;  // the most root pairs one pair has: elements(a) elements(b)
 
@@ -77,6 +67,21 @@ struct Model {
     const double* body_box(int64_t b) const { return body_boxes + BOX_WIDTH * b; }
     int64_t elements(int64_t b) const { return elem_end[b] - elem_start[b]; }
 };
+
+// An element's convex hull, for motion's sweeps of bodies in relative translation
+// (convex_sweep.hpp): the distinct vertices (n, 3) of a primitive's tessellation, or of a
+// closed mesh every face plane of which has them all on one side, in its body's frame; each
+// vertex's neighbours along the triangles' edges (adj[adj_start[i] : adj_start[i + 1]]); its
+// furthest vertex along each of convex_sweep.hpp's seed directions.
+struct Hull {
+    std::vector<double> vertices;
+    std::vector<int64_t> adj_start, adj, seeds;
+};
+
+// Element e's hull into out; false (out untouched) when e is not a closed convex element.
+// Built on first need (motion.cpp), not with the model: a scene change lays out a new model,
+// and most are never swept.
+bool element_hull(const Model& m, int64_t e, Hull& out);
 
 // The model of a resolved layout, every index a query follows without checking checked here.
 // Throws std::invalid_argument naming the array at fault.

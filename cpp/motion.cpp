@@ -52,6 +52,9 @@ void MotionWork::size_for(const Model& m) {
     swept.reserve(P);
     swept_at.assign(P, NAN);
     swept_span.assign(P, 0.0);
+    hulls.assign(m.n_elements, Hull{});
+    hull_state.assign(m.n_elements, -1);
+    body_hull_state.assign(m.n_bodies, -1);
     start_apart.assign(P, 0);
     prev_sums.assign(2 * P, 0.0);
     // A descent from at most MOTION_FRONT_MAX seeds (or a pair's root pairs) holds at most
@@ -237,6 +240,19 @@ class MotionQuery {
     template <class Path>
     int sweep(const Path&, int64_t, const double*, double*) {
         return SWEEP_UNKNOWN;
+    }
+    // Whether every element of body b has a hull (built now if not yet asked).
+    bool body_hulls(int64_t b) {
+        int8_t& state = w_.body_hull_state[b];
+        if (state < 0) {
+            bool all = m_.elements(b) > 0;
+            for (int64_t e = m_.elem_start[b]; all && e < m_.elem_end[b]; ++e) {
+                if (w_.hull_state[e] < 0) w_.hull_state[e] = element_hull(m_, e, w_.hulls[e]);
+                all = w_.hull_state[e] == 1;
+            }
+            state = all ? 1 : 0;
+        }
+        return state == 1;
     }
 
     void evaluate(const double* q);
@@ -609,12 +625,12 @@ WithinResult MotionQuery::pair_within(int64_t p, const double* pose, double m, d
 
 int MotionQuery::sweep(const StraightPath& path, int64_t p, const double* q0, double* t) {
     const int64_t a = m_.pair_a[p], b = m_.pair_b[p];
-    if (!m_.body_hulls[a] || !m_.body_hulls[b] ||
-        m_.elements(a) * m_.elements(b) > SWEEP_MAX_ELEMENT_PAIRS)
-        return SWEEP_UNKNOWN;
     for (int s = 0; s < 2; ++s)
         for (int64_t i = 0; i < w_.side_n[s]; ++i)
             if (w_.side_rot[s][i] != 0.0) return SWEEP_UNKNOWN;
+    if (m_.is_cloud(b) || m_.elements(a) * m_.elements(b) > SWEEP_MAX_ELEMENT_PAIRS ||
+        !body_hulls(a) || !body_hulls(b))
+        return SWEEP_UNKNOWN;
     double pose0[POSE_WIDTH], pose1[POSE_WIDTH];
     evaluate(q0);
     pair_pose(a, b, pose0);
@@ -628,11 +644,10 @@ int MotionQuery::sweep(const StraightPath& path, int64_t p, const double* q0, do
     if (d[0] == 0.0 && d[1] == 0.0 && d[2] == 0.0) return SWEEP_FREE;  // apart at the start
     const double rho = m_.padding[a] + m_.padding[b];
     const auto hull = [this](int64_t e) {
-        const int64_t first = m_.hull_start[e];
+        const Hull& h = w_.hulls[e];
         return SweepShape{SweepShape::HULL,
-                          {m_.hull_vertices.data() + 3 * first, m_.hull_start[e + 1] - first,
-                           m_.hull_adj_start.data() + first, m_.hull_adj.data(),
-                           m_.hull_seeds.data() + HULL_SEEDS * e},
+                          {h.vertices.data(), int64_t(h.vertices.size() / 3), h.adj_start.data(),
+                           h.adj.data(), h.seeds.data()},
                           nullptr};
     };
     const auto solid = [this](int64_t e) {

@@ -701,6 +701,11 @@ struct MotionWork {
     // (INF: none) and how far its bodies translate relative to each other; NaN for the others.
     std::vector<int64_t> swept;
     std::vector<double> swept_at, swept_span;
+    // Each element's hull (model.hpp: element_hull), built on first need: hull_state[e] -1
+    // not asked yet, 0 none, 1 hulls[e]; body_hull_state[b] likewise, 1 when every element
+    // of body b has one.
+    std::vector<Hull> hulls;
+    std::vector<int8_t> hull_state, body_hull_state;
     std::vector<std::vector<int64_t>> front;  // (P,) each pair's front (pair_within)
     // (P,) per node pair of the front, the parameter up to which it is proven apart in the
     // query at hand (-INF: not known; empty while the front was set from elsewhere, but for

@@ -528,6 +528,13 @@ def test_a_sliding_convex_body_is_swept_exactly(tool, padding, tmp_path):
     q0, q1 = np.array([0.0, -0.1, 0.2, -1.0]), np.array([0.0, -0.45, 0.2, 1.0])
     if not checker.check(q0).in_collision:
         assert_motion_against_oracle(checker, oracle, q0, q1, checker.check_motion(q0, q1))
+    # A scene change: the new object is swept (or marched) as it is now.
+    checker.add_object(load_scene({'objects': [{'name': 'late', 'box': {
+        'size': [0.02, 0.5, 0.5]}, 'pose': {'xyz': [0.0, 1.2, 0.0]}}]})[0])
+    q0, q1 = np.array([-0.6, 1.2, 0.0, 0.0]), np.array([0.6, 1.2, 0.0, 0.0])
+    result, marched = checker.check_motion(q0, q1), checker.check_path(np.array([q0, q1]))
+    assert result.in_collision and result.colliding_pairs == (('late', 'tool'),)
+    assert abs(result.first_contact - marched.motion.first_contact) < 1e-5
 
 
 def test_padding_and_attached_objects_count_as_in_check(panda_urdf, panda_srdf,
