@@ -232,15 +232,25 @@ class MotionQuery {
                      : 0.0;
     }
 
-    // Pair p along a straight path on which no joint between its bodies turns (sides(p) has
-    // listed them), each body's elements convex hulls: its bodies only translate relative to
-    // each other, and its first contact is a few ray casts (convex_sweep.hpp) instead of a
-    // march: SWEEP_CONTACT (*t), SWEEP_FREE, or SWEEP_UNKNOWN (march it).
-    int sweep(const StraightPath& path, int64_t p, const double* q0, double* t);
+    // Whether pair p can be swept along a straight path: no joint between its bodies turns
+    // (sides(p) has just listed them), so they only translate relative to each other, and
+    // each body's elements are convex hulls.
+    bool sweepable(const StraightPath&, int64_t p);
     template <class Path>
-    int sweep(const Path&, int64_t, const double*, double*) {
-        return SWEEP_UNKNOWN;
+    bool sweepable(const Path&, int64_t) {
+        return false;
     }
+    // The sweepable pairs w_.sweeping: their first contacts by ray casts (convex_sweep.hpp)
+    // instead of marches, every pair's poses at both ends from one evaluation of each; the
+    // first contact lowers *best (its pair in *best_pair), and a pair a sweep cannot decide
+    // joins the marches (heap).
+    void sweep_pairs(const StraightPath& path, const double* q0, double* best,
+                     int64_t* best_pair);
+    template <class Path>
+    void sweep_pairs(const Path&, const double*, double*, int64_t*) {}
+    // Pair p's sweep between the poses of b in a at both ends: SWEEP_CONTACT (*t),
+    // SWEEP_FREE, or SWEEP_UNKNOWN (march it).
+    int sweep(int64_t p, const double* pose0, const double* pose1, double* t);
     // Whether every element of body b has a hull (built now if not yet asked).
     bool body_hulls(int64_t b) {
         int8_t& state = w_.body_hull_state[b];
@@ -623,20 +633,43 @@ WithinResult MotionQuery::pair_within(int64_t p, const double* pose, double m, d
     return trees;
 }
 
-int MotionQuery::sweep(const StraightPath& path, int64_t p, const double* q0, double* t) {
+bool MotionQuery::sweepable(const StraightPath&, int64_t p) {
     const int64_t a = m_.pair_a[p], b = m_.pair_b[p];
     for (int s = 0; s < 2; ++s)
         for (int64_t i = 0; i < w_.side_n[s]; ++i)
-            if (w_.side_rot[s][i] != 0.0) return SWEEP_UNKNOWN;
-    if (m_.is_cloud(b) || m_.elements(a) * m_.elements(b) > SWEEP_MAX_ELEMENT_PAIRS ||
-        !body_hulls(a) || !body_hulls(b))
-        return SWEEP_UNKNOWN;
-    double pose0[POSE_WIDTH], pose1[POSE_WIDTH];
+            if (w_.side_rot[s][i] != 0.0) return false;
+    return !m_.is_cloud(b) && m_.elements(a) * m_.elements(b) <= SWEEP_MAX_ELEMENT_PAIRS &&
+           body_hulls(a) && body_hulls(b);
+}
+
+void MotionQuery::sweep_pairs(const StraightPath& path, const double* q0, double* best,
+                              int64_t* best_pair) {
+    const std::vector<int64_t>& pairs = w_.sweeping;
+    std::vector<double>& poses = w_.sweep_poses;
+    poses.resize(2 * POSE_WIDTH * pairs.size());
     evaluate(q0);
-    pair_pose(a, b, pose0);
+    for (size_t i = 0; i < pairs.size(); ++i)
+        pair_pose(m_.pair_a[pairs[i]], m_.pair_b[pairs[i]], poses.data() + 2 * POSE_WIDTH * i);
     path.at(1.0, w_.q_next.data());
     evaluate(w_.q_next.data());
-    pair_pose(a, b, pose1);
+    for (size_t i = 0; i < pairs.size(); ++i)
+        pair_pose(m_.pair_a[pairs[i]], m_.pair_b[pairs[i]],
+                  poses.data() + 2 * POSE_WIDTH * i + POSE_WIDTH);
+    for (size_t i = 0; i < pairs.size(); ++i) {
+        const double* pose0 = poses.data() + 2 * POSE_WIDTH * i;
+        double t;
+        const int swept = sweep(pairs[i], pose0, pose0 + POSE_WIDTH, &t);
+        if (swept == SWEEP_UNKNOWN) {
+            w_.heap.push_back({pairs[i], 0.0, 1.0, 1.0});
+        } else if (swept == SWEEP_CONTACT && t < *best) {
+            *best = t;
+            *best_pair = pairs[i];
+        }
+    }
+}
+
+int MotionQuery::sweep(int64_t p, const double* pose0, const double* pose1, double* t) {
+    const int64_t a = m_.pair_a[p], b = m_.pair_b[p];
     // Sliders alone turn nothing: the rotation is the same at both ends (to rounding).
     for (int k = 0; k < 9; ++k)
         if (std::fabs(pose1[k] - pose0[k]) > SWEEP_ROTATION_SLACK) return SWEEP_UNKNOWN;
@@ -917,18 +950,16 @@ int64_t MotionQuery::march_pairs(const int64_t* list, int64_t n, const Path& pat
         }
     }
     path_speeds(path, 0.5, 0.5);
+    w_.sweeping.clear();
     for (int64_t i = 0; i < n; ++i) {
         const int64_t p = list ? list[i] : i;
         if (!sides(p)) continue;
-        double t;
-        const int swept = sweep(path, p, q0, &t);
-        if (swept == SWEEP_UNKNOWN) {
+        if (sweepable(path, p))
+            w_.sweeping.push_back(p);
+        else
             heap.push_back({p, 0.0, 1.0, 1.0});
-        } else if (swept == SWEEP_CONTACT && t < *best) {
-            *best = t;
-            best_pair = p;
-        }
     }
+    if (!w_.sweeping.empty()) sweep_pairs(path, q0, best, &best_pair);
     std::make_heap(heap.begin(), heap.end(), later);
     while (!heap.empty() && heap.front().t < *best) {
         std::pop_heap(heap.begin(), heap.end(), later);

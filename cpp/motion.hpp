@@ -701,6 +701,9 @@ struct MotionWork {
     // (INF: none) and how far its bodies translate relative to each other; NaN for the others.
     std::vector<int64_t> swept;
     std::vector<double> swept_at, swept_span;
+    // The pairs the query at hand sweeps, and their poses at both ends (2 POSE_WIDTH each).
+    std::vector<int64_t> sweeping;
+    std::vector<double> sweep_poses;
     // Each element's hull (model.hpp: element_hull), built on first need: hull_state[e] -1
     // not asked yet, 0 none, 1 hulls[e]; body_hull_state[b] likewise, 1 when every element
     // of body b has one.
