@@ -43,6 +43,8 @@ from collision_sensor.untrusted_text import quoted
 
 Pair = Tuple[str, str]
 _NOT_AN_ARRAY = engine.NOT_AN_ARRAY
+#: numpy's float64 (one object: an identity test is cheaper than ``==``, which converts).
+_FLOAT64 = np.dtype(np.float64)
 #: Distinct colliding-pair sets whose answer tuples are kept for reuse (a robot in use meets
 #: few of them; the bound keeps a random stream from growing the cache without end).
 RESULT_CACHE_SIZE = 4096
@@ -570,8 +572,8 @@ class CollisionChecker:
         Finiteness (and what else the engine cannot honour) is checked by the engine, before it
         changes anything.
         """
-        if (isinstance(positions, np.ndarray) and positions.shape == self._q.shape
-                and positions.dtype == np.float64):
+        if (isinstance(positions, np.ndarray) and positions.dtype is _FLOAT64
+                and positions.shape == self._q.shape):
             # As the engine reads in place (a misaligned or strided one is copied); the engine
             # copies it before keeping it. flags.carray is the cheap test (np.require costs
             # 1.4 us even when it returns the array itself).
