@@ -1,6 +1,7 @@
 """collision_sensor_check on many recordings: units found, every report line against python-fcl,
 the same lines serially and in local workers, failing units reported, resume, killed workers,
 worker memory, the extras' messages. (Ray: ``test_audit_ray.py``.)"""
+import collections
 import contextlib
 import dataclasses
 import json
@@ -240,6 +241,35 @@ def test_a_killed_worker_costs_only_its_unit(fleet, spec, options, serial_record
     error = check_kills(lambda: LocalPool(spec, options, 2), fleet, spec, options,
                         serial_records.records, tmp_path)
     assert '(last: killed by SIGKILL)' in error
+
+
+def test_a_death_inside_a_call_of_several_units_charges_that_unit(fleet, spec, options,
+                                                                   serial_records,
+                                                                   monkeypatch):
+    """Small units go several to a call; a worker dying in the middle of one charges the unit
+    it was checking (its slot says which), not the call's first, and loses no other line:
+    the units it had finished in that call are checked again."""
+    path = os.path.join(fleet[0], 'a', 'paper_experiment.csv')
+    units = [Unit(f'{path}?{k}', 'csv', path) for k in range(40)]
+    assert len(local_pool.take_call(collections.deque(range(40)), units, 16, set(),
+                                    False)) == 16
+    check = UnitChecker.check
+
+    def crashing(self, unit, payload=None):    # the workers are forked: they inherit this
+        if unit.source.endswith('?13'):
+            os.kill(os.getpid(), signal.SIGKILL)
+        return check(self, unit, payload)
+
+    monkeypatch.setattr(UnitChecker, 'check', crashing)
+    result = batch.run_batch(units, spec, options, LocalPool(spec, options, 2),
+                             progress='never')
+    assert result.stats.deaths == 2 and result.stats.retried == 1
+    (expected,) = [line for line in serial_records.records if line['source'] == path]
+    for k, line in enumerate(result.records):
+        if k == 13:
+            assert 'died on each of 2 attempts (last: killed by SIGKILL)' in line['error']
+        else:
+            assert line == {**expected, 'source': f'{path}?{k}'}
 
 
 def test_worker_memory_does_not_grow_with_units(fleet, spec, options):

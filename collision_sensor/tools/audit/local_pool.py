@@ -1,14 +1,17 @@
 """``--jobs N``: units checked in N worker processes on this machine.
 
 Each worker builds its checker once (:class:`~collision_sensor.tools.audit.unit_check.UnitChecker`)
-and then takes units over a pipe of its own, at most :data:`DEPTH` at a time (the next one
-waits in the pipe while it checks one, so it never idles on the driver). It says when it starts
-a unit, so when a worker dies the driver knows which unit it was checking: only that unit is
-charged; it is tried once more, alone on a fresh worker (so a second death takes nothing else
-with it), and reported with the reason if it kills that one too. Units queued behind it go
-back to the queue uncharged. The standard library's pools do not allow this:
-``multiprocessing.Pool`` hangs when a worker dies, and ``concurrent.futures`` fails every
-pending unit of the pool.
+and then takes calls over a pipe of its own, at most :data:`DEPTH` at a time (the next one
+waits in the pipe while it checks one, so it never idles on the driver). A call is one unit, or
+several small ones (:func:`take_call`): the worker answers once per call, so the driver wakes
+once per call, not once per unit (on two cores its wake-ups took a tenth of a core from the two
+workers). Before each unit the worker writes the unit's index in a shared slot, so when it
+dies the driver knows which unit it was checking: only that unit is charged; it is tried once
+more, alone on a fresh worker (so a second death takes nothing else with it), and reported with
+the reason if it kills that one too. The other units of its calls go back to the queue
+uncharged (those it had finished too: their lines died with it). The standard library's pools
+do not allow this: ``multiprocessing.Pool`` hangs when a worker dies, and
+``concurrent.futures`` fails every pending unit of the pool.
 
 Workers are forked on Linux (they start in milliseconds; the spec is inherited, not pickled)
 and spawned elsewhere. They ignore SIGINT: Ctrl-C stops the driver, which stops them.
@@ -20,19 +23,62 @@ import os
 import signal
 import sys
 from dataclasses import dataclass, field
-from typing import Callable, Deque, Dict, List, Optional
+from typing import Callable, Container, Deque, Dict, List, Optional
 
 from collision_sensor.errors import CollisionSensorError
 from collision_sensor.tools.audit.unit_check import CheckOptions, RobotSpec, UnitChecker, \
     rss_bytes
 from collision_sensor.tools.audit.units import Unit
 
-#: Units a worker holds at once: the one it checks and the next.
+#: Calls a worker holds at once: the one it checks and the next.
 DEPTH = 2
+#: Units in one call at most, and bytes of recordings (a larger recording goes on its own).
+CALL_UNITS = 16
+CALL_BYTES = 2 * 2 ** 20
 #: Times a unit is tried again after its worker died.
 RETRIES = 1
 #: Workers that die before they are ready, in a row, before the run gives up.
 MAX_START_FAILURES = 3
+
+
+def unit_weight(unit: Unit) -> int:
+    """Bytes of a unit's recording (an episode: its frames times 64), 0 if unknown."""
+    try:
+        if unit.kind == 'lerobot':
+            return unit.episode.length * 64
+        if os.path.isdir(unit.path):
+            return sum(entry.stat().st_size for entry in os.scandir(unit.path)
+                       if entry.is_file())
+        return os.path.getsize(unit.path)
+    except OSError:
+        return 0
+
+
+def call_units(pending: int, workers: int) -> int:
+    """How many small units the next call takes: CALL_UNITS, fewer as the queue runs out (the
+    last calls take one each, so that no worker idles while another finishes a long call)."""
+    return max(1, min(CALL_UNITS, pending // (2 * workers)))
+
+
+def take_call(pending: Deque[int], units: List[Unit], most: int, alone: set,
+              busy: bool, single: Container[int] = ()) -> List[int]:
+    """Take the next call's units from the front of ``pending``: small ones together (up to
+    ``most`` units and CALL_BYTES); a large one, one in ``single`` or a retried one (in
+    ``alone``) on its own, a retried one only for an idle worker (not ``busy``)."""
+    call, size = [], 0
+    while pending and len(call) < most:
+        index = pending[0]
+        weight = unit_weight(units[index])
+        on_its_own = index in alone or index in single or weight >= CALL_BYTES
+        if call and (on_its_own or size + weight > CALL_BYTES):
+            break
+        if index in alone and busy:
+            break
+        call.append(pending.popleft())
+        size += weight
+        if on_its_own:
+            break
+    return call
 
 
 def death_reason(exitcode: Optional[int]) -> str:
@@ -102,27 +148,33 @@ class PoolStats:
             trace.append(value)
 
 
-def _serve(conn, spec: RobotSpec, options: CheckOptions) -> None:
-    """A worker: build the checker, then check what the pipe brings until it brings None."""
+def _serve(conn, slot, spec: RobotSpec, options: CheckOptions) -> None:
+    """A worker: build the checker, then check the calls the pipe brings until it brings None,
+    with the index of the unit it checks in ``slot``."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     checker = UnitChecker(spec, options)
     checker.checker  # build the trees now, before the first unit
     conn.send(('ready', os.getpid(), rss_bytes()))
     while True:
-        message = conn.recv()
-        if message is None:
+        call = conn.recv()
+        if call is None:
             return
-        index, unit = message
-        conn.send(('start', index))
-        conn.send(('done', index, checker.check(unit), rss_bytes()))
+        slot.value = call[0][0]      # before the driver hears of it: a kill then charges it
+        conn.send(('start', call[0][0]))
+        done = []
+        for index, unit in call:
+            slot.value = index
+            done.append((index, checker.check(unit), rss_bytes()))
+        slot.value = -1
+        conn.send(('done', done))
 
 
 @dataclass
 class _Worker:
     process: object
     conn: object
-    queue: Deque[int] = field(default_factory=collections.deque)
-    started: Optional[int] = None
+    slot: object            # the unit it checks (-1: none), written by the worker
+    calls: Deque[List[int]] = field(default_factory=collections.deque)
     ready: bool = False
     alone: bool = False     # holds a retried unit: nothing is queued behind it
 
@@ -141,11 +193,13 @@ class LocalPool:
 
     def _spawn(self) -> _Worker:
         parent, child = self._context.Pipe()
-        process = self._context.Process(target=_serve, args=(child, self.spec, self.options),
+        slot = self._context.RawValue('q', -1)
+        process = self._context.Process(target=_serve,
+                                        args=(child, slot, self.spec, self.options),
                                         daemon=True, name='collision_sensor_check worker')
         process.start()
         child.close()
-        return _Worker(process, parent)
+        return _Worker(process, parent, slot)
 
     def run(self, units: List[Unit], on_record: Callable[[int, dict], None],
             on_start: Optional[Callable[[int, int, int], None]] = None) -> PoolStats:
@@ -164,7 +218,7 @@ class LocalPool:
         try:
             while remaining:
                 for worker in workers:
-                    self._fill(worker, units, pending, alone)
+                    self._fill(worker, units, pending, alone, len(workers))
                 waiting = {w.conn: w for w in workers}
                 waiting.update({w.process.sentinel: w for w in workers})
                 for ready in multiprocessing.connection.wait(list(waiting)):
@@ -191,20 +245,22 @@ class LocalPool:
             self._stop(workers)
         return stats
 
-    def _fill(self, worker: _Worker, units, pending: Deque[int], alone: set) -> None:
-        """Give ``worker`` units up to DEPTH; a retried unit only to an idle worker, alone."""
-        while pending and len(worker.queue) < DEPTH and not worker.alone:
-            index = pending[0]
-            if index in alone and worker.queue:
+    def _fill(self, worker: _Worker, units, pending: Deque[int], alone: set,
+              workers: int) -> None:
+        """Give a ready ``worker`` calls up to DEPTH; a retried unit only to an idle worker,
+        alone."""
+        while worker.ready and pending and len(worker.calls) < DEPTH and not worker.alone:
+            call = take_call(pending, units, call_units(len(pending), workers), alone,
+                             bool(worker.calls))
+            if not call:
                 return
-            pending.popleft()
             try:
-                worker.conn.send((index, units[index]))
+                worker.conn.send([(index, units[index]) for index in call])
             except OSError:               # it died; its sentinel says so next
-                pending.appendleft(index)
+                pending.extendleft(reversed(call))
                 return
-            worker.queue.append(index)
-            worker.alone = index in alone
+            worker.calls.append(call)
+            worker.alone = call[0] in alone
 
     def _drain(self, worker: _Worker, on_record, on_start, deaths, stats) -> tuple:
         """Read every message waiting from ``worker``; return (still connected, units done)."""
@@ -216,16 +272,15 @@ class LocalPool:
                     worker.ready = True
                     stats.note_rss(worker.name, message[2])
                 elif message[0] == 'start':
-                    worker.started = message[1]
                     if on_start is not None:
                         on_start(message[1], deaths[message[1]] + 1, worker.process.pid)
                 else:
-                    _, index, record, rss = message
-                    worker.queue.popleft()
-                    worker.started, worker.alone = None, False
-                    stats.note_rss(worker.name, rss)
-                    on_record(index, record)
-                    done += 1
+                    worker.calls.popleft()
+                    worker.alone = False
+                    for index, record, rss in message[1]:
+                        stats.note_rss(worker.name, rss)
+                        on_record(index, record)
+                    done += len(message[1])
         except (EOFError, OSError):
             return False, done
         return True, done
@@ -236,9 +291,14 @@ class LocalPool:
         worker.process.join(timeout=5)
         worker.conn.close()
         stats.deaths += 1
-        queue = list(worker.queue)
+        queue = [index for call in worker.calls for index in call]
+        checking = worker.slot.value
+        charged = checking in queue
+        if charged:             # first, as charge_death takes it
+            queue.remove(checking)
+            queue.insert(0, checking)
         return charge_death(
-            queue, bool(queue) and worker.started == queue[0], deaths, alone, pending, stats,
+            queue, charged, deaths, alone, pending, stats,
             lambda index, error: on_record(index, UnitChecker.failed_record(
                 units[index], self.options, error)),
             death_reason(worker.process.exitcode))

@@ -16,13 +16,15 @@ store once while its episodes are being sent). An actor on the driver's machine 
 files itself (shipping a 175 kB file through the object store costs ~3 ms a unit here, a
 third of checking it).
 
-Small recordings go several to a call (up to :data:`CHUNK_UNITS` units and
-:data:`CHUNK_BYTES`), large ones one per call. Faults as with local workers
-(:mod:`~collision_sensor.tools.audit.local_pool`): an actor runs its calls in order, so when
-it dies its first call was running. A call of one unit charges that unit: it is tried once more
-alone on a new actor, then reported; a call of several charges none, and its units are sent
-again one per call, so that a unit that kills an actor again is the one charged. Calls queued
-behind go again uncharged.
+Small recordings go several to a call, large ones one per call, as with local workers
+(:func:`~collision_sensor.tools.audit.local_pool.take_call`; a call costs the driver and the
+raylet about a millisecond of CPU here, a seventh of a 1000-frame CSV file's check). Faults are
+settled as with local workers (:mod:`~collision_sensor.tools.audit.local_pool`), but an actor
+has no slot saying which unit it checks: it runs its calls in order, so when it dies its first
+call was running. A call of one unit charges that unit: it is tried once more alone on a new
+actor, then reported; a call of several charges none, and its units are sent again one per
+call, so that a unit that kills an actor again is the one charged. Calls queued behind go again
+uncharged.
 """
 import collections
 import os
@@ -31,7 +33,8 @@ from typing import Callable, Deque, Dict, List, Optional
 
 from collision_sensor.errors import ConfigError
 from collision_sensor.tools.audit import shipping
-from collision_sensor.tools.audit.local_pool import DEPTH, PoolStats, charge_death
+from collision_sensor.tools.audit.local_pool import DEPTH, PoolStats, call_units, \
+    charge_death, take_call
 from collision_sensor.tools.audit.unit_check import CheckOptions, RobotSpec, UnitChecker, \
     rss_bytes
 from collision_sensor.tools.audit.units import Unit
@@ -40,23 +43,6 @@ INSTALL_HINT = ('--ray needs Ray, an optional extra: pip install "collision_sens
                 '(or pip install "ray>=2.9")')
 #: Parquet files kept in the object store while their episodes are sent.
 SHARED_FILES = 4
-#: Units sent in one call at most, and bytes of recordings (a call costs the driver and the
-#: raylet about a millisecond of CPU here, a seventh of a 1000-frame CSV file's check).
-CHUNK_UNITS = 16
-CHUNK_BYTES = 2 * 2 ** 20
-
-
-def unit_weight(unit: Unit) -> int:
-    """Bytes of a unit's recording (an episode: its frames times 64), 0 if unknown."""
-    try:
-        if unit.kind == 'lerobot':
-            return unit.episode.length * 64
-        if os.path.isdir(unit.path):
-            return sum(entry.stat().st_size for entry in os.scandir(unit.path)
-                       if entry.is_file())
-        return os.path.getsize(unit.path)
-    except OSError:
-        return 0
 
 
 def require_ray():
@@ -149,7 +135,6 @@ class RayPool:
         pending: Deque[int] = collections.deque(range(len(units)))
         deaths: Dict[int, int] = collections.Counter()
         alone, single, remaining = set(), set(), len(units)
-        most = max(1, min(CHUNK_UNITS, len(units) // (4 * stats.workers)))
         actors: List[_Actor] = []
         here = ray.get_runtime_context().get_node_id()
 
@@ -176,24 +161,6 @@ class RayPool:
                     shared.popitem(last=False)
             return shared[key]
 
-        def take_call(actor: _Actor) -> List[int]:
-            """The next units for one call: small units together (up to ``most`` and
-            CHUNK_BYTES); a large one, a suspect or a retried unit on its own."""
-            call, size = [], 0
-            while pending and len(call) < most:
-                index = pending[0]
-                weight = unit_weight(units[index])
-                on_its_own = index in alone or index in single or weight >= CHUNK_BYTES
-                if call and (on_its_own or size + weight > CHUNK_BYTES):
-                    break
-                if index in alone and actor.queue:
-                    break
-                call.append(pending.popleft())
-                size += weight
-                if on_its_own:
-                    break
-            return call
-
         def announce(actor: _Actor) -> None:
             if on_start is not None and actor.queue:
                 index = actor.queue[0][0][0]
@@ -204,7 +171,9 @@ class RayPool:
             while remaining:
                 for actor in actors:
                     while pending and len(actor.queue) < DEPTH and not actor.alone:
-                        call = take_call(actor)
+                        call = take_call(pending, units,
+                                         call_units(len(pending), stats.workers), alone,
+                                         bool(actor.queue), single)
                         if not call:
                             break
                         items = []
