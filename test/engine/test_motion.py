@@ -584,6 +584,72 @@ def test_sweeps_meet_the_contract_on_random_primitives(tmp_path):
     assert motions >= 100 and contacts >= 15 and sweeps >= 2 * motions
 
 
+#: A mobile robot: a base on a floating or planar root joint, an arm on it, a ball as hand.
+WALKER = textwrap.dedent('''\
+    <robot name="walker">
+      <link name="world"/>
+      <link name="base"><collision><geometry><box size="0.3 0.2 0.1"/></geometry></collision>
+      </link>
+      <link name="arm"><collision><origin xyz="0 0 0.15"/>
+        <geometry><cylinder radius="0.03" length="0.3"/></geometry></collision></link>
+      <link name="hand"><collision><geometry><sphere radius="0.04"/></geometry></collision>
+      </link>
+      <joint name="root" type="{kind}"><parent link="world"/><child link="base"/></joint>
+      <joint name="shoulder" type="revolute"><parent link="base"/><child link="arm"/>
+        <origin xyz="0.1 0 0.05"/><axis xyz="0 1 0"/>
+        <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+      <joint name="wrist" type="fixed"><parent link="arm"/><child link="hand"/>
+        <origin xyz="0 0 0.32"/></joint>
+    </robot>
+    ''')
+WALKER_SCENE = {'objects': [
+    {'name': 'wall', 'box': {'size': [0.02, 1.0, 1.0]},
+     'pose': {'xyz': [0.5, 0.0, 0.2], 'rpy': [0.0, 0.0, 0.3]}},
+    {'name': 'rod', 'cylinder': {'radius': 0.005, 'length': 1.0},
+     'pose': {'xyz': [-0.4, 0.2, 0.1], 'rpy': [1.0, 0.2, 0.0]}},
+    {'name': 'ball', 'sphere': {'radius': 0.1}, 'pose': {'xyz': [0.0, -0.5, 0.3]}},
+    {'name': 'plate', 'box': {'size': [0.6, 0.6, 0.002]}, 'pose': {'xyz': [0.0, 0.0, -0.3]}},
+]}
+
+
+@pytest.mark.parametrize('kind', ['floating', 'planar'])
+def test_a_base_translating_on_its_root_joint_is_swept_within_the_contract(tmp_path, kind):
+    """A floating or planar base moved in translation, its rotation and the arm's joint the
+    same at both ends: its links are swept against the scene, padded or not, and every answer
+    meets the contract against sampling and python-fcl and says what the march says."""
+    rng = np.random.default_rng(3)
+    urdf = tmp_path / 'walker.urdf'
+    urdf.write_text(WALKER.format(kind=kind))
+    motions = contacts = sweeps = 0
+    for padding in (0.0, 0.01):
+        checker = CollisionChecker.from_urdf(str(urdf), scene=WALKER_SCENE, config={
+            'link_padding': {'hand': padding, 'base': padding}})
+        oracle = FclOracle(checker, str(urdf))
+        names = checker.joint_names
+        moved = 3 if kind == 'floating' else 2          # the translation's variables first
+        for _ in range(40):
+            q0 = np.zeros(len(names))
+            if kind == 'floating':
+                turn = rng.normal(size=4)
+                q0[3:7] = turn / np.linalg.norm(turn)   # rot_x, rot_y, rot_z, rot_w
+            else:
+                q0[2] = rng.uniform(-3, 3)              # theta
+            q0[:moved] = rng.uniform(-0.5, 0.5, moved)
+            q0[names.index('shoulder')] = rng.uniform(-2, 2)
+            q1 = q0.copy()
+            q1[:moved] = rng.uniform(-0.5, 0.5, moved)
+            if checker.check(q0).in_collision:
+                continue
+            checker.counters[:] = 0
+            result = checker.check_motion(q0, q1)
+            sweeps += checker.counters[COUNT_SWEEPS]
+            marched = checker.check_path(np.array([q0, q1]))
+            assert result.in_collision == (marched.first_invalid_segment is not None)
+            contacts += assert_motion_against_oracle(checker, oracle, q0, q1, result)
+            motions += 1
+    assert motions >= 30 and contacts >= 15 and sweeps >= 3 * motions
+
+
 def test_padding_and_attached_objects_count_as_in_check(panda_urdf, panda_srdf,
                                                         erd_package_paths):
     config = {'link_padding': {'panda_link4': 0.003, 'panda_hand': 0.004}}
