@@ -19,7 +19,9 @@ from test_audit import check_kills, fleet, options, spec  # noqa: E402,F401 (fix
 
 @pytest.fixture(scope='module', autouse=True)
 def cluster(tmp_path_factory):
-    """A local Ray cluster of 2 CPUs for the whole module (starting one takes ~10 s)."""
+    """A local Ray cluster of 2 CPUs for the whole module (starting one takes ~10 s): a new
+    one (``address='local'``), even where a ``ray start`` cluster runs, which a plain
+    ``ray.init`` would join (and refuse the CPUs asked for)."""
     if ray.is_initialized():
         ray.shutdown()
     # Ray's workers start in the driver's working directory, which is the source tree under
@@ -27,8 +29,8 @@ def cluster(tmp_path_factory):
     here = os.getcwd()
     os.chdir(str(tmp_path_factory.mktemp('ray')))
     try:
-        context = ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,
-                           configure_logging=False)
+        context = ray.init(address='local', num_cpus=2, include_dashboard=False,
+                           log_to_driver=False, configure_logging=False)
     finally:
         os.chdir(here)
     yield context

@@ -128,8 +128,10 @@ def run(recordings: int, frames: int, runs: int, seed: int, with_ray: bool, log)
             from collision_sensor.tools.audit.ray_pool import RayPool, require_ray
             ray = require_ray()
             log('starting a local Ray cluster of 2 CPUs (not timed) ...')
-            ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,
-                     configure_logging=False)
+            # A cluster of its own, even where a `ray start` one runs (which a plain
+            # ray.init would join, refusing num_cpus).
+            ray.init(address='local', num_cpus=2, include_dashboard=False,
+                     log_to_driver=False, configure_logging=False)
             modes['ray 2 CPUs'] = lambda: RayPool(spec, options, 'auto')
         names = list(modes)
         walls: Dict[str, List[float]] = {name: [] for name in names}
