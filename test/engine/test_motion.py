@@ -616,7 +616,8 @@ WALKER_SCENE = {'objects': [
 def test_a_base_translating_on_its_root_joint_is_swept_within_the_contract(tmp_path, kind):
     """A floating or planar base moved in translation, its rotation and the arm's joint the
     same at both ends: its links are swept against the scene, padded or not, and every answer
-    meets the contract against sampling and python-fcl and says what the march says."""
+    meets the contract against sampling and python-fcl and says what the march says. A base
+    that also turns is marched (never swept), within the same contract."""
     rng = np.random.default_rng(3)
     urdf = tmp_path / 'walker.urdf'
     urdf.write_text(WALKER.format(kind=kind))
@@ -647,6 +648,16 @@ def test_a_base_translating_on_its_root_joint_is_swept_within_the_contract(tmp_p
             assert result.in_collision == (marched.first_invalid_segment is not None)
             contacts += assert_motion_against_oracle(checker, oracle, q0, q1, result)
             motions += 1
+            turned = q1.copy()
+            if kind == 'floating':
+                turn = q0[3:7] + 0.05 * rng.normal(size=4)
+                turned[3:7] = turn / np.linalg.norm(turn)
+            else:
+                turned[2] += rng.uniform(0.01, 0.5)
+            checker.counters[:] = 0
+            result = checker.check_motion(q0, turned)
+            assert checker.counters[COUNT_SWEEPS] == 0
+            assert_motion_against_oracle(checker, oracle, q0, turned, result)
     assert motions >= 30 and contacts >= 15 and sweeps >= 3 * motions
 
 
