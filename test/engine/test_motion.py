@@ -260,6 +260,38 @@ def test_update_motion_sweeps_through_a_fin_into_a_near_miss(tmp_path):
     assert swept >= 18
 
 
+def test_update_motion_crosses_a_fin_after_steps_its_clearance_skipped(tmp_path):
+    """A bar walks towards a 1 mm fin in steps its clearance proves (its pair not re-checked,
+    its travel summed), then one step crosses the fin. That step's start gap is the clearance
+    less the travel since the pair was last checked: without the travel, the gaps at both ends
+    exceed the step's bound and the crossing is missed (21 of these 60, when tried)."""
+    import trimesh
+    T = trimesh.transformations.rotation_matrix(0.5, [0, 0, 1])
+    T[:3, 3] = T[:3, :3] @ [0.9, 0.0, 0.0]
+    path = tmp_path / 'fin.stl'
+    trimesh.creation.box(extents=[0.2, 0.001, 0.1], transform=T).export(str(path))
+    checker = CollisionChecker.from_urdf(BAR_URDF, scene={'objects': [
+        {'name': 'fin', 'mesh': {'filename': str(path)}}]})
+    crossings = 0
+    for step in (0.002, 0.005, 0.01, 0.03):
+        for cross in (0.004, 0.01, 0.02, 0.05, 0.1):
+            for start in (0.0, 0.2, 0.4):
+                checker.check(np.array([start]))
+                th = start
+                while th + step < 0.5 - cross / 2:
+                    th += step
+                    assert not checker.update_motion(np.array([th])).in_collision
+                q0, q1 = np.array([th]), np.array([1.0 - th])     # across the fin at 0.5
+                moved = checker.update_motion(q1)
+                expected = checker.check_motion(q0, q1)
+                t_sampled, _, _ = sampled_first_contact(checker, q0, q1)
+                assert moved.in_collision and expected.in_collision and t_sampled is not None
+                assert moved.first_contact <= t_sampled + 1e-12
+                assert abs(moved.first_contact - expected.first_contact) < 1e-4
+                crossings += 1
+    assert crossings == 60
+
+
 def test_check_motion_leaves_the_carried_state_as_it_was(panda_cell):
     checker, _ = panda_cell
     q0, q1 = random_segments(checker, 1, seed=5)[0]
