@@ -63,18 +63,17 @@ CS_ALWAYS_INLINE bool needs_recheck(const Model& m, State& s, int64_t p, double 
     return !(s.travel[2 * p] + extension * s.travel[2 * p + 1] < c);
 }
 
-// Pair p's gap at the last state, before its travel sums move (E there: extension): its
-// clearance less its travel since, which bounds its distance from below; 0 when it has no
-// clearance (known apart, by how much unknown), -INF in contact. Its sums are kept too.
+// Pair p's gap at the last state from its travel sums there (r.prev_sums; E there:
+// extension) and its status and clearance, which planning leaves as they were: its clearance
+// less its travel since, which bounds its distance from below; 0 when it has no clearance
+// (known apart, by how much unknown), -INF in contact.
 CS_ALWAYS_INLINE void record_gap(const State& s, MotionRecord& r, int64_t p, double extension) {
-    r.prev_sums[2 * p] = s.travel[2 * p];
-    r.prev_sums[2 * p + 1] = s.travel[2 * p + 1];
     double gap = 0.0;
     if (s.status[p] != 0) {
         gap = -INF;
     } else if (s.clearance[p] > 0.0) {
         // The running sums' rounding is a few ulps of the clearance (see above).
-        const double travel = s.travel[2 * p] + extension * s.travel[2 * p + 1];
+        const double travel = r.prev_sums[2 * p] + extension * r.prev_sums[2 * p + 1];
         gap = std::max(s.clearance[p] - travel - 1e-9 * s.clearance[p], 0.0);
     }
     r.prev_gap[p] = gap;
@@ -131,6 +130,10 @@ int64_t plan_update(CheckContext& c, const double* q) {
     // slider (E changing) can make a stricter question than at the two ends.
     MotionRecord* record = c.record;
     const bool segment_bound = record != nullptr && prismatic;
+    // update_motion: every pair's sums at the last state, before they move (one copy is
+    // cheaper than one per pair as each is first seen); the gaps there only for the pairs
+    // re-checked (the rest are apart all along, below_all_along), at the end.
+    if (record) std::copy(s.travel, s.travel + 2 * m.n_pairs, record->prev_sums);
     int64_t n = 0;
     if (n_moved == 1 && !resync) {
         const int64_t j = moved[0];
@@ -139,11 +142,12 @@ int64_t plan_update(CheckContext& c, const double* q) {
         if (prismatic) s.extension[0] = ext = extension(m, s.q_ref);
         for (int64_t t = m.joint_pairs_start[j]; t < m.joint_pairs_start[j + 1]; ++t) {
             const int64_t p = m.joint_pairs[t];
-            if (record) record_gap(s, *record, p, ext_before);
             if (s.clearance[p] > 0.0) add_travel(m, s, p, j, old_value, new_value);
             if (needs_recheck(m, s, p, ext) ||
-                (segment_bound && !below_all_along(s, *record, p, ext_before, ext)))
+                (segment_bound && !below_all_along(s, *record, p, ext_before, ext))) {
+                if (record) record_gap(s, *record, p, ext_before);
                 todo[n++] = p;
+            }
         }
         return n;
     }
@@ -153,8 +157,7 @@ int64_t plan_update(CheckContext& c, const double* q) {
         const double new_value = s.q_ref[j] = q[j];
         for (int64_t t = m.joint_pairs_start[j]; t < m.joint_pairs_start[j + 1]; ++t) {
             const int64_t p = m.joint_pairs[t];
-            if (!pending[p]) {  // first seen: its sums are still those of the last state
-                if (record) record_gap(s, *record, p, ext_before);
+            if (!pending[p]) {
                 pending[p] = 1;
                 todo[n++] = p;
             }
@@ -172,8 +175,10 @@ int64_t plan_update(CheckContext& c, const double* q) {
         const int64_t p = todo[t];
         pending[p] = 0;
         if (needs_recheck(m, s, p, ext) ||
-            (segment_bound && !below_all_along(s, *record, p, ext_before, ext)))
+            (segment_bound && !below_all_along(s, *record, p, ext_before, ext))) {
+            if (record) record_gap(s, *record, p, ext_before);
             todo[kept++] = p;
+        }
     }
     return kept;
 }
