@@ -225,14 +225,16 @@ struct PyEngine {
         return motion_pairs.data();
     }
 
-    int64_t motion(const Array<double>& q0, const Array<double>& q1) {
+    // q0, q1 as query takes them (NOT_AN_ARRAY unless both are).
+    int64_t motion(py::handle q0, py::handle q1) {
         const int64_t J = engine->model().n_joints;
-        expect_shape("q0", q0, {J});
-        expect_shape("q1", q1, {J});
+        const double* from = exact_doubles(q0, {J});
+        const double* to = from ? exact_doubles(q1, {J}) : nullptr;
+        if (!to) return NOT_AN_ARRAY;
         uint8_t* out = motion_rows();
         py::gil_scoped_release release;
         std::lock_guard<std::mutex> hold(engine->lock());
-        return engine->motion(q0.data(), q1.data(), &motion_t, out);
+        return engine->motion(from, to, &motion_t, out);
     }
 
     // q as query takes it (NOT_AN_ARRAY else). The answer is 2 * the query's code + the
@@ -511,7 +513,8 @@ void bind_engine(py::module_& m) {
              "(nothing changed then, also for anything but such an array).")
         .def("motion", &PyEngine::motion, py::arg("q0"), py::arg("q1"),
              "The straight motion q0 -> q1 (J,), carried state untouched: 0 free, 1 contact "
-             "(last_motion() then), or -1 - j for an unusable value (j >= J: q1's).")
+             "(last_motion() then), or -1 - j for an unusable value (j >= J: q1's); "
+             "NOT_AN_ARRAY unless both are arrays as query takes them.")
         .def("update_motion", &PyEngine::update_motion, py::arg("q"),
              "The motion from the carried state to q (as query takes it: NOT_AN_ARRAY else), "
              "then query(q, False): 2 * query's code + 1 if the motion met contact "

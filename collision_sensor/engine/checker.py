@@ -815,14 +815,17 @@ class CollisionChecker:
         :param q_to: the end, the same way.
         :raises JointStateError: as :meth:`check`, naming the end at fault; nothing changes.
         """
-        ends = []
-        for end, positions in (('q_from', q_from), ('q_to', q_to)):
-            try:
-                ends.append(self._merged(positions))
-            except JointStateError as error:
-                raise JointStateError(f'{end}: {error}') from None
-        q0, q1 = ends
-        code = self._engine.motion(q0, q1)
+        q0, q1 = q_from, q_to
+        code = self._engine.motion(q0, q1)    # arrays the engine takes as they are
+        if code == _NOT_AN_ARRAY:
+            ends = []
+            for end, positions in (('q_from', q_from), ('q_to', q_to)):
+                try:
+                    ends.append(self._merged(positions))
+                except JointStateError as error:
+                    raise JointStateError(f'{end}: {error}') from None
+            q0, q1 = ends
+            code = self._engine.motion(q0, q1)
         if code < 0:
             j = -1 - code
             end, q = ('q_from', q0) if j < len(q0) else ('q_to', q1)
