@@ -26,21 +26,44 @@ constexpr int SWEEP_ITERATIONS = 96;
 constexpr int64_t HULL_SCAN_MAX = 24;
 
 // Directions whose furthest vertices a hull keeps, to start its climbs near the answer: the
-// 26 of a cube's faces, edges and corners (unnormalised: only the largest dot product counts).
-constexpr int HULL_SEEDS = 26;
+// centres of a cube map's cells, HULL_SEED_GRID x HULL_SEED_GRID on each of the cube's six
+// faces (unnormalised: only the largest dot product counts). A direction's cell is
+// hull_seed_cell's: its largest component picks the face, the other two the cell.
+constexpr int HULL_SEED_GRID = 6;
+constexpr int HULL_SEEDS = 6 * HULL_SEED_GRID * HULL_SEED_GRID;
+
+// Face f (axis f / 2, sign + for even f) and the other two axes, in a fixed order.
+inline void hull_seed_axes(int f, int* axis, int* u, int* v) {
+    *axis = f / 2;
+    *u = (*axis + 1) % 3;
+    *v = (*axis + 2) % 3;
+}
+
+inline int hull_seed_cell(const double* d) {
+    const double a[3] = {std::fabs(d[0]), std::fabs(d[1]), std::fabs(d[2])};
+    const int axis = a[0] >= a[1] ? (a[0] >= a[2] ? 0 : 2) : (a[1] >= a[2] ? 1 : 2);
+    const int f = 2 * axis + (d[axis] >= 0.0 ? 0 : 1);
+    if (!(a[axis] > 0.0)) return 0;  // no direction (or NaN): any seed will do
+    const double scale = 0.5 * HULL_SEED_GRID / a[axis];
+    const auto cell = [scale](double x) {
+        return std::min(HULL_SEED_GRID - 1, std::max(0, int((x * scale) + 0.5 * HULL_SEED_GRID)));
+    };
+    return (f * HULL_SEED_GRID + cell(d[(axis + 1) % 3])) * HULL_SEED_GRID +
+           cell(d[(axis + 2) % 3]);
+}
+
 inline const double* hull_seed_direction(int k) {
     static const auto table = [] {
         std::array<double, 3 * HULL_SEEDS> t{};
-        int n = 0;
-        for (int x = -1; x <= 1; ++x)
-            for (int y = -1; y <= 1; ++y)
-                for (int z = -1; z <= 1; ++z) {
-                    if (x == 0 && y == 0 && z == 0) continue;
-                    const double l = std::sqrt(double(x * x + y * y + z * z));
-                    t[3 * n] = x / l;
-                    t[3 * n + 1] = y / l;
-                    t[3 * n + 2] = z / l;
-                    ++n;
+        for (int f = 0; f < 6; ++f)
+            for (int i = 0; i < HULL_SEED_GRID; ++i)
+                for (int j = 0; j < HULL_SEED_GRID; ++j) {
+                    int axis, u, v;
+                    hull_seed_axes(f, &axis, &u, &v);
+                    double* x = t.data() + 3 * ((f * HULL_SEED_GRID + i) * HULL_SEED_GRID + j);
+                    x[axis] = f % 2 == 0 ? 1.0 : -1.0;
+                    x[u] = (2.0 * i + 1.0) / HULL_SEED_GRID - 1.0;
+                    x[v] = (2.0 * j + 1.0) / HULL_SEED_GRID - 1.0;
                 }
         return t;
     }();
@@ -87,20 +110,17 @@ inline const double* hull_support(const HullView& h, const double* d, int64_t* h
         }
         return h.v + 3 * best;
     }
-    int64_t at = *hint;
-    if (at < 0) {  // the first climb starts from the seed direction nearest d
-        int best = 0;
-        double near = -INFINITY;
-        for (int k = 0; k < HULL_SEEDS; ++k) {
-            const double x = dot(hull_seed_direction(k), d);
-            if (x > near) {
-                near = x;
-                best = k;
-            }
-        }
-        at = h.seeds[best];
-    }
+    // The climb starts from the seed of d's cell, or from the last answer if that is further
+    // along d (GJK's directions settle: the last answer is often the answer).
+    int64_t at = h.seeds[hull_seed_cell(d)];
     double top = dot(h.v + 3 * at, d);
+    if (*hint >= 0) {
+        const double x = dot(h.v + 3 * *hint, d);
+        if (x > top) {
+            top = x;
+            at = *hint;
+        }
+    }
     for (int64_t steps = 0; steps <= h.n; ++steps) {
         int64_t next = -1;
         for (int64_t k = h.adj_start[at]; k < h.adj_start[at + 1]; ++k) {
