@@ -583,6 +583,17 @@ def _random_primitive(rng):
     return f'<sphere radius="{r}"/>', {'sphere': {'radius': r}}
 
 
+def _swept_motion(checker, oracle, q0, q1):
+    """check_motion from q0 (clear) to q1 against the contract (sampling, python-fcl) and
+    against the march (check_path's answer); return (it met contact, the pairs swept)."""
+    checker.counters[:] = 0
+    result = checker.check_motion(q0, q1)
+    sweeps = int(checker.counters[COUNT_SWEEPS])
+    marched = checker.check_path(np.array([q0, q1]))
+    assert result.in_collision == (marched.first_invalid_segment is not None)
+    return assert_motion_against_oracle(checker, oracle, q0, q1, result), sweeps
+
+
 def test_sweeps_meet_the_contract_on_random_primitives(tmp_path):
     """Tools and objects of every primitive kind, from 0.1 mm slivers to 0.6 m, with and
     without padding, sliding at random: each swept answer meets the contract against sampling
@@ -606,13 +617,8 @@ def test_sweeps_meet_the_contract_on_random_primitives(tmp_path):
             q1 = np.append(rng.uniform(-0.8, 0.8, 3), yaw)
             if checker.check(q0).in_collision:
                 continue
-            checker.counters[:] = 0
-            result = checker.check_motion(q0, q1)
-            sweeps += checker.counters[COUNT_SWEEPS]
-            marched = checker.check_path(np.array([q0, q1]))
-            assert result.in_collision == (marched.first_invalid_segment is not None)
-            contacts += assert_motion_against_oracle(checker, oracle, q0, q1, result)
-            motions += 1
+            contact, swept = _swept_motion(checker, oracle, q0, q1)
+            motions, contacts, sweeps = motions + 1, contacts + contact, sweeps + swept
     assert motions >= 100 and contacts >= 15 and sweeps >= 2 * motions
 
 
@@ -673,23 +679,15 @@ def test_a_base_translating_on_its_root_joint_is_swept_within_the_contract(tmp_p
             q1[:moved] = rng.uniform(-0.5, 0.5, moved)
             if checker.check(q0).in_collision:
                 continue
-            checker.counters[:] = 0
-            result = checker.check_motion(q0, q1)
-            sweeps += checker.counters[COUNT_SWEEPS]
-            marched = checker.check_path(np.array([q0, q1]))
-            assert result.in_collision == (marched.first_invalid_segment is not None)
-            contacts += assert_motion_against_oracle(checker, oracle, q0, q1, result)
-            motions += 1
+            contact, swept = _swept_motion(checker, oracle, q0, q1)
+            motions, contacts, sweeps = motions + 1, contacts + contact, sweeps + swept
             turned = q1.copy()
             if kind == 'floating':
                 turn = q0[3:7] + 0.05 * rng.normal(size=4)
                 turned[3:7] = turn / np.linalg.norm(turn)
             else:
                 turned[2] += rng.uniform(0.01, 0.5)
-            checker.counters[:] = 0
-            result = checker.check_motion(q0, turned)
-            assert checker.counters[COUNT_SWEEPS] == 0
-            assert_motion_against_oracle(checker, oracle, q0, turned, result)
+            assert _swept_motion(checker, oracle, q0, turned)[1] == 0
     assert motions >= 30 and contacts >= 15 and sweeps >= 3 * motions
 
 
