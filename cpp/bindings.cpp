@@ -275,11 +275,25 @@ struct PyEngine {
         return py::make_tuple(code, segment);
     }
 
+    // The checked pairs' names, one per pair (name_pairs), for last_motion's answer.
+    py::tuple pair_names;
+
+    void name_pairs(py::tuple names) {
+        if (py::ssize_t(names.size()) != py::ssize_t(engine->model().n_pairs))
+            throw std::invalid_argument("names: one per checked pair");
+        pair_names = std::move(names);
+    }
+
     py::tuple last_motion() {
-        py::list pairs;
+        if (py::ssize_t(pair_names.size()) != py::ssize_t(motion_pairs.size()))
+            throw std::logic_error("last_motion: name the pairs first (name_pairs)");
+        py::ssize_t count = 0;
+        for (const uint8_t hit : motion_pairs) count += hit != 0;
+        py::tuple names(count);
+        py::ssize_t k = 0;
         for (size_t p = 0; p < motion_pairs.size(); ++p)
-            if (motion_pairs[p]) pairs.append(py::int_(p));
-        return py::make_tuple(motion_t, pairs);
+            if (motion_pairs[p]) names[k++] = pair_names[p];
+        return py::make_tuple(motion_t, names);
     }
 };
 
@@ -526,10 +540,13 @@ void bind_engine(py::module_& m) {
              "The polynomial segments coef (n, J, 6) (q_j(t) = sum_k coef[i, j, k] t^k, t in "
              "[0, 1]) until one is not free: (code, segment) as path; -1 - i for a segment i "
              "the engine refuses.")
+        .def("name_pairs", &PyEngine::name_pairs, py::arg("names"),
+             "Give the checked pairs' names (a tuple, one per pair, in the pairs' order), "
+             "which last_motion answers with.")
         .def("last_motion", &PyEngine::last_motion,
              "The last motion check's (t, pairs): its first contact's fraction and the "
-             "indices, ascending, of the pairs in contact (or within MOTION_TOUCH_TOLERANCE) "
-             "there.")
+             "names (name_pairs), in the pairs' order, of the pairs in contact (or within "
+             "MOTION_TOUCH_TOLERANCE) there.")
         .def("place_attached_body", &PyEngine::place_attached_body, py::arg("b"), py::arg("T"),
              py::arg("pairs"), py::arg("reach"), py::arg("reach_ext"),
              "Give attached object b (a link on a fixed joint) the pose T (4, 4) in its link's "
