@@ -285,7 +285,7 @@ struct PyEngine {
     }
 
     py::tuple last_motion() {
-        if (py::ssize_t(pair_names.size()) != py::ssize_t(motion_pairs.size()))
+        if (py::ssize_t(pair_names.size()) != py::ssize_t(engine->model().n_pairs))
             throw std::logic_error("last_motion: name the pairs first (name_pairs)");
         py::ssize_t count = 0;
         for (const uint8_t hit : motion_pairs) count += hit != 0;

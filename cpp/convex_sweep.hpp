@@ -32,13 +32,6 @@ constexpr int64_t HULL_SCAN_MAX = 24;
 constexpr int HULL_SEED_GRID = 6;
 constexpr int HULL_SEEDS = 6 * HULL_SEED_GRID * HULL_SEED_GRID;
 
-// Face f (axis f / 2, sign + for even f) and the other two axes, in a fixed order.
-inline void hull_seed_axes(int f, int* axis, int* u, int* v) {
-    *axis = f / 2;
-    *u = (*axis + 1) % 3;
-    *v = (*axis + 2) % 3;
-}
-
 inline int hull_seed_cell(const double* d) {
     const double a[3] = {std::fabs(d[0]), std::fabs(d[1]), std::fabs(d[2])};
     const int axis = a[0] >= a[1] ? (a[0] >= a[2] ? 0 : 2) : (a[1] >= a[2] ? 1 : 2);
@@ -58,8 +51,8 @@ inline const double* hull_seed_direction(int k) {
         for (int f = 0; f < 6; ++f)
             for (int i = 0; i < HULL_SEED_GRID; ++i)
                 for (int j = 0; j < HULL_SEED_GRID; ++j) {
-                    int axis, u, v;
-                    hull_seed_axes(f, &axis, &u, &v);
+                    // Face f: axis f / 2, positive for even f; cells along the next two.
+                    const int axis = f / 2, u = (axis + 1) % 3, v = (axis + 2) % 3;
                     double* x = t.data() + 3 * ((f * HULL_SEED_GRID + i) * HULL_SEED_GRID + j);
                     x[axis] = f % 2 == 0 ? 1.0 : -1.0;
                     x[u] = (2.0 * i + 1.0) / HULL_SEED_GRID - 1.0;

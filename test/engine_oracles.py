@@ -86,17 +86,22 @@ class FclOracle:
             return fcl.Sphere(h[0])
         return fcl.Cylinder(h[0], 2 * h[1])
 
+    def _solid_vertices(self, a, b, Ta, Tb):
+        """Each of a's primitives with its world pose, and each test vertex of b's elements
+        in the world: (primitive, T, x)."""
+        for primitive, T_local in self.solids.get(a, ()):
+            T = Ta @ T_local
+            for vertex in self.vertices[b]:
+                yield primitive, T, Tb[:3, :3] @ vertex + Tb[:3, 3]
+
     def _contains(self, a, b, Ta, Tb):
         """A vertex of one of b's elements inside one of a's primitives (fcl decides)."""
         request = fcl.CollisionRequest()
-        for primitive, T_local in self.solids.get(a, ()):
-            T = Ta @ T_local
+        for primitive, T, x in self._solid_vertices(a, b, Ta, Tb):
             solid = fcl.CollisionObject(primitive, fcl.Transform(T[:3, :3], T[:3, 3]))
-            for vertex in self.vertices[b]:
-                x = Tb[:3, :3] @ vertex + Tb[:3, 3]
-                point = fcl.CollisionObject(fcl.Sphere(1e-12), fcl.Transform(np.eye(3), x))
-                if fcl.collide(solid, point, request, fcl.CollisionResult()):
-                    return True
+            point = fcl.CollisionObject(fcl.Sphere(1e-12), fcl.Transform(np.eye(3), x))
+            if fcl.collide(solid, point, request, fcl.CollisionResult()):
+                return True
         return False
 
     def solid_gap(self, poses, a, b):
@@ -107,19 +112,17 @@ class FclOracle:
 
     def _solid_gap(self, a, b, Ta, Tb):
         gap = np.inf
-        for primitive, T_local in self.solids.get(a, ()):
-            T = Ta @ T_local
-            for vertex in self.vertices[b]:
-                p = T[:3, :3].T @ (Tb[:3, :3] @ vertex + Tb[:3, 3] - T[:3, 3])
-                if isinstance(primitive, fcl.Box):
-                    outside = np.maximum(np.abs(p) - 0.5 * np.asarray(primitive.side), 0.0)
-                    gap = min(gap, float(np.linalg.norm(outside)))
-                elif isinstance(primitive, fcl.Sphere):
-                    gap = min(gap, max(float(np.linalg.norm(p)) - primitive.radius, 0.0))
-                else:
-                    radial = max(float(np.hypot(p[0], p[1])) - primitive.radius, 0.0)
-                    axial = max(abs(float(p[2])) - 0.5 * primitive.lz, 0.0)
-                    gap = min(gap, float(np.hypot(radial, axial)))
+        for primitive, T, x in self._solid_vertices(a, b, Ta, Tb):
+            p = T[:3, :3].T @ (x - T[:3, 3])
+            if isinstance(primitive, fcl.Box):
+                outside = np.maximum(np.abs(p) - 0.5 * np.asarray(primitive.side), 0.0)
+                gap = min(gap, float(np.linalg.norm(outside)))
+            elif isinstance(primitive, fcl.Sphere):
+                gap = min(gap, max(float(np.linalg.norm(p)) - primitive.radius, 0.0))
+            else:
+                radial = max(float(np.hypot(p[0], p[1])) - primitive.radius, 0.0)
+                axial = max(abs(float(p[2])) - 0.5 * primitive.lz, 0.0)
+                gap = min(gap, float(np.hypot(radial, axial)))
         return gap
 
     @staticmethod
