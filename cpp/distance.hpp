@@ -226,8 +226,11 @@ struct DistanceTraversal {
     DistanceWork& rows;
 };
 
+//
+// floor: the search stops once best.distance is at most floor (a caller that only asks whether
+// the distance exceeds floor has its answer then; -INF: the smallest distance).
 inline void trees_distance(const DistanceTraversal& node, int64_t ra, int64_t rb,
-                           NearestPoints& best) {
+                           NearestPoints& best, double floor = -INF) {
     const Forest& f = node.forest;
     const double* P = node.pose;
     const double pad_a = node.pad_a, pad_b = node.pad_b;
@@ -263,7 +266,8 @@ inline void trees_distance(const DistanceTraversal& node, int64_t ra, int64_t rb
     if (root_gap < best.distance) push(top++, ra, rb, root_gap);
     Triangle Q;
     double x[3], y[3];
-    while (top > 0 && best.distance > -pad) {
+    const double stop = std::max(-pad, floor);
+    while (top > 0 && best.distance > stop) {
         --top;
         const int64_t* row = stack + 3 * top;
         const int64_t na = row[0], nb = row[1];

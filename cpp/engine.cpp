@@ -384,7 +384,8 @@ int64_t Engine::motion(const double* q0, const double* q1, double* t, uint8_t* p
 //     when a slider moved E);
 //   - a pair it re-checks and finds apart with clearance c1, whose gap at q0 was c0
 //     (planning.cpp: record_gap), is apart all along when c0 + c1 exceeds the step's bound r
-//     (the distance at t is at least max(c0 - t r, c1 - (1 - t) r));
+//     (the distance at t is at least max(c0 - t r, c1 - (1 - t) r)), or when c0 and its
+//     distance at q, measured (MOTION_MEASURE_AHEAD), do; that distance becomes its clearance;
 //   - every other pair marches along the step (check_step_motion).
 int64_t Engine::update_motion(const double* q, double* t, uint8_t* pairs,
                               int64_t* query_code) {
@@ -424,8 +425,18 @@ int64_t Engine::update_motion(const double* q, double* t, uint8_t* pairs,
     MotionRecord record = motion_work_.record();
     *query_code = run(q, false, &record);
     MotionContext c = motion_context();
-    return check_step_motion(c, q0.data(), q, scratch_.todo.data(), *query_code >> 1,
-                             extension_before, t, pairs);
+    const int64_t hit = check_step_motion(c, q0.data(), q, scratch_.todo.data(),
+                                          *query_code >> 1, extension_before, t, pairs);
+    // The distances it measured at q are clearances there, where each pair's travel now
+    // starts from (the query re-checked it at q: planning.cpp, account_travel).
+    for (size_t k = 0; k < motion_work_.measured.size(); ++k) {
+        const int64_t p = motion_work_.measured[k];
+        if (motion_work_.measured_gap[k] > state_.clearance[p]) {
+            state_.clearance[p] = motion_work_.measured_gap[k];
+            state_.travel[2 * p] = state_.travel[2 * p + 1] = 0.0;
+        }
+    }
+    return hit;
 }
 
 int64_t Engine::path(const double* Q, int64_t n, int64_t* segment, double* t,

@@ -9,6 +9,7 @@
 #include "cloud_queries.hpp"
 #include "convex_sweep.hpp"
 #include "planning.hpp"
+#include "poses.hpp"
 
 namespace collision_sensor {
 
@@ -147,12 +148,11 @@ class MotionQuery {
         }
     }
 
-    // update_motion's second certificate for pair p, apart at both ends of the straight step
-    // prepared (straight_speeds) with distance bounds summing to gaps: apart all along when
-    // gaps exceeds how far its bodies' points can move relative to each other over the step,
-    // bounded at its end q1 (MotionMargin's zeroth order over the whole step: the levers of
-    // this configuration, not the planning's configuration-free reach).
-    bool step_apart(int64_t p, const double* q1, double gaps) {
+    // update_motion's second bound for pair p along the straight step prepared
+    // (straight_speeds): how far its bodies' points can move relative to each other over the
+    // step, bounded at its end q1 (MotionMargin's zeroth order over the whole step: the levers
+    // of this configuration, not the planning's configuration-free reach).
+    double step_reach(int64_t p, const double* q1) {
         const int64_t a = m_.pair_a[p], b = m_.pair_b[p];
         double pose[POSE_WIDTH];
         evaluate(q1);
@@ -161,7 +161,7 @@ class MotionQuery {
         margin(p, 1.0);
         const BoxMotion ma = w_.margin.box_motion(m_.body_box(a), 0);
         const BoxMotion mb = w_.margin.box_motion(m_.body_box(b), 1);
-        return gaps > (ma.rate + mb.rate) * (1.0 + MOTION_BOUND_REL);
+        return (ma.rate + mb.rate) * (1.0 + MOTION_BOUND_REL);
     }
 
     // Pairs list[:n] (null: all) marched along path; returns the pair of the first contact
@@ -1001,6 +1001,27 @@ void MotionQuery::contacts(const int64_t* list, int64_t n, const Path& path, dou
     }
 }
 
+// Pair p's padded distance at the carried state (the incremental query just placed its
+// bodies), less the rounding allowed for a clearance (poses.hpp: clearance_margin), when below
+// cap; else cap less that. The search stops once the distance is known to be at most floor.
+double distance_at_end(MotionContext& c, int64_t p, double floor, double cap) {
+    const Model& m = c.view.model;
+    const int64_t a = m.pair_a[p], b = m.pair_b[p];
+    double pose[POSE_WIDTH];
+    write_pair_pose(c.view.state.poses.T_world_body, a, b, pose);
+    const double rounding = clearance_margin(m, a, b, pose);
+    NearestPoints best;
+    best.found = false;
+    best.ia = best.ib = -1;
+    best.distance = cap + rounding;
+    const DistanceTraversal node = {m.forest, pose, m.padding[a], m.padding[b],
+                                    c.scratch.traversal(), c.scratch.distance_work(m)};
+    for (int64_t ea = m.elem_start[a]; ea < m.elem_end[a] && best.distance > floor; ++ea)
+        for (int64_t eb = m.elem_start[b]; eb < m.elem_end[b] && best.distance > floor; ++eb)
+            trees_distance(node, m.roots[ea], m.roots[eb], best, floor + rounding);
+    return best.distance - rounding;
+}
+
 }  // namespace
 
 int64_t check_straight_motion(MotionContext& c, const double* q0, const double* q1,
@@ -1048,17 +1069,23 @@ int64_t check_step_motion(MotionContext& c, const double* q0, const double* q1,
     const State& s = c.view.state;
     MotionWork& w = c.work;
     w.size_for(m);
+    w.measured.clear();
+    w.measured_gap.clear();
+    // The query's skipped pairs are apart along the straight motion in q, which is this one
+    // unless a continuous joint goes the shorter way round the other way: then all march.
+    for (int64_t j = 0; j < m.n_joints; ++j) {
+        const double d = q1[j] - q0[j];
+        if (m.motion_kind[j] == MOTION_WRAP &&
+            std::fabs(std::remainder(d, 2.0 * M_PI)) != std::fabs(d))
+            return check_straight_motion(c, q0, q1, nullptr, m.n_pairs, t, pairs);
+    }
+    if (n == 0) return 0;  // nothing re-checked: every pair is apart all along
     StraightPath path{q0, m.motion_kind, m.n_joints, w.delta.data(), w.var.data(),
                       w.quat0.data()};
     path.prepare(q1);
-    // The query's skipped pairs are apart along the straight motion in q, which is this one
-    // unless a continuous joint goes the shorter way round the other way: then all march.
-    for (int64_t j = 0; j < m.n_joints; ++j)
-        if (m.motion_kind[j] == MOTION_WRAP && w.var[j] != std::fabs(q1[j] - q0[j]))
-            return check_straight_motion(c, q0, q1, nullptr, m.n_pairs, t, pairs);
     const double e_max = std::max(extension_before, s.extension[0]);
     MotionQuery query(c);
-    query.straight_speeds(q0);
+    bool speeds = false;  // query.straight_speeds, for step_reach: only once one needs them
     w.marched.clear();
     const int64_t J = m.n_joints;
     // The step's bound for pair p: sum_j |dq_j| (reach[p, j] + E_max reach_ext[p, j]), how
@@ -1068,14 +1095,34 @@ int64_t check_step_motion(MotionContext& c, const double* q0, const double* q1,
         double r = 0.0;
         for (int64_t j = 0; j < J; ++j)
             if (w.var[j] > 0.0) r += w.var[j] * variable_reach(m, p, j, e_max);
-        return r;
+        return r * (1.0 + MOTION_BOUND_REL);
     };
     for (int64_t i = 0; i < n; ++i) {
         const int64_t p = rechecked[i];
         if (s.status[p] == 0 && w.prev_gap[p] > -INF) {
-            const double r = step_bound(p);
+            // Apart all along when its gaps at the two ends exceed the step's bound, the
+            // planning's or the levers' at q1 (step_reach); or, its clearance at q1 being
+            // the query's descent's, when its distance measured there does.
             const double gaps = w.prev_gap[p] + s.clearance[p];
-            if (gaps > r * (1.0 + MOTION_BOUND_REL) || query.step_apart(p, q1, gaps)) continue;
+            double r = step_bound(p);
+            if (gaps > r) continue;
+            if (!speeds) query.straight_speeds(q0);
+            speeds = true;
+            r = std::min(r, query.step_reach(p, q1));
+            if (gaps > r) continue;
+            const int64_t a = m.pair_a[p], b = m.pair_b[p];
+            const double need = r - w.prev_gap[p];
+            const double cap = MOTION_MEASURE_AHEAD * need;
+            if (!m.is_cloud(b) && cap <= MOTION_MEASURE_SCALE * (m.body_box(a)[BOX_RADIUS] +
+                                                                 m.body_box(b)[BOX_RADIUS])) {
+                const double d = distance_at_end(c, p, need, cap);
+                ++c.scratch.counters[COUNT_MEASURES];
+                if (d > need) {
+                    w.measured.push_back(p);
+                    w.measured_gap.push_back(d);
+                    continue;
+                }
+            }
         }
         w.marched.push_back(p);
     }
@@ -1099,7 +1146,7 @@ int64_t check_step_motion(MotionContext& c, const double* q0, const double* q1,
         const int64_t* row = fronts.pairs.data() + 3 * p * fronts.capacity;
         const double* until = fronts.until.data() + p * fronts.capacity;
         const double travel = fronts.travel[p];
-        const double r = step_bound(p) * (1.0 + MOTION_BOUND_REL);
+        const double r = step_bound(p);
         std::vector<double>& proven = w.front_until[p];
         for (int64_t e = 0; e < rows; ++e) {
             front.push_back(row[3 * e]);

@@ -41,7 +41,7 @@ constexpr int EXPAND_SAME = 0, EXPAND_ALTERNATE = 1, EXPAND_LARGER = 2, EXPAND_P
 // counters[COUNT_*]: work done, for the benchmarks and tests.
 constexpr int COUNT_BOX_TESTS = 0, COUNT_TRIANGLE_TESTS = 1, COUNT_SPHERE_SKIPS = 2,
               COUNT_FRONT_STARTS = 3, COUNT_FRONT_UNTESTED = 4, COUNT_SWEEPS = 5,
-              COUNT_SWEEP_STEPS = 6, N_COUNTERS = 7;
+              COUNT_SWEEP_STEPS = 6, COUNT_MEASURES = 7, N_COUNTERS = 8;
 
 // A front is a table of node pairs (na, nb, how): how is the axis of the 15-axis test that
 // separated the pair's boxes (0-14, see separating_axis), or one of these.

