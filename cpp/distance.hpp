@@ -171,18 +171,15 @@ inline void aim_slab(const NearestPoints& best, const double* P, Slab& s, Distan
     ++work.support_tag;
 }
 
-// Lower bound of the distance between node na's box (tree a) and node nb's (tree b at pose
-// P): projected_gap, with nb's placement taken from (or put into) the work rows:
-// box_in_frame's [R, t] = [Ea' (R_ab Eb), Ea' ((R_ab cb + t_ab) - ca)] from its cached
-// factors.
-CS_ALWAYS_INLINE double placed_node_gap(const Forest& f, int64_t na, int64_t nb,
-                                        const double* P, DistanceWork& work) {
-    const double* A = f.box(na);
-    const double* B = f.box(nb);
+// Node nb's box (tree b at pose P) placed in body a's frame: its work row (PLACED_WIDTH),
+// computed on first need in a traversal (work.placed_tag, which the traversal advances).
+CS_ALWAYS_INLINE const double* placed_row(const Forest& f, int64_t nb, const double* P,
+                                          DistanceWork& work) {
     double* row = work.placed + PLACED_WIDTH * nb;
-    const int e = BOX_AXES;
     if (work.placed_stamp[nb] != work.placed_tag) {
         work.placed_stamp[nb] = work.placed_tag;
+        const double* B = f.box(nb);
+        const int e = BOX_AXES;
         for (int i = 0; i < 3; ++i) {
             row[i] = P[3 * i] * B[0] + P[3 * i + 1] * B[1] + P[3 * i + 2] * B[2] + P[9 + i];
             for (int k = 0; k < 3; ++k)
@@ -190,15 +187,32 @@ CS_ALWAYS_INLINE double placed_node_gap(const Forest& f, int64_t na, int64_t nb,
                                      P[3 * i + 2] * B[e + 6 + k];
         }
     }
-    const double d0 = row[0] - A[0], d1 = row[1] - A[1], d2 = row[2] - A[2];
+    return row;
+}
+
+// box_in_frame from B's placed row: [R, t] = [Ea' (R_ab Eb), Ea' d], d = (R_ab cb + t_ab) - ca
+// (centre_offset), which the caller has.
+CS_ALWAYS_INLINE void placed_in_frame(const double* A, const double* row, const double* d,
+                                      double* T) {
+    const int e = BOX_AXES;
     const double* M = row + 3;
-    double T[12];
     for (int i = 0; i < 3; ++i) {
         for (int k = 0; k < 3; ++k)
             T[3 * i + k] = A[e + i] * M[k] + A[e + 3 + i] * M[3 + k] + A[e + 6 + i] * M[6 + k];
-        T[9 + i] = A[e + i] * d0 + A[e + 3 + i] * d1 + A[e + 6 + i] * d2;
+        T[9 + i] = A[e + i] * d[0] + A[e + 3 + i] * d[1] + A[e + 6 + i] * d[2];
     }
-    return projected_gap(A, B, T);
+}
+
+// Lower bound of the distance between node na's box (tree a) and node nb's (tree b at pose
+// P): projected_gap, with nb's placement taken from (or put into) the work rows.
+CS_ALWAYS_INLINE double placed_node_gap(const Forest& f, int64_t na, int64_t nb,
+                                        const double* P, DistanceWork& work) {
+    const double* A = f.box(na);
+    const double* row = placed_row(f, nb, P, work);
+    const double d[3] = {row[0] - A[0], row[1] - A[1], row[2] - A[2]};
+    double T[12];
+    placed_in_frame(A, row, d, T);
+    return projected_gap(A, f.box(nb), T);
 }
 
 // The smallest padded distance (triangle distance minus pad_a + pad_b) between the triangles

@@ -604,7 +604,8 @@ WithinResult MotionQuery::pair_within(int64_t p, const double* pose, double m, d
     const int64_t before = counters_[COUNT_BOX_TESTS];
     WithinResult trees = trees_within(n_seeds, pose, m_.forest, box_test,
                                       c_.view.options.expansion, stack, counters_, h, extra,
-                                      mm, m_.padding[a] + m_.padding[b], &w_.recorded,
+                                      mm, c_.scratch.distance_work(m_),
+                                      m_.padding[a] + m_.padding[b], &w_.recorded,
                                       &w_.recorded_reach, crude,
                                       measured ? &w_.recorded_gap : nullptr);
     if (trees.within) return trees;  // an incomplete descent: the front stays as it was

@@ -442,14 +442,19 @@ CS_ALWAYS_INLINE bool node_pair_apart(const double* A, const double* B, const do
                                       const double* Ta, const BoxMotion& ma,
                                       const BoxMotion& mb, double h, double extra,
                                       const MotionMargin& motion, int box_method,
-                                      double* reach, double* gap = nullptr) {
+                                      double* reach, double* gap = nullptr,
+                                      const double* placed = nullptr) {
     const double rate = ma.rate + mb.rate;
     const double r = h * rate + extra;
     auto zeroth = [&](double gap) {
         return rate > 0.0 ? std::min((gap - extra) / rate, motion.h2) : motion.h2;
     };
     double d[3];
-    centre_offset(A, B, P, d);
+    if (placed) {
+        for (int i = 0; i < 3; ++i) d[i] = placed[i] - A[BOX_CENTER + i];
+    } else {
+        centre_offset(A, B, P, d);
+    }
     const double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
     const double radii = A[BOX_RADIUS] + B[BOX_RADIUS];
     const double bound = (radii + r) * (1.0 + SPHERE_EPS_REL);
@@ -460,7 +465,10 @@ CS_ALWAYS_INLINE bool node_pair_apart(const double* A, const double* B, const do
         return true;
     }
     double T[12], u[3];
-    box_in_frame(A, B, P, T);
+    if (placed)
+        placed_in_frame(A, placed, d, T);
+    else
+        box_in_frame(A, B, P, T);
     const double g = projected_gap(A, B, T, u);
     if (g > r) {
         *reach = zeroth(g);
@@ -514,13 +522,14 @@ CS_ALWAYS_INLINE bool node_pair_apart(const double* A, const double* B, const do
 inline WithinResult trees_within(int64_t n_seeds, const double* P, const Forest& f,
                                  int box_method, int expansion, int64_t* stack,
                                  int64_t* counters, double h, double extra,
-                                 MotionMargin& motion, double pad,
+                                 MotionMargin& motion, DistanceWork& rows, double pad,
                                  std::vector<int64_t>* front = nullptr,
                                  std::vector<double>* front_reach = nullptr,
                                  double crude = 0.0,
                                  std::vector<double>* front_gap = nullptr) {
     double reach = motion.h2;
     const double* Ta = motion.side[0].T;
+    ++rows.placed_tag;  // tree b's boxes placed at P: each once (placed_row)
     int64_t n_boxes = 0, n_triangles = 0;
     const bool crude_holds = crude > 0.0 && crude < INF;
     auto stopped = [&](int64_t na, int64_t nb, double x, double gap) {
@@ -544,9 +553,11 @@ inline WithinResult trees_within(int64_t n_seeds, const double* P, const Forest&
         const double* B = f.box(nb);
         const BoxMotion& ma = motion.node(f, na, 0);
         const BoxMotion& mb = motion.node(f, nb, 1);
+        const double* placed = placed_row(f, nb, P, rows);
         ++n_boxes;
         double x, gap;
-        if (node_pair_apart(A, B, P, Ta, ma, mb, h, extra, motion, box_method, &x, &gap)) {
+        if (node_pair_apart(A, B, P, Ta, ma, mb, h, extra, motion, box_method, &x, &gap,
+                            placed)) {
             reach = std::min(reach, x);
             stopped(na, nb, x, gap);
             continue;
@@ -600,8 +611,8 @@ inline WithinResult trees_within(int64_t n_seeds, const double* P, const Forest&
             continue;
         }
         const bool expand_a = expand_first(f, na, nb, A, B, leaf_a, leaf_b, level, expansion);
-        double dc[3];
-        centre_offset(A, B, P, dc);
+        const double dc[3] = {placed[0] - A[BOX_CENTER], placed[1] - A[BOX_CENTER + 1],
+                              placed[2] - A[BOX_CENTER + 2]};
         int64_t first, second;
         if (expand_a) {
             first = node_a[NODE_LEFT];
