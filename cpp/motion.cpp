@@ -164,6 +164,16 @@ class MotionQuery {
         return (ma.rate + mb.rate) * (1.0 + MOTION_BOUND_REL);
     }
 
+    // Pair p's solid_gap with its bodies where the carried state has them (INF without a
+    // solid element).
+    double carried_solid_gap(int64_t p) const {
+        const int64_t a = m_.pair_a[p], b = m_.pair_b[p];
+        if (!m_.body_solid[a] && !m_.body_solid[b]) return INF;
+        double pose[POSE_WIDTH];
+        write_pair_pose(c_.view.state.poses.T_world_body, a, b, pose);
+        return solid_gap(a, b, pose);
+    }
+
     // Pairs list[:n] (null: all) marched along path; returns the pair of the first contact
     // (-1: none), its parameter in *best.
     template <class Path>
@@ -1116,7 +1126,9 @@ int64_t check_step_motion(MotionContext& c, const double* q0, const double* q1,
             const double cap = MOTION_MEASURE_AHEAD * need;
             if (!m.is_cloud(b) && cap <= MOTION_MEASURE_SCALE * (m.body_box(a)[BOX_RADIUS] +
                                                                  m.body_box(b)[BOX_RADIUS])) {
-                const double d = distance_at_end(c, p, need, cap);
+                // A test vertex nearer a solid than the triangles are counts (pair_within).
+                const double d = std::min(distance_at_end(c, p, need, cap),
+                                          query.carried_solid_gap(p));
                 ++c.scratch.counters[COUNT_MEASURES];
                 if (d > need) {
                     w.measured.push_back(p);

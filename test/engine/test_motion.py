@@ -292,7 +292,8 @@ def test_update_motion_crosses_a_fin_after_steps_its_clearance_skipped(tmp_path)
     assert crossings == 60
 
 
-def test_update_motion_carries_the_distance_it_measured_as_a_clearance(tmp_path):
+@pytest.mark.parametrize('shape', ['mesh', 'sphere'])
+def test_update_motion_carries_the_distance_it_measured_as_a_clearance(tmp_path, shape):
     """A bar drifts in 1 kHz-sized steps towards a ball (a mesh, its boxes turned off its
     axes) and on through it. Near the ball the query's clearance (where its descent stopped) is
     below a step's bound, so update_motion measures the distance at the step's end instead of
@@ -306,7 +307,9 @@ def test_update_motion_carries_the_distance_it_measured_as_a_clearance(tmp_path)
     ball.apply_translation([0.9 * math.cos(0.3), 0.9 * math.sin(0.3), 0.0])
     path = tmp_path / 'ball.stl'
     ball.export(str(path))
-    scene = {'objects': [{'name': 'ball', 'mesh': {'filename': str(path)}}]}
+    scene = {'objects': [{'name': 'ball', 'mesh': {'filename': str(path)}} if shape == 'mesh' else
+                         {'name': 'ball', 'sphere': {'radius': 0.05},
+                          'pose': {'xyz': [0.9 * math.cos(0.3), 0.9 * math.sin(0.3), 0.0]}}]}
     checker = CollisionChecker.from_urdf(BAR_URDF, scene=scene)
     fresh = CollisionChecker.from_urdf(BAR_URDF, scene=scene)
     rng = np.random.default_rng(1)
