@@ -366,7 +366,7 @@ WithinResult cloud_pair_within(const Model& m, int64_t a, const VoxelGrid& g, co
                                              (yb[2] - xa[2]) / (distance + pad)};
                         got = std::max(got, motion.first_order_reach(n, distance, extra,
                                                                      A[BOX_RADIUS], ma,
-                                                                     B[BOX_RADIUS], still));
+                                                                     B[BOX_RADIUS], still, h));
                     }
                     if (!(got >= h)) {
                         counters[COUNT_BOX_TESTS] += n_boxes;

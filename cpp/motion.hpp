@@ -384,11 +384,14 @@ struct MotionMargin {
 
     // How far, over what half-width (<= h2), two boxes (radii rho_a, rho_b; motions ma, mb)
     // whose gap along the unit direction n (world) is g stay more than extra apart, by the
-    // first-order bound; 0 when it proves nothing (a side not first_order).
+    // first-order bound; 0 when it proves nothing (a side not first_order), or when it does
+    // not reach the half-width h the caller needs.
     double first_order_reach(const double* n, double g, double extra, double rho_a,
-                             const BoxMotion& ma, double rho_b, const BoxMotion& mb) const {
+                             const BoxMotion& ma, double rho_b, const BoxMotion& mb,
+                             double h) const {
         if (!side[0].first_order || !side[1].first_order || !(g > extra)) return 0.0;
-        auto cross_norm = [n](const double* w) {
+        auto cross_norm = [n](const double* w) {  // 0 for a side that does not turn
+            if (w[0] == 0.0 && w[1] == 0.0 && w[2] == 0.0) return 0.0;
             const double x = n[1] * w[2] - n[2] * w[1], y = n[2] * w[0] - n[0] * w[2],
                          z = n[0] * w[1] - n[1] * w[0];
             return std::sqrt(x * x + y * y + z * z);
@@ -400,6 +403,8 @@ struct MotionMargin {
             (1.0 + MOTION_BOUND_REL);
         const double a = 0.5 * (ma.acc + mb.acc);
         const double room = g - extra;
+        // Below h (the left side grows with x) without a root taken.
+        if (a * h * h + closing * h > room) return 0.0;
         // The largest x with a x^2 + closing x <= room.
         double x;
         if (a > 0.0)
@@ -481,7 +486,7 @@ CS_ALWAYS_INLINE bool node_pair_apart(const double* A, const double* B, const do
         double n[3];
         box_direction_in_world(A, Ta, u, n);
         const double x = motion.first_order_reach(n, g, extra, A[BOX_RADIUS], ma,
-                                                  B[BOX_RADIUS], mb);
+                                                  B[BOX_RADIUS], mb, h);
         if (x >= h) {
             *reach = x;
             if (gap) *gap = g;
@@ -595,7 +600,7 @@ inline WithinResult trees_within(int64_t n_seeds, const double* P, const Forest&
                             n[i] = Ta[4 * i] * w[0] + Ta[4 * i + 1] * w[1] + Ta[4 * i + 2] * w[2];
                         got = std::max(got, motion.first_order_reach(
                                                 n, distance, extra, A[BOX_RADIUS], ma,
-                                                B[BOX_RADIUS], mb));
+                                                B[BOX_RADIUS], mb, h));
                     }
                     if (!(got >= h)) {
                         counters[COUNT_BOX_TESTS] += n_boxes;
