@@ -1124,8 +1124,10 @@ int64_t check_step_motion(MotionContext& c, const double* q0, const double* q1,
             const int64_t a = m.pair_a[p], b = m.pair_b[p];
             const double need = r - w.prev_gap[p];
             const double cap = MOTION_MEASURE_AHEAD * need;
-            if (!m.is_cloud(b) && cap <= MOTION_MEASURE_SCALE * (m.body_box(a)[BOX_RADIUS] +
-                                                                 m.body_box(b)[BOX_RADIUS])) {
+            const bool front = s.fronts.state[2 * p] != 0;
+            if (!m.is_cloud(b) && !front &&
+                cap <= MOTION_MEASURE_SCALE *
+                           (m.body_box(a)[BOX_RADIUS] + m.body_box(b)[BOX_RADIUS])) {
                 // A test vertex nearer a solid than the triangles are counts (pair_within).
                 const double d = std::min(distance_at_end(c, p, need, cap),
                                           query.carried_solid_gap(p));
