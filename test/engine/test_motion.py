@@ -294,13 +294,14 @@ def test_update_motion_crosses_a_fin_after_steps_its_clearance_skipped(tmp_path)
 
 @pytest.mark.parametrize('shape', ['mesh', 'sphere'])
 def test_update_motion_carries_the_distance_it_measured_as_a_clearance(tmp_path, shape):
-    """A bar drifts in 1 kHz-sized steps towards a ball (a mesh, its boxes turned off its
-    axes) and on through it. Near the ball the query's clearance (where its descent stopped) is
+    """A bar drifts in small steps (N(1, 3) mrad, its tip 1 m out) towards a ball (a mesh, its
+    boxes turned off its axes, or a primitive) and on through it, three walks. Near the ball the query's clearance (where its descent stopped) is
     below a step's bound, so update_motion measures the distance at the step's end instead of
     marching, and carries it as the pair's clearance: the planning then skips the pair while
     its travel stays below it. Each answer is check_motion's on a second checker that carries
     nothing, and dense sampling's; each state's statuses are a fresh check's. A distance taken
-    as the search's cap whatever it finds misses 4 of these contacts (tried)."""
+    as the search's cap whatever it finds misses 13 of these contacts by the mesh, 30 by
+    the sphere (tried)."""
     import trimesh
     ball = trimesh.creation.icosphere(subdivisions=3, radius=0.05)
     ball.apply_transform(trimesh.transformations.rotation_matrix(0.7, [1, 1, 0]))
@@ -312,25 +313,27 @@ def test_update_motion_carries_the_distance_it_measured_as_a_clearance(tmp_path,
                           'pose': {'xyz': [0.9 * math.cos(0.3), 0.9 * math.sin(0.3), 0.0]}}]}
     checker = CollisionChecker.from_urdf(BAR_URDF, scene=scene)
     fresh = CollisionChecker.from_urdf(BAR_URDF, scene=scene)
-    rng = np.random.default_rng(1)
-    q = np.array([0.0])
-    checker.check(q)
     checker.counters[:] = 0
     contacts = 0
-    for _ in range(400):
-        q_next = q + rng.normal(0.0008, 0.002, 1)
-        moved = checker.update_motion(q_next)
-        expected = fresh.check_motion(q, q_next)
-        assert moved.in_collision == expected.in_collision, (q, q_next)
-        if moved.in_collision:
-            t_sampled, _, _ = sampled_first_contact(fresh, q, q_next)
-            assert t_sampled is not None and moved.first_contact <= t_sampled + 1e-12
-            assert abs(moved.first_contact - expected.first_contact) < 1e-4
-            contacts += 1
-        assert checker.update(q_next).colliding_pairs == fresh.check(q_next).colliding_pairs
-        q = q_next
+    for seed in (1, 2, 3):
+        rng = np.random.default_rng(seed)
+        q = np.array([0.0])
+        checker.check(q)
+        for _ in range(400):
+            q_next = q + rng.normal(0.001, 0.003, 1)
+            moved = checker.update_motion(q_next)
+            expected = fresh.check_motion(q, q_next)
+            assert moved.in_collision == expected.in_collision, (seed, q, q_next)
+            if moved.in_collision:
+                t_sampled, _, _ = sampled_first_contact(fresh, q, q_next)
+                assert t_sampled is not None and moved.first_contact <= t_sampled + 1e-12
+                assert abs(moved.first_contact - expected.first_contact) < 1e-4
+                contacts += 1
+            assert (checker.update(q_next).colliding_pairs ==
+                    fresh.check(q_next).colliding_pairs)
+            q = q_next
     assert checker.counters[COUNT_MEASURES] > 0
-    assert 5 < contacts < 100      # the walk goes through the ball and out
+    assert 100 < contacts < 600      # the walks go through the ball and out
 
 
 def test_check_motion_leaves_the_carried_state_as_it_was(panda_cell):
