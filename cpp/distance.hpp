@@ -240,9 +240,8 @@ struct DistanceTraversal {
     DistanceWork& rows;
 };
 
-//
-// floor: the search stops once best.distance is at most floor (a caller that only asks whether
-// the distance exceeds floor has its answer then; -INF: the smallest distance).
+// trees_distance's floor: the search stops once best.distance is at most floor (a caller that
+// only asks whether the distance exceeds floor has its answer then; -INF: the smallest).
 inline void trees_distance(const DistanceTraversal& node, int64_t ra, int64_t rb,
                            NearestPoints& best, double floor = -INF) {
     const Forest& f = node.forest;

@@ -1027,9 +1027,10 @@ double distance_at_end(MotionContext& c, int64_t p, double floor, double cap) {
     best.distance = cap + rounding;
     const DistanceTraversal node = {m.forest, pose, m.padding[a], m.padding[b],
                                     c.scratch.traversal(), c.scratch.distance_work(m)};
-    for (int64_t ea = m.elem_start[a]; ea < m.elem_end[a] && best.distance > floor; ++ea)
-        for (int64_t eb = m.elem_start[b]; eb < m.elem_end[b] && best.distance > floor; ++eb)
-            trees_distance(node, m.roots[ea], m.roots[eb], best, floor + rounding);
+    const double stop = floor + rounding;
+    for (int64_t ea = m.elem_start[a]; ea < m.elem_end[a] && best.distance > stop; ++ea)
+        for (int64_t eb = m.elem_start[b]; eb < m.elem_end[b] && best.distance > stop; ++eb)
+            trees_distance(node, m.roots[ea], m.roots[eb], best, stop);
     return best.distance - rounding;
 }
 

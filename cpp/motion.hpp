@@ -63,6 +63,8 @@ constexpr int64_t MOTION_FRONT_MAX = 1024;
 // SWEEP_EPS (m) of contact, a tenth of the touching tolerance. The rotation at the two ends
 // must agree to SWEEP_ROTATION_SLACK (rounding: sliders turn nothing), else the pair marches.
 constexpr int64_t SWEEP_MAX_ELEMENT_PAIRS = 16;
+constexpr double SWEEP_EPS = 0.1 * MOTION_TOUCH_TOLERANCE;
+constexpr double SWEEP_ROTATION_SLACK = 1e-12;
 // update_motion: a pair apart at both ends of a step whose gaps there do not exceed the step's
 // bound has its distance at q1 measured before it marches (check_step_motion): the
 // incremental query's clearance is where its descent stopped, often a tenth of a millimetre
@@ -78,8 +80,6 @@ constexpr int64_t SWEEP_MAX_ELEMENT_PAIRS = 16;
 // Work only, never answers: on scenario 10's 1 kHz walk of the Panda in its cluttered cell,
 // update_motion / update went from 1.9x to 1.1x.
 constexpr double MOTION_MEASURE_AHEAD = 4.0, MOTION_MEASURE_SCALE = 0.05;
-constexpr double SWEEP_EPS = 0.1 * MOTION_TOUCH_TOLERANCE;
-constexpr double SWEEP_ROTATION_SLACK = 1e-12;
 
 // The straight motion from q0 to q1, t in [0, 1]: each variable as its motion kind says
 // (kinematics.hpp: MOTION_*, the interpolation MoveIt uses).

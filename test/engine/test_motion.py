@@ -295,13 +295,13 @@ def test_update_motion_crosses_a_fin_after_steps_its_clearance_skipped(tmp_path)
 @pytest.mark.parametrize('shape', ['mesh', 'sphere'])
 def test_update_motion_carries_the_distance_it_measured_as_a_clearance(tmp_path, shape):
     """A bar drifts in small steps (N(1, 3) mrad, its tip 1 m out) towards a ball (a mesh, its
-    boxes turned off its axes, or a primitive) and on through it, three walks. Near the ball the query's clearance (where its descent stopped) is
-    below a step's bound, so update_motion measures the distance at the step's end instead of
-    marching, and carries it as the pair's clearance: the planning then skips the pair while
-    its travel stays below it. Each answer is check_motion's on a second checker that carries
-    nothing, and dense sampling's; each state's statuses are a fresh check's. A distance taken
-    as the search's cap whatever it finds misses 13 of these contacts by the mesh, 30 by
-    the sphere (tried)."""
+    boxes turned off its axes, or a primitive) and on through it, three walks. Near the ball
+    the query's clearance (where its descent stopped) is below a step's bound, so update_motion
+    measures the distance at the step's end instead of marching, and carries it as the pair's
+    clearance: the planning then skips the pair while its travel stays below it. Each answer
+    is check_motion's on a second checker that carries nothing, and dense sampling's; each
+    state's statuses are a fresh check's. A distance taken as the search's cap whatever it
+    finds misses 13 of these contacts by the mesh, 30 by the sphere (tried)."""
     import trimesh
     ball = trimesh.creation.icosphere(subdivisions=3, radius=0.05)
     ball.apply_transform(trimesh.transformations.rotation_matrix(0.7, [1, 1, 0]))
