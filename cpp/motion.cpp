@@ -164,14 +164,10 @@ class MotionQuery {
         return (ma.rate + mb.rate) * (1.0 + MOTION_BOUND_REL);
     }
 
-    // Pair p's solid_gap with its bodies where the carried state has them (INF without a
-    // solid element).
-    double carried_solid_gap(int64_t p) const {
+    // Pair p's solid_gap with body b at pose in body a (INF without a solid element).
+    double pair_solid_gap(int64_t p, const double* pose) const {
         const int64_t a = m_.pair_a[p], b = m_.pair_b[p];
-        if (!m_.body_solid[a] && !m_.body_solid[b]) return INF;
-        double pose[POSE_WIDTH];
-        write_pair_pose(c_.view.state.poses.T_world_body, a, b, pose);
-        return solid_gap(a, b, pose);
+        return m_.body_solid[a] || m_.body_solid[b] ? solid_gap(a, b, pose) : INF;
     }
 
     // Pairs list[:n] (null: all) marched along path; returns the pair of the first contact
@@ -1012,14 +1008,12 @@ void MotionQuery::contacts(const int64_t* list, int64_t n, const Path& path, dou
     }
 }
 
-// Pair p's padded distance at the carried state (the incremental query just placed its
-// bodies), less the rounding allowed for a clearance (poses.hpp: clearance_margin), when below
-// cap; else cap less that. The search stops once the distance is known to be at most floor.
-double distance_at_end(MotionContext& c, int64_t p, double floor, double cap) {
+// Pair p's padded distance with body b at pose in body a, less the rounding allowed for a
+// clearance (poses.hpp: clearance_margin), when below cap; else cap less that. The search
+// stops once the distance is known to be at most floor.
+double distance_at(MotionContext& c, int64_t p, const double* pose, double floor, double cap) {
     const Model& m = c.view.model;
     const int64_t a = m.pair_a[p], b = m.pair_b[p];
-    double pose[POSE_WIDTH];
-    write_pair_pose(c.view.state.poses.T_world_body, a, b, pose);
     const double rounding = clearance_margin(m, a, b, pose);
     NearestPoints best;
     best.found = false;
@@ -1129,9 +1123,12 @@ int64_t check_step_motion(MotionContext& c, const double* q0, const double* q1,
             if (!m.is_cloud(b) && !front &&
                 cap <= MOTION_MEASURE_SCALE *
                            (m.body_box(a)[BOX_RADIUS] + m.body_box(b)[BOX_RADIUS])) {
-                // A test vertex nearer a solid than the triangles are counts (pair_within).
-                const double d = std::min(distance_at_end(c, p, need, cap),
-                                          query.carried_solid_gap(p));
+                // At q1, where the incremental query placed the bodies; a test vertex nearer
+                // a solid than the triangles are counts (pair_within).
+                double pose[POSE_WIDTH];
+                write_pair_pose(s.poses.T_world_body, a, b, pose);
+                const double d = std::min(distance_at(c, p, pose, need, cap),
+                                          query.pair_solid_gap(p, pose));
                 ++c.scratch.counters[COUNT_MEASURES];
                 if (d > need) {
                     w.measured.push_back(p);
