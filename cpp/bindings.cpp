@@ -275,13 +275,21 @@ struct PyEngine {
         return py::make_tuple(code, segment);
     }
 
-    // The checked pairs' names, one per pair (name_pairs), for last_motion's answer.
+    // The checked pairs' names, one per pair (name_pairs), for last_motion's answer; the
+    // answer's type (a tuple subclass: in_collision, first_contact, colliding_pairs) and its
+    // free instance, for motion_answer's.
     py::tuple pair_names;
+    py::object result_type, free_result;
 
-    void name_pairs(py::tuple names) {
+    void name_pairs(py::tuple names, py::object type, py::object free) {
         if (py::ssize_t(names.size()) != py::ssize_t(engine->model().n_pairs))
             throw std::invalid_argument("names: one per checked pair");
+        if (!PyType_Check(type.ptr()) ||
+            !PyType_IsSubtype(reinterpret_cast<PyTypeObject*>(type.ptr()), &PyTuple_Type))
+            throw std::invalid_argument("type: a subclass of tuple");
         pair_names = std::move(names);
+        result_type = std::move(type);
+        free_result = std::move(free);
     }
 
     py::tuple last_motion() {
@@ -294,6 +302,32 @@ struct PyEngine {
         for (size_t p = 0; p < motion_pairs.size(); ++p)
             if (motion_pairs[p]) names[k++] = pair_names[p];
         return py::make_tuple(motion_t, names);
+    }
+
+    // motion's answer as the checker gives it, in one call: free_result, or a result_type
+    // (True, t, the pairs' names as last_motion's); None for anything motion does not answer
+    // 0 or 1 to (ask motion).
+    py::object motion_answer(py::handle q0, py::handle q1) {
+        const int64_t code = motion(q0, q1);
+        if (code == 0) return free_result;
+        if (code != 1) return py::none();
+        if (py::ssize_t(pair_names.size()) != py::ssize_t(engine->model().n_pairs))
+            throw std::logic_error("motion_answer: name the pairs first (name_pairs)");
+        py::ssize_t count = 0;
+        for (const uint8_t hit : motion_pairs) count += hit != 0;
+        py::tuple names(count);
+        py::ssize_t k = 0;
+        for (size_t p = 0; p < motion_pairs.size(); ++p)
+            if (motion_pairs[p]) names[k++] = pair_names[p];
+        py::float_ t(motion_t);
+        // What tuple.__new__(result_type, fields) makes, without the NamedTuple's __new__.
+        PyTypeObject* type = reinterpret_cast<PyTypeObject*>(result_type.ptr());
+        PyObject* made = type->tp_alloc(type, 3);
+        if (!made) throw py::error_already_set();
+        PyTuple_SET_ITEM(made, 0, py::bool_(true).release().ptr());
+        PyTuple_SET_ITEM(made, 1, t.release().ptr());
+        PyTuple_SET_ITEM(made, 2, names.release().ptr());
+        return py::reinterpret_steal<py::object>(made);
     }
 };
 
@@ -540,9 +574,15 @@ void bind_engine(py::module_& m) {
              "The polynomial segments coef (n, J, 6) (q_j(t) = sum_k coef[i, j, k] t^k, t in "
              "[0, 1]) until one is not free: (code, segment) as path; -1 - i for a segment i "
              "the engine refuses.")
-        .def("name_pairs", &PyEngine::name_pairs, py::arg("names"),
+        .def("name_pairs", &PyEngine::name_pairs, py::arg("names"), py::arg("result_type"),
+             py::arg("free"),
              "Give the checked pairs' names (a tuple, one per pair, in the pairs' order), "
-             "which last_motion answers with.")
+             "which last_motion answers with, and motion_answer's type (a tuple subclass of "
+             "in_collision, first_contact, colliding_pairs) and free answer.")
+        .def("motion_answer", &PyEngine::motion_answer, py::arg("q0"), py::arg("q1"),
+             "motion(q0, q1) answered as the checker does: free (name_pairs), or "
+             "result_type(True, t, names) as last_motion; None where motion answers "
+             "anything else (ask it).")
         .def("last_motion", &PyEngine::last_motion,
              "The last motion check's (t, pairs): its first contact's fraction and the "
              "names (name_pairs), in the pairs' order, of the pairs in contact (or within "

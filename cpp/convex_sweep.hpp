@@ -64,22 +64,16 @@ inline const double* hull_seed_direction(int k) {
 }
 
 // The distinct vertices (n, 3) of a convex hull, each one's neighbours along its edges
-// (adj[adj_start[i] : adj_start[i + 1]], local indices) and its furthest vertex along each
-// hull_seed_direction (seeds, HULL_SEEDS; unused for hulls of at most HULL_SCAN_MAX).
+// (adj[adj_start[i] : adj_start[i + 1]], local indices), its furthest vertex along each
+// hull_seed_direction (seeds, HULL_SEEDS; unused for hulls of at most HULL_SCAN_MAX) and the
+// vertices' mean (centre, a point inside it).
 struct HullView {
     const double* v;
     int64_t n;
     const int64_t* adj_start;
     const int64_t* adj;
     const int64_t* seeds;
-};
-
-// What a sweep moves: a hull, one point, or a primitive's true solid (layout.hpp's elem_solid
-// row: kind, size (3), R (3, 3), t (3)), each in its body's frame.
-struct SweepShape {
-    enum Kind { HULL, POINT, SOLID } kind;
-    HullView hull;
-    const double* x;  // POINT: the point; SOLID: the elem_solid row
+    const double* centre;
 };
 
 namespace sweep_detail {
@@ -128,53 +122,6 @@ inline const double* hull_support(const HullView& h, const double* d, int64_t* h
     }
     *hint = at;
     return h.v + 3 * at;
-}
-
-// A primitive's true solid, furthest along d (body frame), into out.
-inline void solid_support(const double* s, const double* d, double* out) {
-    const double* R = s + 4;
-    const double* t = s + 13;
-    // d in the solid's own frame: R' d (x_body = R x_solid + t).
-    const double e[3] = {R[0] * d[0] + R[3] * d[1] + R[6] * d[2],
-                         R[1] * d[0] + R[4] * d[1] + R[7] * d[2],
-                         R[2] * d[0] + R[5] * d[1] + R[8] * d[2]};
-    double p[3] = {0.0, 0.0, 0.0};
-    switch (int(s[0])) {
-        case 1:  // box: half extents
-            for (int i = 0; i < 3; ++i) p[i] = e[i] >= 0.0 ? s[1 + i] : -s[1 + i];
-            break;
-        case 2: {  // sphere: radius
-            const double n = std::sqrt(dot(e, e));
-            if (n > 0.0)
-                for (int i = 0; i < 3; ++i) p[i] = s[1] * e[i] / n;
-            break;
-        }
-        default: {  // cylinder along z: radius, half length
-            const double n = std::hypot(e[0], e[1]);
-            if (n > 0.0) {
-                p[0] = s[1] * e[0] / n;
-                p[1] = s[1] * e[1] / n;
-            }
-            p[2] = e[2] >= 0.0 ? s[2] : -s[2];
-            break;
-        }
-    }
-    for (int i = 0; i < 3; ++i) out[i] = R[3 * i] * p[0] + R[3 * i + 1] * p[1] + R[3 * i + 2] * p[2] + t[i];
-}
-
-inline void shape_support(const SweepShape& s, const double* d, int64_t* hint, double* out) {
-    if (s.kind == SweepShape::HULL) {
-        const double* v = hull_support(s.hull, d, hint);
-        out[0] = v[0];
-        out[1] = v[1];
-        out[2] = v[2];
-    } else if (s.kind == SweepShape::POINT) {
-        out[0] = s.x[0];
-        out[1] = s.x[1];
-        out[2] = s.x[2];
-    } else {
-        solid_support(s.x, d, out);
-    }
 }
 
 // The closest point to the origin of the simplex y[0 .. n) (n <= 4) into v; returns the
@@ -295,32 +242,130 @@ inline int closest_simplex(const double (*y)[3], int n, double* v) {
 
 }  // namespace sweep_detail
 
-// Shape B (in b's frame, placed by R (3, 3 row-major) and t0 in a's frame at the start)
-// translating by d over the parameter [0, limit] against shape A (a's frame): SWEEP_CONTACT
+// A point moving along p + s u (in a primitive's frame) against its true solid (elem_solid
+// row: kind, size): the parameters at which it is inside, [*enter, *leave] (empty when
+// *enter > *leave).
+inline void solid_span(const double* row, const double* p, const double* u, double* enter,
+                       double* leave) {
+    *enter = -INFINITY;
+    *leave = INFINITY;
+    const auto none = [&] {
+        *enter = INFINITY;
+        *leave = -INFINITY;
+    };
+    // |x + s v| <= r over the first n coordinates.
+    const auto round = [&](int n, double r) {
+        double a = 0.0, b = 0.0, c = -r * r;
+        for (int i = 0; i < n; ++i) {
+            a += u[i] * u[i];
+            b += p[i] * u[i];
+            c += p[i] * p[i];
+        }
+        if (!(a > 0.0)) {
+            if (c > 0.0) none();
+            return;
+        }
+        const double disc = b * b - a * c;
+        if (disc < 0.0) return none();
+        const double root = std::sqrt(disc);
+        *enter = std::max(*enter, (-b - root) / a);
+        *leave = std::min(*leave, (-b + root) / a);
+    };
+    switch (int(row[0])) {
+        case 2:  // sphere
+            round(3, row[1]);
+            break;
+        case 3:  // cylinder along z
+            round(2, row[1]);
+            if (u[2] == 0.0) {
+                if (std::fabs(p[2]) > row[2]) none();
+            } else {
+                const double x = (-row[2] - p[2]) / u[2], y = (row[2] - p[2]) / u[2];
+                *enter = std::max(*enter, std::min(x, y));
+                *leave = std::min(*leave, std::max(x, y));
+            }
+            break;
+        default:  // a box: its slabs
+            for (int i = 0; i < 3; ++i) {
+                if (u[i] == 0.0) {
+                    if (std::fabs(p[i]) > row[1 + i]) none();
+                    continue;
+                }
+                const double x = (-row[1 + i] - p[i]) / u[i], y = (row[1 + i] - p[i]) / u[i];
+                *enter = std::max(*enter, std::min(x, y));
+                *leave = std::min(*leave, std::max(x, y));
+            }
+            break;
+    }
+}
+
+// A test vertex against a primitive's true solid (elem_solid row), where B moves as in
+// sweep_first_contact (placed by R and t0 in a's frame at the start, translating by d): the
+// solid is A's (solid_in_a; the point B's) or B's (the point A's). Its first contact, in
+// closed form: SWEEP_CONTACT with *s no later than the point's entry, by at most eps of its
+// travel (every earlier state outside), or SWEEP_FREE up to limit.
+inline int probe_first_contact(const double* row, const double* point, bool solid_in_a,
+                               const double* R, const double* t0, const double* d, double eps,
+                               double limit, double* s) {
+    const double* Rs = row + 4;
+    const double* ts = row + 13;
+    double x[3], v[3];  // the point and its motion in the frame the solid's (Rs, ts) place
+    if (solid_in_a) {
+        for (int i = 0; i < 3; ++i) {
+            x[i] = R[3 * i] * point[0] + R[3 * i + 1] * point[1] + R[3 * i + 2] * point[2] +
+                   t0[i] - ts[i];
+            v[i] = d[i];
+        }
+    } else {  // in b's frame: R' (point - t0 - s d)
+        const double y[3] = {point[0] - t0[0], point[1] - t0[1], point[2] - t0[2]};
+        for (int i = 0; i < 3; ++i) {
+            x[i] = R[i] * y[0] + R[3 + i] * y[1] + R[6 + i] * y[2] - ts[i];
+            v[i] = -(R[i] * d[0] + R[3 + i] * d[1] + R[6 + i] * d[2]);
+        }
+    }
+    double p[3], u[3];  // in the solid's own frame: Rs' x, Rs' v
+    for (int i = 0; i < 3; ++i) {
+        p[i] = Rs[i] * x[0] + Rs[3 + i] * x[1] + Rs[6 + i] * x[2];
+        u[i] = Rs[i] * v[0] + Rs[3 + i] * v[1] + Rs[6 + i] * v[2];
+    }
+    double enter, leave;
+    solid_span(row, p, u, &enter, &leave);
+    const double first = std::max(enter, 0.0);
+    if (!(first <= leave) || first > limit) return SWEEP_FREE;
+    // Back off half of eps of travel: the root's rounding is far below it.
+    const double speed = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+    *s = speed > 0.0 ? std::max(0.0, first - 0.5 * eps / speed) : first;
+    return SWEEP_CONTACT;
+}
+
+// Hull B (in b's frame, placed by R (3, 3 row-major) and t0 in a's frame at the start)
+// translating by d over the parameter [0, limit] against hull A (a's frame): SWEEP_CONTACT
 // with *s the first parameter at which they are within rho + eps (every earlier one farther
 // than rho apart), SWEEP_FREE (none up to limit), or SWEEP_UNKNOWN (no convergence: decide
 // otherwise). Adds its GJK iterations to *steps.
-inline int sweep_first_contact(const SweepShape& A, const SweepShape& B, const double* R,
+inline int sweep_first_contact(const HullView& A, const HullView& B, const double* R,
                                const double* t0, const double* d, double rho, double eps,
                                double limit, double* s, int64_t* steps) {
     using namespace sweep_detail;
     int64_t hint_a = -1, hint_b = -1;
     // C's point furthest along u: A's along u less B's (placed) along -u.
     const auto support = [&](const double* u, double* out) {
-        double pa[3], pb[3];
-        shape_support(A, u, &hint_a, pa);
+        const double* pa = hull_support(A, u, &hint_a);
         const double ub[3] = {-(R[0] * u[0] + R[3] * u[1] + R[6] * u[2]),
                               -(R[1] * u[0] + R[4] * u[1] + R[7] * u[2]),
                               -(R[2] * u[0] + R[5] * u[1] + R[8] * u[2])};
-        shape_support(B, ub, &hint_b, pb);
+        const double* pb = hull_support(B, ub, &hint_b);
         for (int i = 0; i < 3; ++i)
             out[i] = pa[i] - (R[3 * i] * pb[0] + R[3 * i + 1] * pb[1] + R[3 * i + 2] * pb[2] + t0[i]);
     };
     double lambda = 0.0, x[3] = {0.0, 0.0, 0.0};
     double p[4][3], y[4][3], v[3];
     int n = 0;
-    support(d, v);  // any point of C: v = x - it
-    for (int i = 0; i < 3; ++i) v[i] = -v[i];
+    // v = x less a point of C: the centres' difference, whose direction points the first
+    // support near the answer (x = 0 here).
+    for (int i = 0; i < 3; ++i)
+        v[i] = -(A.centre[i] - (R[3 * i] * B.centre[0] + R[3 * i + 1] * B.centre[1] +
+                                R[3 * i + 2] * B.centre[2] + t0[i]));
     const double reach = rho + eps;
     for (int iteration = 0; iteration < SWEEP_ITERATIONS; ++iteration) {
         ++*steps;

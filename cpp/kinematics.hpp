@@ -104,8 +104,10 @@ inline int64_t unusable_variable(const KinematicTree& kin, const double* q, int6
 }
 
 // Write link i's world pose into T_world_link from its parent's (already current) pose.
+// turn, if given, (L, 3): each revolute joint's last angle and its cosine and sine, reused
+// while the angle stays (a motion's two ends often turn a joint alike).
 CS_ALWAYS_INLINE void set_link_pose(const KinematicTree& kin, int64_t i, const double* q,
-                          double* T_world_link) {
+                                    double* T_world_link, double* turn = nullptr) {
     const double* J = kin.T_parent_joint + 16 * i;
     // M = T_parent_joint motion, as 12 scalars (rotation m.., translation t.).
     double m00 = J[0], m01 = J[1], m02 = J[2], t0 = J[3];
@@ -121,8 +123,19 @@ CS_ALWAYS_INLINE void set_link_pose(const KinematicTree& kin, int64_t i, const d
         bool rotates = true;
         if (kind == JOINT_REVOLUTE) {
             // Rodrigues: R = c I + s [a]x + (1 - c) a a'.
-            const double c = std::cos(value);
-            const double s = std::sin(value);
+            double c, s;
+            if (turn && turn[3 * i] == value) {
+                c = turn[3 * i + 1];
+                s = turn[3 * i + 2];
+            } else {
+                c = std::cos(value);
+                s = std::sin(value);
+                if (turn) {
+                    turn[3 * i] = value;
+                    turn[3 * i + 1] = c;
+                    turn[3 * i + 2] = s;
+                }
+            }
             const double v = 1.0 - c;
             r00 = c + v * x * x; r01 = v * x * y - s * z; r02 = v * x * z + s * y;
             r10 = v * x * y + s * z; r11 = c + v * y * y; r12 = v * y * z - s * x;

@@ -248,6 +248,11 @@ bool element_hull(const Model& m, int64_t e, Hull& out) {
     const int64_t n = int64_t(distinct.size());
     out.vertices.clear();
     for (const auto& x : distinct) out.vertices.insert(out.vertices.end(), x.begin(), x.end());
+    for (int i = 0; i < 3; ++i) {
+        double sum = 0.0;
+        for (const auto& x : distinct) sum += x[i];
+        out.centre[i] = sum / double(distinct.size());
+    }
     out.adj_start.assign(1, 0);
     out.adj.clear();
     size_t next = 0;

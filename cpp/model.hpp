@@ -76,6 +76,7 @@ struct Model {
 struct Hull {
     std::vector<double> vertices;
     std::vector<int64_t> adj_start, adj, seeds;
+    double centre[3] = {0.0, 0.0, 0.0};
 };
 
 // Element e's hull into out; false (out untouched) when e is not a closed convex element.

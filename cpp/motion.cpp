@@ -24,6 +24,7 @@ void MotionWork::size_for(const Model& m) {
     q_next.assign(J, 0.0);
     crude.assign(P, -1.0);
     T.assign(16 * L, 0.0);
+    turn.assign(3 * L, NAN);
     stamp.assign(L, 0);
     chain.assign(L, 0);
     trans.assign(L, 0.0);
@@ -378,7 +379,7 @@ void MotionQuery::link_pose(int64_t i) {
     int64_t n = 0;
     for (int64_t k = i; k >= 0 && w_.stamp[k] != w_.tag; k = m_.kin.parent[k]) w_.chain[n++] = k;
     for (int64_t t = n - 1; t >= 0; --t) {
-        set_link_pose(m_.kin, w_.chain[t], w_.q.data(), w_.T.data());
+        set_link_pose(m_.kin, w_.chain[t], w_.q.data(), w_.T.data(), w_.turn.data());
         w_.stamp[w_.chain[t]] = w_.tag;
     }
 }
@@ -685,38 +686,42 @@ int MotionQuery::sweep(int64_t p, const double* pose0, const double* pose1, doub
     const double rho = m_.padding[a] + m_.padding[b];
     const auto hull = [this](int64_t e) {
         const Hull& h = w_.hulls[e];
-        return SweepShape{SweepShape::HULL,
-                          {h.vertices.data(), int64_t(h.vertices.size() / 3), h.adj_start.data(),
-                           h.adj.data(), h.seeds.data()},
-                          nullptr};
+        return HullView{h.vertices.data(), int64_t(h.vertices.size() / 3), h.adj_start.data(),
+                        h.adj.data(), h.seeds.data(), h.centre};
     };
+    // A box's hull is its solid (its eight corners): a test vertex of the other element
+    // enters it no sooner than that element's hull meets it, so only a round solid, which
+    // holds its hull with room to spare, is probed.
     const auto solid = [this](int64_t e) {
         const int kind = int(m_.elem_solid[SOLID_WIDTH * e]);
-        return kind == SOLID_BOX || kind == SOLID_SPHERE || kind == SOLID_CYLINDER;
-    };
-    const auto point = [this](int64_t e) {
-        return SweepShape{SweepShape::POINT, {}, m_.elem_solid + SOLID_WIDTH * e + SOLID_PROBE};
-    };
-    const auto true_solid = [this](int64_t e) {
-        return SweepShape{SweepShape::SOLID, {}, m_.elem_solid + SOLID_WIDTH * e};
+        return kind == SOLID_SPHERE || kind == SOLID_CYLINDER;
     };
     // The surfaces (the hulls: apart at the start, they first meet on their surfaces), and
     // each element's test vertex against the other's true solid, as solid_gap counts it.
     double first = INF;
-    const auto cast = [&](const SweepShape& A, const SweepShape& B, double margin) {
+    const auto cast = [&](int64_t ea, int64_t eb) {
         double s;
         // Beyond the first contact found so far nothing counts.
-        const int r = sweep_first_contact(A, B, pose0, pose0 + 9, d, margin, SWEEP_EPS,
-                                          std::min(first, 1.0), &s,
+        const int r = sweep_first_contact(hull(ea), hull(eb), pose0, pose0 + 9, d, rho,
+                                          SWEEP_EPS, std::min(first, 1.0), &s,
                                           &counters_[COUNT_SWEEP_STEPS]);
         if (r == SWEEP_CONTACT) first = std::min(first, s);
         return r != SWEEP_UNKNOWN;
     };
+    // Element e's solid (in a's frame when solid_in_a) against element x's test vertex.
+    const auto probe = [&](int64_t e, int64_t x, bool solid_in_a) {
+        double s;
+        if (probe_first_contact(m_.elem_solid + SOLID_WIDTH * e,
+                                m_.elem_solid + SOLID_WIDTH * x + SOLID_PROBE, solid_in_a,
+                                pose0, pose0 + 9, d, SWEEP_EPS, std::min(first, 1.0),
+                                &s) == SWEEP_CONTACT)
+            first = std::min(first, s);
+    };
     for (int64_t ea = m_.elem_start[a]; ea < m_.elem_end[a]; ++ea) {
         for (int64_t eb = m_.elem_start[b]; eb < m_.elem_end[b]; ++eb) {
-            if (!cast(hull(ea), hull(eb), rho)) return SWEEP_UNKNOWN;
-            if (solid(ea) && !cast(true_solid(ea), point(eb), 0.0)) return SWEEP_UNKNOWN;
-            if (solid(eb) && !cast(point(ea), true_solid(eb), 0.0)) return SWEEP_UNKNOWN;
+            if (!cast(ea, eb)) return SWEEP_UNKNOWN;
+            if (solid(ea)) probe(ea, eb, true);
+            if (solid(eb)) probe(eb, ea, false);
         }
     }
     ++counters_[COUNT_SWEEPS];

@@ -715,6 +715,7 @@ struct MotionWork {
     std::vector<double> crude;              // (P,) each pair's crude rate (-1: not yet)
     double extension_max = 0.0;             // E's bound along a straight path
     std::vector<double> T;                  // (L, 16)
+    std::vector<double> turn;               // (L, 3) set_link_pose's cosines (kinematics.hpp)
     std::vector<int64_t> stamp, chain;      // (L,)
     int64_t tag = 0;
     std::vector<double> trans, rot, speed, accel;  // (L,) each link's joint's speeds

@@ -536,7 +536,7 @@ class CollisionChecker:
                                    motion_tolerance=config.motion_tolerance,
                                    threads=config.threads,
                                    min_chunk_us=config.min_chunk_us)
-        new_engine.name_pairs(tuple(layout.checked_pairs))
+        new_engine.name_pairs(tuple(layout.checked_pairs), MotionResult, FREE)
         # Point clouds: the new engine shows each cloud's voxels (their pairs forced). A cloud
         # whose object this change removes is dropped; one prepared for a first commit is kept.
         removed = [name for name in self._clouds
@@ -555,6 +555,7 @@ class CollisionChecker:
         self._scene = layout
         self._engine, self._query = new_engine, new_engine.query
         self._query_motion = new_engine.update_motion
+        self._motion_answer = new_engine.motion_answer
         # The forest is only a view of the engine's tables: nothing is held twice (scenario 4).
         self.forest = forest_view(views['boxes'], views['nodes'], views['volume'],
                                   views['gain'], views['tris'], views['roots'], layout.depths)
@@ -819,8 +820,11 @@ class CollisionChecker:
         :param q_to: the end, the same way.
         :raises JointStateError: as :meth:`check`, naming the end at fault; nothing changes.
         """
+        answer = self._motion_answer(q_from, q_to)    # arrays the engine takes as they are
+        if answer is not None:
+            return answer
         q0, q1 = q_from, q_to
-        code = self._engine.motion(q0, q1)    # arrays the engine takes as they are
+        code = self._engine.motion(q0, q1)
         if code == _NOT_AN_ARRAY:
             ends = []
             for end, positions in (('q_from', q_from), ('q_to', q_to)):
