@@ -248,16 +248,20 @@ class MotionQuery {
         return false;
     }
     // The sweepable pairs w_.sweeping: their first contacts by ray casts (convex_sweep.hpp)
-    // instead of marches, every pair's poses at both ends from one evaluation of each; the
-    // first contact lowers *best (its pair in *best_pair), and a pair a sweep cannot decide
-    // joins the marches (heap).
+    // instead of marches, every pair's pose at the start from one evaluation, and its
+    // translation to the end (pair_shift); the first contact lowers *best (its pair in
+    // *best_pair), and a pair a sweep cannot decide joins the marches (heap).
     void sweep_pairs(const StraightPath& path, const double* q0, double* best,
                      int64_t* best_pair);
     template <class Path>
     void sweep_pairs(const Path&, const double*, double*, int64_t*) {}
-    // Pair p's sweep between the poses of b in a at both ends: SWEEP_CONTACT (*t),
-    // SWEEP_FREE, or SWEEP_UNKNOWN (march it).
-    int sweep(int64_t p, const double* pose0, const double* pose1, double* t);
+    // Sweepable pair p's translation d (3,) of body b relative to body a along the straight
+    // path, in a's frame, from the poses at the evaluated state (its start, which pair_pose
+    // has just placed).
+    void pair_shift(int64_t p, double* d);
+    // Pair p's sweep from the pose of b in a at the start along the translation d:
+    // SWEEP_CONTACT (*t), SWEEP_FREE, or SWEEP_UNKNOWN (march it).
+    int sweep(int64_t p, const double* pose0, const double* d, double* t);
     // Whether every element of body b has a hull (built now if not yet asked).
     bool body_hulls(int64_t b) {
         int8_t& state = w_.body_hull_state[b];
@@ -650,23 +654,21 @@ bool MotionQuery::sweepable(const StraightPath&, int64_t p) {
            body_hulls(a) && body_hulls(b);
 }
 
-void MotionQuery::sweep_pairs(const StraightPath& path, const double* q0, double* best,
+void MotionQuery::sweep_pairs(const StraightPath&, const double* q0, double* best,
                               int64_t* best_pair) {
     const std::vector<int64_t>& pairs = w_.sweeping;
     std::vector<double>& poses = w_.sweep_poses;
-    poses.resize(2 * POSE_WIDTH * pairs.size());
+    poses.resize((POSE_WIDTH + 3) * pairs.size());
     evaluate(q0);
-    for (size_t i = 0; i < pairs.size(); ++i)
-        pair_pose(m_.pair_a[pairs[i]], m_.pair_b[pairs[i]], poses.data() + 2 * POSE_WIDTH * i);
-    path.at(1.0, w_.q_next.data());
-    evaluate(w_.q_next.data());
-    for (size_t i = 0; i < pairs.size(); ++i)
-        pair_pose(m_.pair_a[pairs[i]], m_.pair_b[pairs[i]],
-                  poses.data() + 2 * POSE_WIDTH * i + POSE_WIDTH);
     for (size_t i = 0; i < pairs.size(); ++i) {
-        const double* pose0 = poses.data() + 2 * POSE_WIDTH * i;
+        double* pose = poses.data() + (POSE_WIDTH + 3) * i;
+        pair_pose(m_.pair_a[pairs[i]], m_.pair_b[pairs[i]], pose);
+        pair_shift(pairs[i], pose + POSE_WIDTH);
+    }
+    for (size_t i = 0; i < pairs.size(); ++i) {
+        const double* pose = poses.data() + (POSE_WIDTH + 3) * i;
         double t;
-        const int swept = sweep(pairs[i], pose0, pose0 + POSE_WIDTH, &t);
+        const int swept = sweep(pairs[i], pose, pose + POSE_WIDTH, &t);
         if (swept == SWEEP_UNKNOWN) {
             w_.heap.push_back({pairs[i], 0.0, 1.0, 1.0});
         } else if (swept == SWEEP_CONTACT && t < *best) {
@@ -676,12 +678,51 @@ void MotionQuery::sweep_pairs(const StraightPath& path, const double* q0, double
     }
 }
 
-int MotionQuery::sweep(int64_t p, const double* pose0, const double* pose1, double* t) {
+// Nothing between a sweepable pair's bodies turns: each joint that moves slides its side by
+// its own translation (kinematics.hpp: set_link_pose's prismatic, planar and floating
+// steps), turned into the world by its parent's rotation at the evaluated state, which the
+// motion keeps. Body b's shift less body a's, in a's frame.
+void MotionQuery::pair_shift(int64_t p, double* d) {
+    sides(p);
+    const double* delta = w_.delta.data();
+    double world[3] = {0.0, 0.0, 0.0};
+    for (int s = 0; s < 2; ++s) {
+        const double sign = s == 0 ? -1.0 : 1.0;
+        for (int64_t i = 0; i < w_.side_n[s]; ++i) {
+            const int64_t k = w_.side_link[s][i];
+            const int64_t j = m_.kin.q_index[k];
+            double u[3] = {0.0, 0.0, 0.0};  // in the joint's frame
+            switch (m_.kin.joint_type[k]) {
+                case JOINT_PRISMATIC:
+                    for (int c = 0; c < 3; ++c)
+                        u[c] = m_.kin.multiplier[k] * delta[j] * m_.kin.axis[3 * k + c];
+                    break;
+                case JOINT_PLANAR:
+                    u[0] = delta[j];
+                    u[1] = delta[j + 1];
+                    break;
+                case JOINT_FLOATING:
+                    u[0] = delta[j];
+                    u[1] = delta[j + 1];
+                    u[2] = delta[j + 2];
+                    break;
+                default:  // a turn: none on a sweepable pair's sides
+                    break;
+            }
+            const double* J = m_.kin.T_parent_joint + 16 * k;
+            const double* P = w_.T.data() + 16 * m_.kin.parent[k];
+            double v[3];  // in the parent's frame
+            for (int r = 0; r < 3; ++r) v[r] = J[4 * r] * u[0] + J[4 * r + 1] * u[1] + J[4 * r + 2] * u[2];
+            for (int r = 0; r < 3; ++r)
+                world[r] += sign * (P[4 * r] * v[0] + P[4 * r + 1] * v[1] + P[4 * r + 2] * v[2]);
+        }
+    }
+    const double* A = w_.T.data() + 16 * m_.pair_a[p];
+    for (int c = 0; c < 3; ++c) d[c] = A[c] * world[0] + A[4 + c] * world[1] + A[8 + c] * world[2];
+}
+
+int MotionQuery::sweep(int64_t p, const double* pose0, const double* d, double* t) {
     const int64_t a = m_.pair_a[p], b = m_.pair_b[p];
-    // Sliders alone turn nothing: the rotation is the same at both ends (to rounding).
-    for (int k = 0; k < 9; ++k)
-        if (std::fabs(pose1[k] - pose0[k]) > SWEEP_ROTATION_SLACK) return SWEEP_UNKNOWN;
-    const double d[3] = {pose1[9] - pose0[9], pose1[10] - pose0[10], pose1[11] - pose0[11]};
     if (d[0] == 0.0 && d[1] == 0.0 && d[2] == 0.0) return SWEEP_FREE;  // apart at the start
     const double rho = m_.padding[a] + m_.padding[b];
     const auto hull = [this](int64_t e) {

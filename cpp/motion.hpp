@@ -60,11 +60,9 @@ constexpr int64_t MOTION_FRONT_MAX = 1024;
 // A pair whose bodies only translate relative to each other along a straight motion, both
 // made of convex elements (a primitive, or a convex closed mesh), is swept by ray casts
 // (convex_sweep.hpp) instead of marched, up to this many element pairs; the cast stops within
-// SWEEP_EPS (m) of contact, a tenth of the touching tolerance. The rotation at the two ends
-// must agree to SWEEP_ROTATION_SLACK (rounding: sliders turn nothing), else the pair marches.
+// SWEEP_EPS (m) of contact, a tenth of the touching tolerance.
 constexpr int64_t SWEEP_MAX_ELEMENT_PAIRS = 16;
 constexpr double SWEEP_EPS = 0.1 * MOTION_TOUCH_TOLERANCE;
-constexpr double SWEEP_ROTATION_SLACK = 1e-12;
 // update_motion: a pair apart at both ends of a step whose gaps there do not exceed the step's
 // bound has its distance at q1 measured before it marches (check_step_motion): the
 // incremental query's clearance is where its descent stopped, often a tenth of a millimetre
@@ -733,7 +731,8 @@ struct MotionWork {
     // (INF: none) and how far its bodies translate relative to each other; NaN for the others.
     std::vector<int64_t> swept;
     std::vector<double> swept_at, swept_span;
-    // The pairs the query at hand sweeps, and their poses at both ends (2 POSE_WIDTH each).
+    // The pairs the query at hand sweeps, and each one's pose at the start and translation
+    // (POSE_WIDTH + 3 each).
     std::vector<int64_t> sweeping;
     std::vector<double> sweep_poses;
     // Each element's hull (model.hpp: element_hull), built on first need: hull_state[e] -1
