@@ -114,6 +114,10 @@ CS_ALWAYS_INLINE void set_link_pose(const KinematicTree& kin, int64_t i, const d
     double m10 = J[4], m11 = J[5], m12 = J[6], t1 = J[7];
     double m20 = J[8], m21 = J[9], m22 = J[10], t2 = J[11];
     const int64_t kind = kin.joint_type[i];
+    // An origin that does not turn (a rotation whose diagonal is all 1 is the identity): the
+    // products with its rotation are skipped; they would give the same numbers.
+    const bool plain = J[0] == 1.0 && J[5] == 1.0 && J[10] == 1.0;
+    bool turned = !plain;  // M's rotation is not the identity
     if (kind != JOINT_FIXED) {
         const double value = kin.multiplier[i] * q[kin.q_index[i]] + kin.offset[i];
         const double x = kin.axis[3 * i], y = kin.axis[3 * i + 1], z = kin.axis[3 * i + 2];
@@ -172,7 +176,12 @@ CS_ALWAYS_INLINE void set_link_pose(const KinematicTree& kin, int64_t i, const d
             t2 += value * (m20 * x + m21 * y + m22 * z);
             rotates = false;
         }
-        if (rotates) {
+        if (rotates && plain) {
+            m00 = r00; m01 = r01; m02 = r02;
+            m10 = r10; m11 = r11; m12 = r12;
+            m20 = r20; m21 = r21; m22 = r22;
+            turned = true;
+        } else if (rotates) {
             const double a00 = m00 * r00 + m01 * r10 + m02 * r20;
             const double a01 = m00 * r01 + m01 * r11 + m02 * r21;
             const double a02 = m00 * r02 + m01 * r12 + m02 * r22;
@@ -193,6 +202,15 @@ CS_ALWAYS_INLINE void set_link_pose(const KinematicTree& kin, int64_t i, const d
         T[0] = m00; T[1] = m01; T[2] = m02; T[3] = t0;
         T[4] = m10; T[5] = m11; T[6] = m12; T[7] = t1;
         T[8] = m20; T[9] = m21; T[10] = m22; T[11] = t2;
+    } else if (!turned) {
+        const double* Tp = T_world_link + 16 * p;
+        for (int r = 0; r < 3; ++r) {
+            const double p0 = Tp[4 * r], p1 = Tp[4 * r + 1], p2 = Tp[4 * r + 2];
+            T[4 * r] = p0;
+            T[4 * r + 1] = p1;
+            T[4 * r + 2] = p2;
+            T[4 * r + 3] = p0 * t0 + p1 * t1 + p2 * t2 + Tp[4 * r + 3];
+        }
     } else {
         const double* Tp = T_world_link + 16 * p;
         for (int r = 0; r < 3; ++r) {
