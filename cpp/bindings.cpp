@@ -14,6 +14,7 @@
 // under their C++ names: the Python side reads them, and writes none of them again.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
+#include <structmember.h>
 
 #include <algorithm>
 #include <climits>
@@ -525,6 +526,60 @@ void export_constants(py::module_& m) {
 #undef CS_EXPORT
 }
 
+// motion_answer as a plain callable (vectorcall), for CollisionChecker.check_motion: a
+// primitive's whole sweep costs about as much as pybind11's dispatch of a method, which this
+// skips. It keeps its engine alive.
+struct MotionAnswer {
+    PyObject_HEAD
+    vectorcallfunc vectorcall;
+    PyObject* owner;  // the Engine object
+    PyEngine* engine;
+};
+
+PyObject* motion_answer_call(PyObject* callable, PyObject* const* args, size_t nargsf,
+                             PyObject* kwnames) {
+    auto* self = reinterpret_cast<MotionAnswer*>(callable);
+    if (PyVectorcall_NARGS(nargsf) != 2 || (kwnames && PyTuple_GET_SIZE(kwnames) != 0)) {
+        PyErr_SetString(PyExc_TypeError, "motion_answer(q0, q1): two positional arguments");
+        return nullptr;
+    }
+    try {
+        return self->engine->motion_answer(args[0], args[1]).release().ptr();
+    } catch (py::error_already_set& error) {
+        error.restore();
+    } catch (const std::exception& error) {
+        PyErr_SetString(PyExc_RuntimeError, error.what());
+    }
+    return nullptr;
+}
+
+void motion_answer_dealloc(PyObject* object) {
+    PyTypeObject* type = Py_TYPE(object);  // a heap type: each instance holds it
+    Py_XDECREF(reinterpret_cast<MotionAnswer*>(object)->owner);
+    type->tp_free(object);
+    Py_DECREF(type);
+}
+
+PyTypeObject* motion_answer_type() {
+    static PyMemberDef members[] = {
+        {const_cast<char*>("__vectorcalloffset__"), T_PYSSIZET,
+         Py_ssize_t(offsetof(MotionAnswer, vectorcall)), READONLY, nullptr},
+        {nullptr, 0, 0, 0, nullptr}};
+    static PyType_Slot slots[] = {
+        {Py_tp_dealloc, reinterpret_cast<void*>(motion_answer_dealloc)},
+        {Py_tp_call, reinterpret_cast<void*>(PyVectorcall_Call)},
+        {Py_tp_members, members},
+        {Py_tp_doc, const_cast<char*>("Engine.motion_answer(q0, q1), called without "
+                                      "pybind11's dispatch (Engine.motion_caller).")},
+        {0, nullptr}};
+    static PyType_Spec spec = {"collision_sensor.engine._engine.MotionAnswer",
+                               int(sizeof(MotionAnswer)), 0,
+                               Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_VECTORCALL, slots};
+    static PyObject* type = PyType_FromSpec(&spec);
+    if (!type) throw py::error_already_set();
+    return reinterpret_cast<PyTypeObject*>(type);
+}
+
 void bind_engine(py::module_& m) {
     py::class_<PyEngine>(m, "Engine",
                          "The query engine over a checker's packed buffers F (float64) and I "
@@ -579,6 +634,18 @@ void bind_engine(py::module_& m) {
              "Give the checked pairs' names (a tuple, one per pair, in the pairs' order), "
              "which last_motion answers with, and motion_answer's type (a tuple subclass of "
              "in_collision, first_contact, colliding_pairs) and free answer.")
+        .def("motion_caller",
+             [](py::object self) {
+                 PyTypeObject* type = motion_answer_type();
+                 auto* caller = PyObject_New(MotionAnswer, type);
+                 if (!caller) throw py::error_already_set();
+                 caller->vectorcall = motion_answer_call;
+                 caller->owner = self.inc_ref().ptr();
+                 caller->engine = &self.cast<PyEngine&>();
+                 return py::reinterpret_steal<py::object>(reinterpret_cast<PyObject*>(caller));
+             },
+             "motion_answer as a plain callable of (q0, q1), without pybind11's dispatch; it "
+             "keeps this engine alive.")
         .def("motion_answer", &PyEngine::motion_answer, py::arg("q0"), py::arg("q1"),
              "motion(q0, q1) answered as the checker does: free (name_pairs), or "
              "result_type(True, t, names) as last_motion; None where motion answers "
@@ -1057,7 +1124,7 @@ void bind_build_kernels(py::module_& m) {
 
 //: Bumped whenever the binding's functions or the packed layouts change; the Python side
 //: refuses an extension built from other sources (collision_sensor/engine/compiled.py).
-constexpr int ENGINE_API = 7;
+constexpr int ENGINE_API = 8;
 
 PYBIND11_MODULE(_engine, m) {
     m.doc() = "collision_sensor's compiled engine (C++17); see collision_sensor.engine.compiled";

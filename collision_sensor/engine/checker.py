@@ -555,7 +555,7 @@ class CollisionChecker:
         self._scene = layout
         self._engine, self._query = new_engine, new_engine.query
         self._query_motion = new_engine.update_motion
-        self._motion_answer = new_engine.motion_answer
+        self._motion_answer = new_engine.motion_caller()
         # The forest is only a view of the engine's tables: nothing is held twice (scenario 4).
         self.forest = forest_view(views['boxes'], views['nodes'], views['volume'],
                                   views['gain'], views['tris'], views['roots'], layout.depths)
