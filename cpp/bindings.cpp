@@ -293,17 +293,20 @@ struct PyEngine {
         free_result = std::move(free);
     }
 
-    py::tuple last_motion() {
+    // The names of the pairs the last motion check met, in the pairs' order.
+    py::tuple contact_names() {
         if (py::ssize_t(pair_names.size()) != py::ssize_t(engine->model().n_pairs))
-            throw std::logic_error("last_motion: name the pairs first (name_pairs)");
+            throw std::logic_error("name the pairs first (name_pairs)");
         py::ssize_t count = 0;
         for (const uint8_t hit : motion_pairs) count += hit != 0;
         py::tuple names(count);
         py::ssize_t k = 0;
         for (size_t p = 0; p < motion_pairs.size(); ++p)
             if (motion_pairs[p]) names[k++] = pair_names[p];
-        return py::make_tuple(motion_t, names);
+        return names;
     }
+
+    py::tuple last_motion() { return py::make_tuple(motion_t, contact_names()); }
 
     // motion's answer as the checker gives it, in one call: free_result, or a result_type
     // (True, t, the pairs' names as last_motion's); None for anything motion does not answer
@@ -312,14 +315,7 @@ struct PyEngine {
         const int64_t code = motion(q0, q1);
         if (code == 0) return free_result;
         if (code != 1) return py::none();
-        if (py::ssize_t(pair_names.size()) != py::ssize_t(engine->model().n_pairs))
-            throw std::logic_error("motion_answer: name the pairs first (name_pairs)");
-        py::ssize_t count = 0;
-        for (const uint8_t hit : motion_pairs) count += hit != 0;
-        py::tuple names(count);
-        py::ssize_t k = 0;
-        for (size_t p = 0; p < motion_pairs.size(); ++p)
-            if (motion_pairs[p]) names[k++] = pair_names[p];
+        py::tuple names = contact_names();
         py::float_ t(motion_t);
         // What tuple.__new__(result_type, fields) makes, without the NamedTuple's __new__.
         PyTypeObject* type = reinterpret_cast<PyTypeObject*>(result_type.ptr());
