@@ -242,9 +242,9 @@ inline int closest_simplex(const double (*y)[3], int n, double* v) {
 
 }  // namespace sweep_detail
 
-// A point moving along p + s u (in a primitive's frame) against its true solid (elem_solid
-// row: kind, size): the parameters at which it is inside, [*enter, *leave] (empty when
-// *enter > *leave).
+// A point moving along p + s u (in a primitive's frame) against its true sphere or cylinder
+// (elem_solid row: kind, size): the parameters at which it is inside, [*enter, *leave] (empty
+// when *enter > *leave). A box is never asked: its hull is its solid.
 inline void solid_span(const double* row, const double* p, const double* u, double* enter,
                        double* leave) {
     *enter = -INFINITY;
@@ -253,7 +253,7 @@ inline void solid_span(const double* row, const double* p, const double* u, doub
         *enter = INFINITY;
         *leave = -INFINITY;
     };
-    // |x + s v| <= r over the first n coordinates.
+    // |p + s u| <= r over the first n coordinates.
     const auto round = [&](int n, double r) {
         double a = 0.0, b = 0.0, c = -r * r;
         for (int i = 0; i < n; ++i) {
@@ -271,37 +271,23 @@ inline void solid_span(const double* row, const double* p, const double* u, doub
         *enter = std::max(*enter, (-b - root) / a);
         *leave = std::min(*leave, (-b + root) / a);
     };
-    switch (int(row[0])) {
-        case 2:  // sphere
-            round(3, row[1]);
-            break;
-        case 3:  // cylinder along z
-            round(2, row[1]);
-            if (u[2] == 0.0) {
-                if (std::fabs(p[2]) > row[2]) none();
-            } else {
-                const double x = (-row[2] - p[2]) / u[2], y = (row[2] - p[2]) / u[2];
-                *enter = std::max(*enter, std::min(x, y));
-                *leave = std::min(*leave, std::max(x, y));
-            }
-            break;
-        default:  // a box: its slabs
-            for (int i = 0; i < 3; ++i) {
-                if (u[i] == 0.0) {
-                    if (std::fabs(p[i]) > row[1 + i]) none();
-                    continue;
-                }
-                const double x = (-row[1 + i] - p[i]) / u[i], y = (row[1 + i] - p[i]) / u[i];
-                *enter = std::max(*enter, std::min(x, y));
-                *leave = std::min(*leave, std::max(x, y));
-            }
-            break;
+    if (int(row[0]) == 2) {  // a sphere: radius
+        round(3, row[1]);
+        return;
     }
+    round(2, row[1]);  // a cylinder along z: radius, and half its length
+    if (u[2] == 0.0) {
+        if (std::fabs(p[2]) > row[2]) none();
+        return;
+    }
+    const double x = (-row[2] - p[2]) / u[2], y = (row[2] - p[2]) / u[2];
+    *enter = std::max(*enter, std::min(x, y));
+    *leave = std::min(*leave, std::max(x, y));
 }
 
-// A test vertex against a primitive's true solid (elem_solid row), where B moves as in
-// sweep_first_contact (placed by R and t0 in a's frame at the start, translating by d): the
-// solid is A's (solid_in_a; the point B's) or B's (the point A's). Its first contact, in
+// A test vertex against a sphere's or cylinder's true solid (elem_solid row), where B moves
+// as in sweep_first_contact (placed by R and t0 in a's frame at the start, translating by d):
+// the solid is A's (solid_in_a; the point B's) or B's (the point A's). Its first contact, in
 // closed form: SWEEP_CONTACT with *s no later than the point's entry, by at most eps of its
 // travel (every earlier state outside), or SWEEP_FREE up to limit.
 inline int probe_first_contact(const double* row, const double* point, bool solid_in_a,
