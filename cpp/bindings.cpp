@@ -565,8 +565,8 @@ PyTypeObject* motion_answer_type() {
         {Py_tp_dealloc, reinterpret_cast<void*>(motion_answer_dealloc)},
         {Py_tp_call, reinterpret_cast<void*>(PyVectorcall_Call)},
         {Py_tp_members, members},
-        {Py_tp_doc, const_cast<char*>("Engine.motion_answer(q0, q1), called without "
-                                      "pybind11's dispatch (Engine.motion_caller).")},
+        {Py_tp_doc, const_cast<char*>("Engine.motion_caller()'s answer: (q0, q1) -> "
+                                      "the motion's result, or None.")},
         {0, nullptr}};
     static PyType_Spec spec = {"collision_sensor.engine._engine.MotionAnswer",
                                int(sizeof(MotionAnswer)), 0,
@@ -640,12 +640,10 @@ void bind_engine(py::module_& m) {
                  caller->engine = &self.cast<PyEngine&>();
                  return py::reinterpret_steal<py::object>(reinterpret_cast<PyObject*>(caller));
              },
-             "motion_answer as a plain callable of (q0, q1), without pybind11's dispatch; it "
+             "A plain callable of (q0, q1), without pybind11's dispatch, that answers "
+             "motion(q0, q1) as the checker does: free (name_pairs), or result_type(True, t, "
+             "names) as last_motion; None where motion answers anything else (ask it). It "
              "keeps this engine alive.")
-        .def("motion_answer", &PyEngine::motion_answer, py::arg("q0"), py::arg("q1"),
-             "motion(q0, q1) answered as the checker does: free (name_pairs), or "
-             "result_type(True, t, names) as last_motion; None where motion answers "
-             "anything else (ask it).")
         .def("last_motion", &PyEngine::last_motion,
              "The last motion check's (t, pairs): its first contact's fraction and the "
              "names (name_pairs), in the pairs' order, of the pairs in contact (or within "

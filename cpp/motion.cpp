@@ -241,23 +241,21 @@ class MotionQuery {
 
     // Whether pair p can be swept along a straight path: no joint between its bodies turns
     // (sides(p) has just listed them), so they only translate relative to each other, and
-    // each body's elements are convex hulls.
+    // each body's elements are convex hulls. A pair that can joins w_.sweeping, with its
+    // pose at the evaluated state (the path's start) and its translation to the end
+    // (pair_shift) in w_.sweep_poses.
     bool sweepable(const StraightPath&, int64_t p);
     template <class Path>
     bool sweepable(const Path&, int64_t) {
         return false;
     }
-    // The sweepable pairs w_.sweeping: their first contacts by ray casts (convex_sweep.hpp)
-    // instead of marches, every pair's pose at the start from one evaluation, and its
-    // translation to the end (pair_shift); the first contact lowers *best (its pair in
-    // *best_pair), and a pair a sweep cannot decide joins the marches (heap).
-    void sweep_pairs(const StraightPath& path, const double* q0, double* best,
-                     int64_t* best_pair);
-    template <class Path>
-    void sweep_pairs(const Path&, const double*, double*, int64_t*) {}
+    // The pairs in w_.sweeping: their first contacts by ray casts (convex_sweep.hpp) instead
+    // of marches; the first contact lowers *best (its pair in *best_pair), and a pair a sweep
+    // cannot decide joins the marches (heap).
+    void sweep_pairs(double* best, int64_t* best_pair);
     // Sweepable pair p's translation d (3,) of body b relative to body a along the straight
-    // path, in a's frame, from the poses at the evaluated state (its start, which pair_pose
-    // has just placed).
+    // path, in a's frame, from its sides (sides(p) has just listed them) and the poses at the
+    // evaluated state (its start, which pair_pose has just placed).
     void pair_shift(int64_t p, double* d);
     // Pair p's sweep from the pose of b in a at the start along the translation d:
     // SWEEP_CONTACT (*t), SWEEP_FREE, or SWEEP_UNKNOWN (march it).
@@ -650,23 +648,22 @@ bool MotionQuery::sweepable(const StraightPath&, int64_t p) {
     for (int s = 0; s < 2; ++s)
         for (int64_t i = 0; i < w_.side_n[s]; ++i)
             if (w_.side_rot[s][i] != 0.0) return false;
-    return !m_.is_cloud(b) && m_.elements(a) * m_.elements(b) <= SWEEP_MAX_ELEMENT_PAIRS &&
-           body_hulls(a) && body_hulls(b);
+    if (m_.is_cloud(b) || m_.elements(a) * m_.elements(b) > SWEEP_MAX_ELEMENT_PAIRS ||
+        !body_hulls(a) || !body_hulls(b))
+        return false;
+    w_.sweeping.push_back(p);
+    std::vector<double>& poses = w_.sweep_poses;
+    poses.resize((POSE_WIDTH + 3) * w_.sweeping.size());
+    double* pose = poses.data() + poses.size() - (POSE_WIDTH + 3);
+    pair_pose(a, b, pose);
+    pair_shift(p, pose + POSE_WIDTH);
+    return true;
 }
 
-void MotionQuery::sweep_pairs(const StraightPath&, const double* q0, double* best,
-                              int64_t* best_pair) {
+void MotionQuery::sweep_pairs(double* best, int64_t* best_pair) {
     const std::vector<int64_t>& pairs = w_.sweeping;
-    std::vector<double>& poses = w_.sweep_poses;
-    poses.resize((POSE_WIDTH + 3) * pairs.size());
-    evaluate(q0);
     for (size_t i = 0; i < pairs.size(); ++i) {
-        double* pose = poses.data() + (POSE_WIDTH + 3) * i;
-        pair_pose(m_.pair_a[pairs[i]], m_.pair_b[pairs[i]], pose);
-        pair_shift(pairs[i], pose + POSE_WIDTH);
-    }
-    for (size_t i = 0; i < pairs.size(); ++i) {
-        const double* pose = poses.data() + (POSE_WIDTH + 3) * i;
+        const double* pose = w_.sweep_poses.data() + (POSE_WIDTH + 3) * i;
         double t;
         const int swept = sweep(pairs[i], pose, pose + POSE_WIDTH, &t);
         if (swept == SWEEP_UNKNOWN) {
@@ -683,7 +680,6 @@ void MotionQuery::sweep_pairs(const StraightPath&, const double* q0, double* bes
 // steps), turned into the world by its parent's rotation at the evaluated state, which the
 // motion keeps. Body b's shift less body a's, in a's frame.
 void MotionQuery::pair_shift(int64_t p, double* d) {
-    sides(p);
     const double* delta = w_.delta.data();
     double world[3] = {0.0, 0.0, 0.0};
     for (int s = 0; s < 2; ++s) {
@@ -1006,13 +1002,9 @@ int64_t MotionQuery::march_pairs(const int64_t* list, int64_t n, const Path& pat
     w_.sweeping.clear();
     for (int64_t i = 0; i < n; ++i) {
         const int64_t p = list ? list[i] : i;
-        if (!sides(p)) continue;
-        if (sweepable(path, p))
-            w_.sweeping.push_back(p);
-        else
-            heap.push_back({p, 0.0, 1.0, 1.0});
+        if (sides(p) && !sweepable(path, p)) heap.push_back({p, 0.0, 1.0, 1.0});
     }
-    if (!w_.sweeping.empty()) sweep_pairs(path, q0, best, &best_pair);
+    if (!w_.sweeping.empty()) sweep_pairs(best, &best_pair);
     std::make_heap(heap.begin(), heap.end(), later);
     while (!heap.empty() && heap.front().t < *best) {
         std::pop_heap(heap.begin(), heap.end(), later);
