@@ -65,8 +65,8 @@ inline const double* hull_seed_direction(int k) {
 
 // The distinct vertices (n, 3) of a convex hull, each one's neighbours along its edges
 // (adj[adj_start[i] : adj_start[i + 1]], local indices), its furthest vertex along each
-// hull_seed_direction (seeds, HULL_SEEDS; unused for hulls of at most HULL_SCAN_MAX) and the
-// vertices' mean (centre, a point inside it).
+// hull_seed_direction (seeds, HULL_SEEDS; unused for hulls of at most HULL_SCAN_MAX), the
+// vertices' mean (centre, a point inside it) and a radius about it holding every vertex.
 struct HullView {
     const double* v;
     int64_t n;
@@ -74,6 +74,7 @@ struct HullView {
     const int64_t* adj;
     const int64_t* seeds;
     const double* centre;
+    double radius;
 };
 
 namespace sweep_detail {
@@ -344,15 +345,30 @@ inline int sweep_first_contact(const HullView& A, const HullView& B, const doubl
         for (int i = 0; i < 3; ++i)
             out[i] = pa[i] - (R[3 * i] * pb[0] + R[3 * i + 1] * pb[1] + R[3 * i + 2] * pb[2] + t0[i]);
     };
-    double lambda = 0.0, x[3] = {0.0, 0.0, 0.0};
+    // C lies in the ball about c, the centres' difference, of the radii's sum: x = lambda d
+    // is farther than rho + eps from C until it enters that ball grown by rho + eps, so the
+    // ray starts there, and misses C when it misses the ball.
+    const double reach = rho + eps;
+    double c[3];
+    for (int i = 0; i < 3; ++i)
+        c[i] = A.centre[i] - (R[3 * i] * B.centre[0] + R[3 * i + 1] * B.centre[1] +
+                              R[3 * i + 2] * B.centre[2] + t0[i]);
+    double lambda = 0.0;
+    {
+        const double ball = A.radius + B.radius + reach;
+        const double dd = dot(d, d), dc = dot(d, c), cc = dot(c, c) - ball * ball;
+        if (cc > 0.0) {  // outside the ball at the start
+            const double disc = dc * dc - dd * cc;
+            if (dc <= 0.0 || disc < 0.0) return SWEEP_FREE;  // moving away, or passing by
+            lambda = cc / (dc + std::sqrt(disc));              // the smaller root
+            if (lambda > limit) return SWEEP_FREE;
+        }
+    }
+    double x[3] = {lambda * d[0], lambda * d[1], lambda * d[2]};
     double p[4][3], y[4][3], v[3];
     int n = 0;
-    // v = x less a point of C: the centres' difference, whose direction points the first
-    // support near the answer (x = 0 here).
-    for (int i = 0; i < 3; ++i)
-        v[i] = -(A.centre[i] - (R[3 * i] * B.centre[0] + R[3 * i + 1] * B.centre[1] +
-                                R[3 * i + 2] * B.centre[2] + t0[i]));
-    const double reach = rho + eps;
+    // v = x less a point of C (c): its direction points the first support near the answer.
+    for (int i = 0; i < 3; ++i) v[i] = x[i] - c[i];
     for (int iteration = 0; iteration < SWEEP_ITERATIONS; ++iteration) {
         ++*steps;
         const double vv = dot(v, v);

@@ -253,6 +253,12 @@ bool element_hull(const Model& m, int64_t e, Hull& out) {
         for (const auto& x : distinct) sum += x[i];
         out.centre[i] = sum / double(distinct.size());
     }
+    double far = 0.0;
+    for (const auto& x : distinct) {
+        const double e[3] = {x[0] - out.centre[0], x[1] - out.centre[1], x[2] - out.centre[2]};
+        far = std::max(far, e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+    }
+    out.radius = std::sqrt(far) * (1.0 + 1e-12) + 1e-12;
     out.adj_start.assign(1, 0);
     out.adj.clear();
     size_t next = 0;

@@ -72,11 +72,13 @@ struct Model {
 // (convex_sweep.hpp): the distinct vertices (n, 3) of a primitive's tessellation, or of a
 // closed mesh every face plane of which has them all on one side, in its body's frame; each
 // vertex's neighbours along the triangles' edges (adj[adj_start[i] : adj_start[i + 1]]); its
-// furthest vertex along each of convex_sweep.hpp's seed directions.
+// furthest vertex along each of convex_sweep.hpp's seed directions; the vertices' mean
+// (centre) and a radius about it that holds them all, rounding included.
 struct Hull {
     std::vector<double> vertices;
     std::vector<int64_t> adj_start, adj, seeds;
     double centre[3] = {0.0, 0.0, 0.0};
+    double radius = 0.0;
 };
 
 // Element e's hull into out; false (out untouched) when e is not a closed convex element.
