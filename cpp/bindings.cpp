@@ -522,36 +522,67 @@ void export_constants(py::module_& m) {
 #undef CS_EXPORT
 }
 
-// motion_answer as a plain callable (vectorcall), for CollisionChecker.check_motion: a
-// primitive's whole sweep costs about as much as pybind11's dispatch of a method, which this
-// skips. It keeps its engine alive.
+// CollisionChecker.check_motion as a plain callable (vectorcall): motion_answer, or, where
+// that is None, the checker's own Python path (fallback). A primitive's whole sweep costs
+// about as much as pybind11's dispatch of a method, or a Python method's frame, which this
+// skips. It is aimed at one engine at a time (Engine.aim: the checker's current one, so a
+// caller kept across a scene change answers for the new scene), which it keeps alive, as
+// every call does the engine it started with.
 struct MotionAnswer {
     PyObject_HEAD
     vectorcallfunc vectorcall;
-    PyObject* owner;  // the Engine object
+    PyObject* owner;     // the Engine object
     PyEngine* engine;
+    PyObject* fallback;  // (q0, q1) -> the answer, or nullptr
 };
 
 PyObject* motion_answer_call(PyObject* callable, PyObject* const* args, size_t nargsf,
                              PyObject* kwnames) {
     auto* self = reinterpret_cast<MotionAnswer*>(callable);
-    if (PyVectorcall_NARGS(nargsf) != 2 || (kwnames && PyTuple_GET_SIZE(kwnames) != 0)) {
-        PyErr_SetString(PyExc_TypeError, "motion_answer(q0, q1): two positional arguments");
+    const Py_ssize_t nargs = PyVectorcall_NARGS(nargsf);
+    if (nargs != 2 || (kwnames && PyTuple_GET_SIZE(kwnames) != 0)) {
+        if (self->fallback)  // keywords, or a wrong count: the Python path says what is wrong
+            return PyObject_Vectorcall(self->fallback, args, nargsf, kwnames);
+        PyErr_SetString(PyExc_TypeError, "check_motion(q_from, q_to): two arguments");
         return nullptr;
     }
+    PyObject* owner = self->owner;
+    Py_INCREF(owner);  // an aim elsewhere during the call leaves this engine alive
+    PyObject* answer = nullptr;
     try {
-        return self->engine->motion_answer(args[0], args[1]).release().ptr();
+        answer = self->engine->motion_answer(args[0], args[1]).release().ptr();
     } catch (py::error_already_set& error) {
         error.restore();
     } catch (const std::exception& error) {
         PyErr_SetString(PyExc_RuntimeError, error.what());
     }
-    return nullptr;
+    Py_DECREF(owner);
+    if (answer == Py_None && self->fallback) {
+        Py_DECREF(answer);
+        return PyObject_Vectorcall(self->fallback, args, nargsf, nullptr);
+    }
+    return answer;
+}
+
+int motion_answer_traverse(PyObject* object, visitproc visit, void* arg) {
+    auto* self = reinterpret_cast<MotionAnswer*>(object);
+    Py_VISIT(self->owner);
+    Py_VISIT(self->fallback);
+    Py_VISIT(Py_TYPE(object));
+    return 0;
+}
+
+int motion_answer_clear(PyObject* object) {
+    Py_CLEAR(reinterpret_cast<MotionAnswer*>(object)->fallback);  // the checker's cycle
+    return 0;
 }
 
 void motion_answer_dealloc(PyObject* object) {
     PyTypeObject* type = Py_TYPE(object);  // a heap type: each instance holds it
-    Py_XDECREF(reinterpret_cast<MotionAnswer*>(object)->owner);
+    PyObject_GC_UnTrack(object);
+    auto* self = reinterpret_cast<MotionAnswer*>(object);
+    Py_CLEAR(self->fallback);
+    Py_CLEAR(self->owner);
     type->tp_free(object);
     Py_DECREF(type);
 }
@@ -563,17 +594,33 @@ PyTypeObject* motion_answer_type() {
         {nullptr, 0, 0, 0, nullptr}};
     static PyType_Slot slots[] = {
         {Py_tp_dealloc, reinterpret_cast<void*>(motion_answer_dealloc)},
+        {Py_tp_traverse, reinterpret_cast<void*>(motion_answer_traverse)},
+        {Py_tp_clear, reinterpret_cast<void*>(motion_answer_clear)},
         {Py_tp_call, reinterpret_cast<void*>(PyVectorcall_Call)},
         {Py_tp_members, members},
-        {Py_tp_doc, const_cast<char*>("Engine.motion_caller()'s answer: (q0, q1) -> "
-                                      "the motion's result, or None.")},
+        {Py_tp_doc, const_cast<char*>(
+                        "check_motion(q_from, q_to) -> MotionResult, compiled: see "
+                        "CollisionChecker.check_motion.")},
         {0, nullptr}};
     static PyType_Spec spec = {"collision_sensor.engine._engine.MotionAnswer",
                                int(sizeof(MotionAnswer)), 0,
-                               Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_VECTORCALL, slots};
+                               Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_VECTORCALL |
+                                   Py_TPFLAGS_HAVE_GC,
+                               slots};
     static PyObject* type = PyType_FromSpec(&spec);
     if (!type) throw py::error_already_set();
     return reinterpret_cast<PyTypeObject*>(type);
+}
+
+// Aim caller (a MotionAnswer) at engine self.
+void aim_motion_answer(py::object self, py::handle caller) {
+    if (Py_TYPE(caller.ptr()) != motion_answer_type())
+        throw std::invalid_argument("aim: not a motion_caller() answer");
+    auto* answer = reinterpret_cast<MotionAnswer*>(caller.ptr());
+    PyObject* old = answer->owner;
+    answer->engine = &self.cast<PyEngine&>();
+    answer->owner = self.inc_ref().ptr();
+    Py_XDECREF(old);
 }
 
 void bind_engine(py::module_& m) {
@@ -631,19 +678,24 @@ void bind_engine(py::module_& m) {
              "which last_motion answers with, and motion_answer's type (a tuple subclass of "
              "in_collision, first_contact, colliding_pairs) and free answer.")
         .def("motion_caller",
-             [](py::object self) {
+             [](py::object self, py::object fallback) {
                  PyTypeObject* type = motion_answer_type();
-                 auto* caller = PyObject_New(MotionAnswer, type);
+                 auto* caller = PyObject_GC_New(MotionAnswer, type);
                  if (!caller) throw py::error_already_set();
                  caller->vectorcall = motion_answer_call;
                  caller->owner = self.inc_ref().ptr();
                  caller->engine = &self.cast<PyEngine&>();
+                 caller->fallback = fallback.is_none() ? nullptr : fallback.inc_ref().ptr();
+                 PyObject_GC_Track(reinterpret_cast<PyObject*>(caller));
                  return py::reinterpret_steal<py::object>(reinterpret_cast<PyObject*>(caller));
              },
+             py::arg("fallback") = py::none(),
              "A plain callable of (q0, q1), without pybind11's dispatch, that answers "
              "motion(q0, q1) as the checker does: free (name_pairs), or result_type(True, t, "
-             "names) as last_motion; None where motion answers anything else (ask it). It "
-             "keeps this engine alive.")
+             "names) as last_motion; where motion answers anything else, fallback(q0, q1) "
+             "(None without one). It keeps the engine it is aimed at alive.")
+        .def("aim", &aim_motion_answer, py::arg("caller"),
+             "Aim a motion_caller() answer at this engine from now on.")
         .def("last_motion", &PyEngine::last_motion,
              "The last motion check's (t, pairs): its first contact's fraction and the "
              "names (name_pairs), in the pairs' order, of the pairs in contact (or within "
@@ -1118,7 +1170,7 @@ void bind_build_kernels(py::module_& m) {
 
 //: Bumped whenever the binding's functions or the packed layouts change; the Python side
 //: refuses an extension built from other sources (collision_sensor/engine/compiled.py).
-constexpr int ENGINE_API = 8;
+constexpr int ENGINE_API = 9;
 
 PYBIND11_MODULE(_engine, m) {
     m.doc() = "collision_sensor's compiled engine (C++17); see collision_sensor.engine.compiled";

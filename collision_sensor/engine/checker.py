@@ -555,7 +555,16 @@ class CollisionChecker:
         self._scene = layout
         self._engine, self._query = new_engine, new_engine.query
         self._query_motion = new_engine.update_motion
-        self._motion_answer = new_engine.motion_caller()
+        # check_motion answered in one compiled call (no Python frame) by a caller aimed at
+        # the current engine; the method below is its path for anything else. A subclass's
+        # own check_motion stands.
+        if type(self).check_motion is CollisionChecker.check_motion:
+            caller = self.__dict__.get('check_motion')
+            if caller is None:
+                self.check_motion = new_engine.motion_caller(
+                    CollisionChecker.check_motion.__get__(self))
+            else:
+                new_engine.aim(caller)
         # The forest is only a view of the engine's tables: nothing is held twice (scenario 4).
         self.forest = forest_view(views['boxes'], views['nodes'], views['volume'],
                                   views['gain'], views['tris'], views['roots'], layout.depths)
@@ -820,9 +829,9 @@ class CollisionChecker:
         :param q_to: the end, the same way.
         :raises JointStateError: as :meth:`check`, naming the end at fault; nothing changes.
         """
-        answer = self._motion_answer(q_from, q_to)    # arrays the engine takes as they are
-        if answer is not None:
-            return answer
+        # Each checker's own check_motion is its engine's compiled caller (set with the
+        # engine), which answers arrays the engine takes as they are and comes here for the
+        # rest: other sequences, mappings, unusable values.
         q0, q1 = q_from, q_to
         code = self._engine.motion(q0, q1)
         if code == _NOT_AN_ARRAY:

@@ -6,8 +6,10 @@ with ``check_batch``; the first sampled state in contact is confirmed by python-
 same triangles placed by pinocchio (``FclOracle``). A reported first contact is confirmed by
 python-fcl too: some reported pair's distance there is within the touching tolerance.
 """
+import gc
 import math
 import textwrap
+import weakref
 
 import numpy as np
 import pytest
@@ -345,6 +347,51 @@ def test_check_motion_leaves_the_carried_state_as_it_was(panda_cell):
     checker.check_motion(q0, q1)
     assert checker.positions == positions
     assert checker.update(q0) == before._replace(rechecked_pairs=0)
+
+
+def test_check_motion_is_a_compiled_call_that_follows_its_checker():
+    """A checker's check_motion is one compiled call: kept across a scene change it answers
+    for the scene as it is (as a checker built with that scene does), other forms of input
+    and keywords take the Python path to the same answers, a subclass's own check_motion
+    stands, and a dropped checker is collected."""
+    checker = CollisionChecker.from_urdf(SMALL_ROBOT, scene=SMALL_SCENE)
+    names = checker.joint_names
+    q0 = np.zeros(len(names))
+    q1 = np.array([{'shoulder': 0.5, 'elbow': -0.5, 'extend': 0.0, 'wrist': 0.5}[n]
+                   for n in names])
+    kept = checker.check_motion
+    before = kept(q0, q1)
+    checker.check(0.5 * (q0 + q1))
+    T = checker.link_poses()['lower']
+    block = {'name': 'block', 'box': {'size': [0.05, 0.05, 0.05]},
+             'pose': {'xyz': [float(x) for x in T[:3, 3] + T[:3, 2] * 0.2]}}
+    checker.add_object(load_scene({'objects': [block]})[0])
+    rebuilt = CollisionChecker.from_urdf(SMALL_ROBOT,
+                                         scene={'objects': SMALL_SCENE['objects'] + [block]})
+    expected = rebuilt.check_motion(q0, q1)
+    assert expected.in_collision and not before.in_collision
+    assert kept(q0, q1) == checker.check_motion(q0, q1) == expected
+    assert CollisionChecker.check_motion(checker, q0, q1) == expected
+    assert checker.check_motion(q_from=list(q0), q_to=dict(zip(names, q1))) == expected
+    with pytest.raises(TypeError):
+        checker.check_motion(q0)
+    with pytest.raises(JointStateError, match='q_to'):
+        checker.check_motion(q0, np.full(len(names), np.nan))
+
+    calls = []
+
+    class Logged(CollisionChecker):
+        def check_motion(self, q_from, q_to):
+            calls.append((q_from, q_to))
+            return super().check_motion(q_from, q_to)
+
+    logged = Logged.from_urdf(SMALL_ROBOT, scene=SMALL_SCENE)
+    assert logged.check_motion(q0, q1) == before and len(calls) == 1
+
+    gone = weakref.ref(checker)
+    del checker, kept
+    gc.collect()
+    assert gone() is None
 
 
 @pytest.mark.parametrize('cell', ['panda_cell', 'ur5_cell'])

@@ -144,6 +144,7 @@ class Case(NamedTuple):
     truth: bool                     # fcl.collide sampled on the true shapes
     decisive: bool                  # ... and on the shrunk ones alike
     truth_t: float                  # the first sampled contact (fraction), or 1
+    checker: object                 # whose check_motion it is (its counters)
 
 
 def _primitive_cases(settings, fcl) -> List[Case]:
@@ -184,7 +185,7 @@ def _primitive_cases(settings, fcl) -> List[Case]:
                 o2 = fcl.CollisionObject(true[1], tf_fixed)
                 cases.append(Case(f'{moving}-{fixed}', checker.check_motion, q0, q1,
                                   (o1, fcl.Transform(R.copy(), p1.copy()), o2, tf_fixed),
-                                  truth, truth == shrunk_truth, truth_t))
+                                  truth, truth == shrunk_truth, truth_t, checker))
     return cases
 
 
@@ -309,7 +310,7 @@ def _ccd_work(cases):
         group = [c for c in cases if c.truth == truth]
         total = np.zeros(len(columns))
         for case in group:
-            checker = case.check_motion.__self__
+            checker = case.checker
             checker.counters[:] = 0
             case.check_motion(case.q_from, case.q_to)
             total += checker.counters[columns]
