@@ -41,8 +41,9 @@ inline int hull_seed_cell(const double* d) {
     const auto cell = [scale](double x) {
         return std::min(HULL_SEED_GRID - 1, std::max(0, int((x * scale) + 0.5 * HULL_SEED_GRID)));
     };
-    return (f * HULL_SEED_GRID + cell(d[(axis + 1) % 3])) * HULL_SEED_GRID +
-           cell(d[(axis + 2) % 3]);
+    static constexpr int next[3][2] = {{1, 2}, {2, 0}, {0, 1}};  // (axis + 1, axis + 2) mod 3
+    return (f * HULL_SEED_GRID + cell(d[next[axis][0]])) * HULL_SEED_GRID +
+           cell(d[next[axis][1]]);
 }
 
 inline const double* hull_seed_direction(int k) {
