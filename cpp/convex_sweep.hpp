@@ -71,11 +71,13 @@ inline const double* hull_seed_direction(int k) {
 struct HullView {
     const double* v;
     int64_t n;
-    const int64_t* adj_start;
-    const int64_t* adj;
-    const int64_t* seeds;
+    const int32_t* adj_start;
+    const int32_t* adj;
+    const int32_t* seeds;
     const double* centre;
     double radius;
+    const double* axes;     // a box's (Hull::axes), or nullptr
+    const int32_t* corner;  // a box's vertex per octant (Hull::corner), or nullptr
 };
 
 namespace sweep_detail {
@@ -87,6 +89,13 @@ inline double dot(const double* a, const double* b) {
 // The vertex of h furthest along d (ties: any), climbing from *hint (updated). On a convex
 // surface a vertex no neighbour of which is further along d is furthest of all.
 inline const double* hull_support(const HullView& h, const double* d, int64_t* hint) {
+    if (h.corner) {  // a box: the corner on d's side of each axis
+        const double* a = h.axes;
+        const int octant = (a[0] * d[0] + a[3] * d[1] + a[6] * d[2] > 0.0 ? 1 : 0) |
+                           (a[1] * d[0] + a[4] * d[1] + a[7] * d[2] > 0.0 ? 2 : 0) |
+                           (a[2] * d[0] + a[5] * d[1] + a[8] * d[2] > 0.0 ? 4 : 0);
+        return h.v + 3 * h.corner[octant];
+    }
     if (h.n <= HULL_SCAN_MAX) {
         int64_t best = 0;
         double top = dot(h.v, d);

@@ -246,6 +246,8 @@ bool element_hull(const Model& m, int64_t e, Hull& out) {
     std::sort(edges.begin(), edges.end());
     edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
     const int64_t n = int64_t(distinct.size());
+    // Indices are int32 (hull_support reads half the bytes): a hull beyond that is not swept.
+    if (edges.size() >= size_t(std::numeric_limits<int32_t>::max())) return false;
     out.vertices.clear();
     for (const auto& x : distinct) out.vertices.insert(out.vertices.end(), x.begin(), x.end());
     for (int i = 0; i < 3; ++i) {
@@ -263,8 +265,43 @@ bool element_hull(const Model& m, int64_t e, Hull& out) {
     out.adj.clear();
     size_t next = 0;
     for (int64_t i = 0; i < n; ++i) {
-        while (next < edges.size() && edges[next].first == i) out.adj.push_back(edges[next++].second);
-        out.adj_start.push_back(int64_t(out.adj.size()));
+        while (next < edges.size() && edges[next].first == i) out.adj.push_back(int32_t(edges[next++].second));
+        out.adj_start.push_back(int32_t(out.adj.size()));
+    }
+    // A box's corners by octant, each the vertex nearest where it should be (each one
+    // distinct, and near: else the box is read as any hull).
+    out.axes.clear();
+    out.corner.clear();
+    if (kind == SOLID_BOX && n == 8) {
+        const double* row = m.elem_solid + SOLID_WIDTH * e;
+        const double* R = row + 4;
+        const double* t = row + 13;
+        const double size = std::fabs(row[1]) + std::fabs(row[2]) + std::fabs(row[3]);
+        std::vector<int32_t> corner(8, -1);
+        bool found = true;
+        for (int s = 0; s < 8 && found; ++s) {
+            double x[3];
+            for (int i = 0; i < 3; ++i) {
+                x[i] = t[i];
+                for (int k = 0; k < 3; ++k) x[i] += (s >> k & 1 ? 1.0 : -1.0) * row[1 + k] * R[3 * i + k];
+            }
+            int64_t best = 0;
+            double gap = std::numeric_limits<double>::infinity();
+            for (int64_t i = 0; i < n; ++i) {
+                const auto& y = distinct[i];
+                const double g = std::fabs(y[0] - x[0]) + std::fabs(y[1] - x[1]) + std::fabs(y[2] - x[2]);
+                if (g < gap) {
+                    gap = g;
+                    best = i;
+                }
+            }
+            found = gap <= 1e-9 * size && std::find(corner.begin(), corner.end(), best) == corner.end();
+            corner[s] = int32_t(best);
+        }
+        if (found) {
+            out.axes.assign(R, R + 9);
+            out.corner = corner;
+        }
     }
     out.seeds.assign(HULL_SEEDS, 0);
     for (int k = 0; k < HULL_SEEDS; ++k) {
@@ -275,7 +312,7 @@ bool element_hull(const Model& m, int64_t e, Hull& out) {
             const double along = u[0] * x[0] + u[1] * x[1] + u[2] * x[2];
             if (along > top) {
                 top = along;
-                out.seeds[k] = i;
+                out.seeds[k] = int32_t(i);
             }
         }
     }

@@ -76,9 +76,13 @@ struct Model {
 // (centre) and a radius about it that holds them all, rounding included.
 struct Hull {
     std::vector<double> vertices;
-    std::vector<int64_t> adj_start, adj, seeds;
+    std::vector<int32_t> adj_start, adj, seeds;  // int32: half the cache lines a climb reads
     double centre[3] = {0.0, 0.0, 0.0};
     double radius = 0.0;
+    // A box's: its axes (columns of a 3 x 3, row-major) and, per octant (bit k: + along axis
+    // k), the vertex at that corner; empty for any other hull.
+    std::vector<double> axes;
+    std::vector<int32_t> corner;
 };
 
 // Element e's hull into out; false (out untouched) when e is not a closed convex element.

@@ -724,7 +724,9 @@ int MotionQuery::sweep(int64_t p, const double* pose0, const double* d, double* 
     const auto hull = [this](int64_t e) {
         const Hull& h = w_.hulls[e];
         return HullView{h.vertices.data(), int64_t(h.vertices.size() / 3), h.adj_start.data(),
-                        h.adj.data(), h.seeds.data(), h.centre, h.radius};
+                        h.adj.data(), h.seeds.data(), h.centre, h.radius,
+                        h.corner.empty() ? nullptr : h.axes.data(),
+                        h.corner.empty() ? nullptr : h.corner.data()};
     };
     // A box's hull is its solid (its eight corners): a test vertex of the other element
     // enters it no sooner than that element's hull meets it, so only a round solid, which
