@@ -5,6 +5,7 @@
 #include <cfloat>
 #include <cmath>
 #include <cstring>
+#include <type_traits>
 
 #include "cloud_queries.hpp"
 #include "convex_sweep.hpp"
@@ -192,7 +193,10 @@ class MotionQuery {
         // In contact at the start: the pairs in contact there, as a check of the start gives
         // them; else the pairs within the touching tolerance of contact.
         contacts(list, n, path, best, best == 0.0 ? 0.0 : MOTION_TOUCH_TOLERANCE, pairs);
-        pairs[best_pair] = 1;
+        // A sweep may meet its pair at the start within SWEEP_EPS of contact, not in it: that
+        // pair is named only if the start has no pair in contact.
+        if (best > 0.0 || std::find(pairs, pairs + m_.n_pairs, uint8_t(1)) == pairs + m_.n_pairs)
+            pairs[best_pair] = 1;
         *t = best;
         return 1;
     }
@@ -989,22 +993,40 @@ int64_t MotionQuery::march_pairs(const int64_t* list, int64_t n, const Path& pat
     // would only halve its way down to it), and a pair nothing moves is as it is there all
     // along.
     evaluate(q0);
-    w_.side_n[0] = w_.side_n[1] = 0;
-    for (int64_t i = 0; i < n; ++i) {
-        const int64_t p = list ? list[i] : i;
-        if (known_apart(p)) continue;
+    const auto at_start = [&](int64_t p) {
+        w_.side_n[0] = w_.side_n[1] = 0;
         pair_pose(m_.pair_a[p], m_.pair_b[p], pose);
         margin(p, 0.0);
-        if (pair_within(p, pose, 0.0, 0.0, crude_or_none(path, p)).within) {
-            *best = 0.0;
-            return p;
-        }
-    }
-    path_speeds(path, 0.5, 0.5);
+        return pair_within(p, pose, 0.0, 0.0, crude_or_none(path, p)).within;
+    };
     w_.sweeping.clear();
-    for (int64_t i = 0; i < n; ++i) {
-        const int64_t p = list ? list[i] : i;
-        if (sides(p) && !sweepable(path, p)) heap.push_back({p, 0.0, 1.0, 1.0});
+    if constexpr (std::is_same_v<Path, StraightPath>) {
+        // A pair a sweep takes is not checked here: its sweep starts at the start, where
+        // being within reach (rho + SWEEP_EPS) is met as contact at 0, as the instant's
+        // contact would be (sweep: hulls, and test vertices in solids).
+        for (int64_t i = 0; i < n; ++i) {
+            const int64_t p = list ? list[i] : i;
+            const bool moves = sides(p);
+            if (moves && sweepable(path, p)) continue;
+            if (!known_apart(p) && at_start(p)) {
+                *best = 0.0;
+                return p;
+            }
+            if (moves) heap.push_back({p, 0.0, 1.0, 1.0});
+        }
+    } else {
+        for (int64_t i = 0; i < n; ++i) {
+            const int64_t p = list ? list[i] : i;
+            if (!known_apart(p) && at_start(p)) {
+                *best = 0.0;
+                return p;
+            }
+        }
+        path_speeds(path, 0.5, 0.5);
+        for (int64_t i = 0; i < n; ++i) {
+            const int64_t p = list ? list[i] : i;
+            if (sides(p) && !sweepable(path, p)) heap.push_back({p, 0.0, 1.0, 1.0});
+        }
     }
     if (!w_.sweeping.empty()) sweep_pairs(best, &best_pair);
     std::make_heap(heap.begin(), heap.end(), later);
@@ -1036,9 +1058,10 @@ void MotionQuery::contacts(const int64_t* list, int64_t n, const Path& path, dou
     for (int64_t i = 0; i < n; ++i) {
         const int64_t p = list ? list[i] : i;
         // A swept pair is within the tolerance of contact at t when its sweep's first
-        // contact (within SWEEP_EPS of it) is less than the rest of the tolerance away.
+        // contact (within SWEEP_EPS of it) is less than the rest of the tolerance away; at
+        // the start, it is as the instant is (check's pairs there).
         const double swept = w_.swept_at[p];
-        if (!std::isnan(swept)) {
+        if (!std::isnan(swept) && t > 0.0) {
             pairs[p] = (swept - t) * w_.swept_span[p] <= extra - SWEEP_EPS ? 1 : 0;
             continue;
         }

@@ -713,6 +713,51 @@ def test_sweeps_meet_the_contract_on_random_primitives(tmp_path):
     assert motions >= 100 and contacts >= 15 and sweeps >= 2 * motions
 
 
+
+def test_a_swept_motion_that_starts_in_contact_meets_it_at_the_start(tmp_path):
+    """A sweep starts at the motion's start: from a state in contact (surfaces crossing, a
+    tool wholly inside an object, within padding) the swept answer is contact at 0 with the
+    pairs check finds there, as the march of check_path says."""
+    rng = np.random.default_rng(21)
+    urdf = tmp_path / 'slider.urdf'
+    starts = 0
+    for _ in range(12):
+        geometry, _ = _random_primitive(rng)
+        urdf.write_text(SLIDER.format(geometry=geometry))
+        objects = [{'name': f'o{i}', **_random_primitive(rng)[1], 'pose': {
+            'xyz': [float(x) for x in rng.uniform(-0.2, 0.2, 3)],
+            'rpy': [float(x) for x in rng.uniform(-3, 3, 3)]}} for i in range(3)]
+        padding = float(rng.choice([0.0, 1e-3, 0.02]))
+        checker = CollisionChecker.from_urdf(str(urdf), scene={'objects': objects},
+                                             config={'link_padding': {'tool': padding}})
+        for _ in range(20):
+            yaw = rng.uniform(-3, 3)
+            q0 = np.append(rng.uniform(-0.3, 0.3, 3), yaw)
+            q1 = np.append(rng.uniform(-0.8, 0.8, 3), yaw)
+            instant = checker.check(q0)
+            if not instant.in_collision:
+                continue
+            checker.counters[:] = 0
+            result = checker.check_motion(q0, q1)
+            assert checker.counters[COUNT_SWEEPS] > 0
+            assert (result.in_collision, result.first_contact) == (True, 0.0)
+            assert result.colliding_pairs == instant.colliding_pairs
+            marched = checker.check_path(np.array([q0, q1]))
+            assert marched.first_invalid_segment == 0 and marched.motion == result
+            starts += 1
+    assert starts >= 40
+    # Wholly inside: no surfaces meet, the ball's test vertex is in the box's solid.
+    urdf.write_text(SLIDER.format(geometry='<sphere radius="0.01"/>'))
+    checker = CollisionChecker.from_urdf(str(urdf), scene={'objects': [
+        {'name': 'crate', 'box': {'size': [0.3, 0.3, 0.3]}, 'pose': {'rpy': [0.3, 0.2, 0.1]}}]})
+    q0, q1 = np.zeros(4), np.array([0.9, 0.2, 0.0, 0.0])
+    assert checker.check(q0).colliding_pairs == (('crate', 'tool'),)
+    checker.counters[:] = 0
+    result = checker.check_motion(q0, q1)
+    assert checker.counters[COUNT_SWEEPS] > 0
+    assert (result.first_contact, result.colliding_pairs) == (0.0, (('crate', 'tool'),))
+
+
 #: A mobile robot: a base on a floating or planar root joint, an arm on it, a ball as hand.
 WALKER = textwrap.dedent('''\
     <robot name="walker">
