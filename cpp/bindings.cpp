@@ -109,14 +109,21 @@ T* writable(const char* name, Array<T>& a) {
 const double* exact_doubles(py::handle h, std::initializer_list<py::ssize_t> dims) {
     // On every query: the array's own fields only (isinstance<Array<double>> would build a
     // dtype and compare it, about 0.1 us a call).
+    // The fields read as py::array's accessors read them, without a reference taken.
     if (!py::array::check_(h)) return nullptr;
-    const auto a = py::reinterpret_borrow<py::array>(h);
-    const py::dtype type = a.dtype();
-    if (type.kind() != 'f' || type.itemsize() != sizeof(double) ||
-        (type.byteorder() != '=' && type.byteorder() != native_order) ||
-        !(a.flags() & py::array::c_style) || !has_shape(a, dims))
+    const auto* a = py::detail::array_proxy(h.ptr());
+    const auto* type = py::detail::array_descriptor_proxy(a->descr);
+    if (type->type_num != py::detail::npy_api::NPY_DOUBLE_ ||
+        (type->byteorder != '=' && type->byteorder != native_order) ||
+        !(a->flags & py::detail::npy_api::NPY_ARRAY_C_CONTIGUOUS_) ||
+        a->nd != int(dims.size()))
         return nullptr;
-    const auto* data = static_cast<const double*>(a.data());
+    int k = 0;
+    for (const py::ssize_t d : dims) {
+        if (d >= 0 && a->dimensions[k] != d) return nullptr;
+        ++k;
+    }
+    const auto* data = reinterpret_cast<const double*>(a->data);
     if (reinterpret_cast<std::uintptr_t>(data) % alignof(double) != 0) return nullptr;
     return data;
 }
