@@ -674,6 +674,19 @@ def _random_primitive(rng):
     return f'<sphere radius="{r}"/>', {'sphere': {'radius': r}}
 
 
+def _random_slider(rng, urdf, spread):
+    """SLIDER with a random primitive tool (written to urdf) among three random primitives
+    within spread (m) of the origin, its padding 0, 1 mm or 2 cm: the checker."""
+    geometry, _ = _random_primitive(rng)
+    urdf.write_text(SLIDER.format(geometry=geometry))
+    objects = [{'name': f'o{i}', **_random_primitive(rng)[1], 'pose': {
+        'xyz': [float(x) for x in rng.uniform(-spread, spread, 3)],
+        'rpy': [float(x) for x in rng.uniform(-3, 3, 3)]}} for i in range(3)]
+    padding = float(rng.choice([0.0, 1e-3, 0.02]))
+    return CollisionChecker.from_urdf(str(urdf), scene={'objects': objects},
+                                      config={'link_padding': {'tool': padding}})
+
+
 def _swept_motion(checker, oracle, q0, q1):
     """check_motion from q0 (clear) to q1 against the contract (sampling, python-fcl) and
     against the march (check_path's answer); return (it met contact, the pairs swept)."""
@@ -693,14 +706,7 @@ def test_sweeps_meet_the_contract_on_random_primitives(tmp_path):
     urdf = tmp_path / 'slider.urdf'
     motions = contacts = sweeps = 0
     for _ in range(12):
-        geometry, _ = _random_primitive(rng)
-        urdf.write_text(SLIDER.format(geometry=geometry))
-        objects = [{'name': f'o{i}', **_random_primitive(rng)[1], 'pose': {
-            'xyz': [float(x) for x in rng.uniform(-0.3, 0.3, 3)],
-            'rpy': [float(x) for x in rng.uniform(-3, 3, 3)]}} for i in range(3)]
-        padding = float(rng.choice([0.0, 1e-3, 0.02]))
-        checker = CollisionChecker.from_urdf(str(urdf), scene={'objects': objects},
-                                             config={'link_padding': {'tool': padding}})
+        checker = _random_slider(rng, urdf, 0.3)
         oracle = FclOracle(checker, str(urdf))
         for _ in range(12):
             yaw = rng.uniform(-3, 3)
@@ -722,14 +728,7 @@ def test_a_swept_motion_that_starts_in_contact_meets_it_at_the_start(tmp_path):
     urdf = tmp_path / 'slider.urdf'
     starts = 0
     for _ in range(12):
-        geometry, _ = _random_primitive(rng)
-        urdf.write_text(SLIDER.format(geometry=geometry))
-        objects = [{'name': f'o{i}', **_random_primitive(rng)[1], 'pose': {
-            'xyz': [float(x) for x in rng.uniform(-0.2, 0.2, 3)],
-            'rpy': [float(x) for x in rng.uniform(-3, 3, 3)]}} for i in range(3)]
-        padding = float(rng.choice([0.0, 1e-3, 0.02]))
-        checker = CollisionChecker.from_urdf(str(urdf), scene={'objects': objects},
-                                             config={'link_padding': {'tool': padding}})
+        checker = _random_slider(rng, urdf, 0.2)
         for _ in range(20):
             yaw = rng.uniform(-3, 3)
             q0 = np.append(rng.uniform(-0.3, 0.3, 3), yaw)
