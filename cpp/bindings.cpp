@@ -107,9 +107,8 @@ T* writable(const char* name, Array<T>& a) {
 // float64 of the extents dims), else nullptr: the check of every joint-state message, which
 // costs less than converting.
 const double* exact_doubles(py::handle h, std::initializer_list<py::ssize_t> dims) {
-    // On every query: the array's own fields only (isinstance<Array<double>> would build a
-    // dtype and compare it, about 0.1 us a call).
-    // The fields read as py::array's accessors read them, without a reference taken.
+    // On every query: the array's own fields only, read as py::array's accessors read them
+    // (isinstance<Array<double>> would build a dtype and compare it, about 0.1 us a call).
     if (!py::array::check_(h)) return nullptr;
     const auto* a = py::detail::array_proxy(h.ptr());
     const auto* type = py::detail::array_descriptor_proxy(a->descr);

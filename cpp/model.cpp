@@ -257,8 +257,8 @@ bool element_hull(const Model& m, int64_t e, Hull& out) {
     }
     double far = 0.0;
     for (const auto& x : distinct) {
-        const double e[3] = {x[0] - out.centre[0], x[1] - out.centre[1], x[2] - out.centre[2]};
-        far = std::max(far, e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+        const double r[3] = {x[0] - out.centre[0], x[1] - out.centre[1], x[2] - out.centre[2]};
+        far = std::max(far, r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
     }
     out.radius = std::sqrt(far) * (1.0 + 1e-12) + 1e-12;
     out.adj_start.assign(1, 0);

@@ -723,7 +723,8 @@ void MotionQuery::pair_shift(int64_t p, double* d) {
 
 int MotionQuery::sweep(int64_t p, const double* pose0, const double* d, double* t) {
     const int64_t a = m_.pair_a[p], b = m_.pair_b[p];
-    if (d[0] == 0.0 && d[1] == 0.0 && d[2] == 0.0) return SWEEP_FREE;  // apart at the start
+    // No shift (joints on both sides moving alike) is no exception: the cast and the probes
+    // then decide the start, which is the whole motion.
     const double rho = m_.padding[a] + m_.padding[b];
     const auto hull = [this](int64_t e) {
         const Hull& h = w_.hulls[e];

@@ -755,6 +755,34 @@ def test_a_swept_motion_that_starts_in_contact_meets_it_at_the_start(tmp_path):
     result = checker.check_motion(q0, q1)
     assert checker.counters[COUNT_SWEEPS] > 0
     assert (result.first_contact, result.colliding_pairs) == (0.0, (('crate', 'tool'),))
+    # Two links on sliders moving alike (one mimics the other): no relative shift, so the
+    # start is the whole motion, in contact or apart.
+    for gap, contact in ((0.15, True), (0.35, False)):
+        urdf.write_text(TWIN_SLIDERS.format(gap=gap))
+        checker = CollisionChecker.from_urdf(str(urdf))
+        q0, q1 = np.array([0.0]), np.array([0.5])
+        assert checker.check(q0).in_collision == contact
+        checker.counters[:] = 0
+        result = checker.check_motion(q0, q1)
+        assert checker.counters[COUNT_SWEEPS] > 0
+        assert result == checker.check_path(np.array([q0, q1])).motion
+        assert (result.in_collision, result.first_contact) == \
+            ((True, 0.0) if contact else (False, None))
+
+
+#: Box a and ball b on two sliders along x, b's mimicking a's, b {gap} m along x from a.
+TWIN_SLIDERS = textwrap.dedent('''\
+    <robot name="twin">
+      <link name="base"/>
+      <link name="a"><collision><geometry><box size="0.2 0.2 0.2"/></geometry></collision></link>
+      <link name="b"><collision><geometry><sphere radius="0.1"/></geometry></collision></link>
+      <joint name="slide" type="prismatic"><parent link="base"/><child link="a"/>
+        <axis xyz="1 0 0"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+      <joint name="twin" type="prismatic"><parent link="base"/><child link="b"/>
+        <origin xyz="{gap} 0 0"/><axis xyz="1 0 0"/><mimic joint="slide"/>
+        <limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+    </robot>
+    ''')
 
 
 #: A mobile robot: a base on a floating or planar root joint, an arm on it, a ball as hand.
