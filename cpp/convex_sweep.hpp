@@ -16,6 +16,8 @@
 #include <cmath>
 #include <cstdint>
 
+#include "tolerances.hpp"
+
 namespace collision_sensor {
 
 // The ray cast's answers.
@@ -86,8 +88,48 @@ inline double dot(const double* a, const double* b) {
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
 }
 
-// The vertex of h furthest along d (ties: any), climbing from *hint (updated). On a convex
-// surface a vertex no neighbour of which is further along d is furthest of all.
+// A climb on a hull toward the vertex furthest along a direction: where it is, how far along
+// the direction, and whether it has arrived. On a convex surface a vertex no neighbour of which
+// is further along d is furthest of all.
+struct Climb {
+    int64_t at;
+    double top;
+    bool done;
+};
+
+// Does h's support climb (not a box's corner, not a scan of a few vertices)?
+inline bool climbs(const HullView& h) { return !h.corner && h.n > HULL_SCAN_MAX; }
+
+// The climb starts from the seed of d's cell, or from hint (the last answer, -1: none) if
+// that is further along d (GJK's directions settle: the last answer is often the answer).
+CS_ALWAYS_INLINE Climb climb_start(const HullView& h, const double* d, int64_t hint) {
+    Climb c{h.seeds[hull_seed_cell(d)], 0.0, false};
+    c.top = dot(h.v + 3 * c.at, d);
+    if (hint >= 0) {
+        const double x = dot(h.v + 3 * hint, d);
+        if (x > c.top) {
+            c.top = x;
+            c.at = hint;
+        }
+    }
+    return c;
+}
+
+// One step: to the neighbour furthest along d if it is further, else arrived.
+CS_ALWAYS_INLINE void climb_step(const HullView& h, const double* d, Climb& c) {
+    int64_t next = -1;
+    for (int64_t k = h.adj_start[c.at]; k < h.adj_start[c.at + 1]; ++k) {
+        const double x = dot(h.v + 3 * h.adj[k], d);
+        if (x > c.top) {
+            c.top = x;
+            next = h.adj[k];
+        }
+    }
+    if (next < 0) c.done = true;
+    else c.at = next;
+}
+
+// The vertex of h furthest along d (ties: any), climbing from *hint (updated).
 inline const double* hull_support(const HullView& h, const double* d, int64_t* hint) {
     if (h.corner) {  // a box: the corner on d's side of each axis
         const double* a = h.axes;
@@ -108,31 +150,23 @@ inline const double* hull_support(const HullView& h, const double* d, int64_t* h
         }
         return h.v + 3 * best;
     }
-    // The climb starts from the seed of d's cell, or from the last answer if that is further
-    // along d (GJK's directions settle: the last answer is often the answer).
-    int64_t at = h.seeds[hull_seed_cell(d)];
-    double top = dot(h.v + 3 * at, d);
-    if (*hint >= 0) {
-        const double x = dot(h.v + 3 * *hint, d);
-        if (x > top) {
-            top = x;
-            at = *hint;
-        }
+    Climb c = climb_start(h, d, *hint);
+    for (int64_t steps = 0; !c.done && steps <= h.n; ++steps) climb_step(h, d, c);
+    *hint = c.at;
+    return h.v + 3 * c.at;
+}
+
+// Both hulls' supports when both climb: the two climbs step in turn, so that the processor
+// runs each one's loads while the other's wait (each is a chain of dependent loads).
+inline void climb_pair(const HullView& A, const double* da, int64_t* hint_a, const HullView& B,
+                       const double* db, int64_t* hint_b) {
+    Climb a = climb_start(A, da, *hint_a), b = climb_start(B, db, *hint_b);
+    for (int64_t steps = 0; !(a.done && b.done) && steps <= A.n + B.n; ++steps) {
+        if (!a.done) climb_step(A, da, a);
+        if (!b.done) climb_step(B, db, b);
     }
-    for (int64_t steps = 0; steps <= h.n; ++steps) {
-        int64_t next = -1;
-        for (int64_t k = h.adj_start[at]; k < h.adj_start[at + 1]; ++k) {
-            const double x = dot(h.v + 3 * h.adj[k], d);
-            if (x > top) {
-                top = x;
-                next = h.adj[k];
-            }
-        }
-        if (next < 0) break;
-        at = next;
-    }
-    *hint = at;
-    return h.v + 3 * at;
+    *hint_a = a.at;
+    *hint_b = b.at;
 }
 
 // The closest point to the origin of the simplex y[0 .. n) (n <= 4) into v; returns the
@@ -346,12 +380,20 @@ inline int sweep_first_contact(const HullView& A, const HullView& B, const doubl
     using namespace sweep_detail;
     int64_t hint_a = -1, hint_b = -1;
     // C's point furthest along u: A's along u less B's (placed) along -u.
+    const bool paired = climbs(A) && climbs(B);
     const auto support = [&](const double* u, double* out) {
-        const double* pa = hull_support(A, u, &hint_a);
         const double ub[3] = {-(R[0] * u[0] + R[3] * u[1] + R[6] * u[2]),
                               -(R[1] * u[0] + R[4] * u[1] + R[7] * u[2]),
                               -(R[2] * u[0] + R[5] * u[1] + R[8] * u[2])};
-        const double* pb = hull_support(B, ub, &hint_b);
+        const double *pa, *pb;
+        if (paired) {
+            climb_pair(A, u, &hint_a, B, ub, &hint_b);
+            pa = A.v + 3 * hint_a;
+            pb = B.v + 3 * hint_b;
+        } else {
+            pa = hull_support(A, u, &hint_a);
+            pb = hull_support(B, ub, &hint_b);
+        }
         for (int i = 0; i < 3; ++i)
             out[i] = pa[i] - (R[3 * i] * pb[0] + R[3 * i + 1] * pb[1] + R[3 * i + 2] * pb[2] + t0[i]);
     };
