@@ -719,7 +719,6 @@ def test_sweeps_meet_the_contract_on_random_primitives(tmp_path):
     assert motions >= 100 and contacts >= 15 and sweeps >= 2 * motions
 
 
-
 def test_a_swept_motion_that_starts_in_contact_meets_it_at_the_start(tmp_path):
     """A sweep starts at the motion's start: from a state in contact (surfaces crossing, a
     tool wholly inside an object, within padding) the swept answer is contact at 0 with the
