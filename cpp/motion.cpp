@@ -249,10 +249,6 @@ class MotionQuery {
     // pose at the evaluated state (the path's start) and its translation to the end
     // (pair_shift) in w_.sweep_poses.
     bool sweepable(const StraightPath&, int64_t p);
-    template <class Path>
-    bool sweepable(const Path&, int64_t) {
-        return false;
-    }
     // The pairs in w_.sweeping: their first contacts by ray casts (convex_sweep.hpp) instead
     // of marches; the first contact lowers *best (its pair in *best_pair), and a pair a sweep
     // cannot decide joins the marches (heap).
@@ -1026,7 +1022,7 @@ int64_t MotionQuery::march_pairs(const int64_t* list, int64_t n, const Path& pat
         path_speeds(path, 0.5, 0.5);
         for (int64_t i = 0; i < n; ++i) {
             const int64_t p = list ? list[i] : i;
-            if (sides(p) && !sweepable(path, p)) heap.push_back({p, 0.0, 1.0, 1.0});
+            if (sides(p)) heap.push_back({p, 0.0, 1.0, 1.0});  // only straight paths sweep
         }
     }
     if (!w_.sweeping.empty()) sweep_pairs(best, &best_pair);
