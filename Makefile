@@ -28,5 +28,10 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest test
 
+# The benchmarks against pinocchio+coal and python-fcl (benchmarks/, not installed; its
+# docstring lists the options): `make bench BENCH_ARGS="--quick --scenario 1"`.
+bench: $(STAMP)
+	$(BIN)/python -m benchmarks $(BENCH_ARGS)
+
 clean:
 	rm -rf $(VENV) *.egg-info build

@@ -77,7 +77,8 @@ ENGINE = Pybind11Extension(
 setup(
     name=PACKAGE,
     version='0.1.0',
-    packages=find_packages(exclude=['test']),
+    # The package only: benchmarks/, scripts/ and test/ stay in the source tree.
+    packages=find_packages(include=[PACKAGE, PACKAGE + '.*']),
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),
@@ -130,7 +131,6 @@ setup(
             'collision_sensor_node = collision_sensor.ros.node:main',
             'collision_sensor_play = collision_sensor.ros.player:main',
             'collision_sensor_check = collision_sensor.tools.offline_check:main',
-            'collision_sensor_bench = collision_sensor.tools.bench.main:main',
             'collision_sensor_acm = collision_sensor.tools.acm:main',
             'collision_sensor_demo = collision_sensor.ros.demo:main',
         ],

@@ -24,11 +24,20 @@ def _test_the_installed_package():
     elsewhere = [entry for entry in sys.path
                  if os.path.abspath(entry or os.curdir) != SOURCE_ROOT]
     if importlib.machinery.PathFinder.find_spec('collision_sensor', elsewhere) is not None:
-        sys.path[:] = elsewhere
+        # The source directory last: its benchmarks/ (never installed) stay importable.
+        sys.path[:] = elsewhere + [SOURCE_ROOT]
     # else: not installed anywhere; importing the source tree says how to build the engine
 
 
+def _benchmarks_importable():
+    """Put the source directory on ``sys.path`` (last) if it is missing: ``benchmarks/`` is
+    not installed, and a bare ``pytest`` (not ``python -m pytest``) does not add it."""
+    if not any(os.path.abspath(entry or os.curdir) == SOURCE_ROOT for entry in sys.path):
+        sys.path.append(SOURCE_ROOT)
+
+
 _test_the_installed_package()
+_benchmarks_importable()
 
 # DDS traffic of the integration tests stays in shared memory on this machine, in a domain of
 # this run's own; .ci/run and the Makefile set both, this covers a bare `pytest`.

@@ -19,7 +19,7 @@ FENCE = re.compile(r'^(```|~~~).*?^\1[ \t]*$', re.M | re.S)
 LINK = re.compile(r'!?\[[^\]]*\]\(\s*<?([^)\s>]+)>?(?:\s+"[^"]*")?\s*\)')
 HEADING = re.compile(r'^(#{1,6})[ \t]+(.+?)[ \t]*#*[ \t]*$', re.M)
 #: Modules of collision_sensor/ros/ that are tools beside the node, not the node itself.
-NOT_THE_NODE = ('player.py', 'demo.py', 'fuzz.py', 'node_latency.py')
+NOT_THE_NODE = ('player.py', 'demo.py')
 
 
 def read(path):

@@ -1,9 +1,11 @@
 """The package's layers, as docs/engine.md's architecture section draws them, by imports.
 
 model (files in, a model out) <- engine (the checker and the compiled engine) <- tools (the
-offline command-line tools and engine benchmarks) <- ros (everything on the ROS graph). A layer
-imports only from layers to its left and from the base modules (``errors``,
-``untrusted_text``); rclpy and the message packages are imported only in ``ros``.
+offline command-line tools) <- ros (everything on the ROS graph). A layer imports only from
+layers to its left and from the base modules (``errors``, ``untrusted_text``); rclpy and the
+message packages are imported only in ``ros``. The package never imports the benchmarks (a
+folder of the source tree, not installed) nor their peers (python-fcl, pinocchio, coal: test
+extras); test_packaging.py checks the same on an installed wheel.
 """
 import ast
 import pathlib
@@ -12,6 +14,8 @@ import collision_sensor
 
 PACKAGE_DIR = pathlib.Path(collision_sensor.__file__).parent
 ORDER = ('model', 'engine', 'tools', 'ros')
+#: Imported by the benchmarks and the tests only, never by the package.
+NOT_IN_THE_PACKAGE = ('benchmarks', 'scripts', 'fcl', 'pinocchio', 'coal', 'hppfcl')
 ROS_ONLY = ('rclpy', 'sensor_msgs', 'std_msgs', 'visualization_msgs', 'diagnostic_msgs',
             'geometry_msgs', 'builtin_interfaces', 'std_srvs', 'rosidl_runtime_py',
             'trajectory_msgs')
@@ -64,6 +68,13 @@ def test_only_the_ros_layer_imports_ros():
                for path in sources() if layer_of(path) != 'ros'
                for line, module in imported_modules(path) if module.split('.')[0] in ROS_ONLY]
     assert outside == []
+
+
+def test_the_package_imports_no_benchmark_and_no_peer():
+    found = [f'{path.relative_to(PACKAGE_DIR)}:{line} imports {module}'
+             for path in sources() for line, module in imported_modules(path)
+             if module.split('.')[0] in NOT_IN_THE_PACKAGE]
+    assert found == []
 
 
 def test_the_checks_above_see_imports_inside_functions(tmp_path):

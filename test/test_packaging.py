@@ -29,7 +29,7 @@ PACKAGE = 'collision_sensor'
 SHIPPED = ('package.xml', 'setup.py', 'setup.cfg', 'pyproject.toml', 'MANIFEST.in', 'resource',
            'collision_sensor', 'cpp', 'config', 'meshes', 'LICENSE', 'README.md', 'docs')
 CONSOLE_SCRIPTS = ('collision_sensor_node', 'collision_sensor_play', 'collision_sensor_check',
-                   'collision_sensor_bench', 'collision_sensor_acm', 'collision_sensor_demo')
+                   'collision_sensor_acm', 'collision_sensor_demo')
 ROS_FREE_MODULES = ('collision_sensor', 'collision_sensor.engine.checker',
                     'collision_sensor.model.sequences',
                     'collision_sensor.tools.acm', 'collision_sensor.tools.offline_check',
@@ -248,6 +248,87 @@ def test_pip_installed_check_finds_the_paper_collisions(pip_venv, tmp_path):
     proc = run([os.path.join(pip_venv, 'bin', 'collision_sensor_check'), 'paper_experiment'],
                cwd=str(tmp_path), env=clean_env(), expect=1)
     check_summary(proc, os.path.join(pip_venv, 'share', PACKAGE))
+
+
+# Imports every module of the installed package in a fresh interpreter, recording every import
+# of a name outside the product (the benchmarks, the scripts, the peers) as it is attempted,
+# with the file whose code asked for it, and reads every installed source for such an import
+# anywhere (in a function too: imported lazily). A dependency may import a peer on its own
+# (trimesh imports python-fcl when it is installed): the package's own files never do.
+IMPORT_ALL = '''
+import ast, importlib, importlib.util, json, os, pkgutil, sys
+OUTSIDE = ('benchmarks', 'scripts', 'fcl', 'pinocchio', 'coal', 'hppfcl')
+attempted = []
+class Watch:
+    @staticmethod
+    def find_spec(name, path=None, target=None):
+        if name.partition('.')[0] in OUTSIDE:
+            frame = sys._getframe(1)
+            while frame and frame.f_code.co_filename.startswith('<frozen'):
+                frame = frame.f_back
+            attempted.append([name, os.path.realpath(frame.f_code.co_filename) if frame
+                              else '?'])
+        return None
+sys.meta_path.insert(0, Watch)
+import collision_sensor
+root = os.path.realpath(os.path.dirname(collision_sensor.__file__))
+modules = [info.name for info in pkgutil.walk_packages(collision_sensor.__path__,
+                                                       'collision_sensor.')]
+for name in modules:
+    importlib.import_module(name)
+written = []
+for directory, _, files in os.walk(root):
+    for file in files:
+        if file.endswith('.py'):
+            path = os.path.join(directory, file)
+            for node in ast.walk(ast.parse(open(path).read(), path)):
+                names = ([node.module] if isinstance(node, ast.ImportFrom) and node.module
+                         and node.level == 0 else [a.name for a in node.names]
+                         if isinstance(node, ast.Import) else [])
+                written += [f'{path}: {n}' for n in names if n.partition('.')[0] in OUTSIDE]
+sys.meta_path.remove(Watch)
+print(json.dumps({'root': root, 'modules': modules, 'attempted': attempted,
+                  'written': written, 'sources': sum(len(f) for _, _, f in os.walk(root)),
+                  'benchmarks': importlib.util.find_spec('benchmarks') is not None}))
+'''
+
+
+def test_pip_install_imports_no_benchmark_and_no_peer(wheel, pip_venv, tmp_path):
+    """The wheel holds the product alone: no module of benchmarks/ (nor scripts/), and no
+    module of it imports python-fcl, pinocchio or coal (the benchmarks' peers, test extras),
+    at import or anywhere in its code. Every module is imported (those on the ROS graph too:
+    rclpy is installed here)."""
+    proc = run([os.path.join(pip_venv, 'bin', 'python'), '-c', IMPORT_ALL], cwd=str(tmp_path),
+               env=clean_env())
+    found = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert found['root'].startswith(os.path.join(pip_venv, 'lib')), found['root']
+    assert 'collision_sensor.ros.sensor_node' in found['modules']     # the walk saw them all
+    assert len(found['modules']) >= 60, found['modules']
+    by_the_package = [(name, importer) for name, importer in found['attempted']
+                      if importer.startswith(found['root'] + os.sep)]
+    assert by_the_package == [] and found['written'] == [], found
+    assert not found['benchmarks']
+    with zipfile.ZipFile(wheel) as archive:
+        tops = {name.split('/')[0] for name in archive.namelist()}
+    assert {top for top in tops if not top.startswith(PACKAGE)} == set(), tops
+
+
+def test_the_import_check_sees_a_peer_imported_by_the_package(tmp_path):
+    """The control: the same probe, on a copy of the package whose one module imports fcl in
+    a function, reports it (read) and, when the module imports it at the top, the attempt."""
+    copy = tmp_path / 'site'
+    shutil.copytree(os.path.dirname(os.path.abspath(collision_sensor.__file__)),
+                    copy / PACKAGE, ignore=shutil.ignore_patterns('__pycache__'))
+    with open(copy / PACKAGE / 'errors.py', 'a') as stream:
+        stream.write('\n\ndef _peer():\n    import fcl\n    return fcl\n')
+    with open(copy / PACKAGE / 'untrusted_text.py', 'a') as stream:
+        stream.write('\ntry:\n    import pinocchio  # noqa\nexcept ImportError:\n    pass\n')
+    proc = run([sys.executable, '-c', IMPORT_ALL], cwd=str(tmp_path),
+               env=clean_env(PYTHONPATH=str(copy)))
+    found = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert found['root'] == os.path.realpath(copy / PACKAGE)
+    assert ['pinocchio', os.path.join(found['root'], 'untrusted_text.py')] in found['attempted']
+    assert sorted(line.rsplit(': ', 1)[1] for line in found['written']) == ['fcl', 'pinocchio']
 
 
 def check_demo(script, share, cwd, env):

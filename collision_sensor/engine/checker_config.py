@@ -12,7 +12,7 @@ motion_tolerance      0.0        a joint counts as moved when it changed by more
                                  0 is exact: any change re-checks the affected pairs
 box_test              'sat'      box-box test: 'sat' (15 separating axes) or 'paper' (sec. 5);
                                  both give the same answers, the default is the faster one
-                                 as measured by ``collision_sensor_bench``
+                                 as measured by ``python -m benchmarks``
 expansion             'wider'    node expansion rule (sec. 4.1): 'same', 'alternate',
                                  'larger' (volume), 'promising', 'wider' (half diagonal);
                                  answers equal; 'wider' measured fastest on 10 of the 11

@@ -13,7 +13,7 @@ both are leaves, their triangles are tested exactly. Which side is expanded is t
 * ``EXPAND_WIDER``: expand the node with the larger half diagonal ``|half|`` (the radius of its
   sphere): unlike the volume, it sees the size of a flat box, as FCL's rule does.
 
-The answer never depends on the rule, only the work done; ``collision_sensor.tools.bench`` measures
+The answer never depends on the rule, only the work done; ``benchmarks`` measures
 which rule is fastest on real robots and the checker's default follows that measurement.
 
 Data, as the kernels take it (built by :func:`collision_sensor.engine.obb_tree.box_table` and

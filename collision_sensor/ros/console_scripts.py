@@ -29,7 +29,6 @@ MODULES = {
     'collision_sensor_node': 'collision_sensor.ros.node',
     'collision_sensor_play': 'collision_sensor.ros.player',
     'collision_sensor_check': 'collision_sensor.tools.offline_check',
-    'collision_sensor_bench': 'collision_sensor.tools.bench.main',
     'collision_sensor_acm': 'collision_sensor.tools.acm',
     'collision_sensor_demo': 'collision_sensor.ros.demo',
 }

@@ -11,7 +11,7 @@ from collision_sensor.engine.box_test import (
     boxes_disjoint_sat, separating_axis, separating_axes)
 from collision_sensor.engine.obb_tree import BOX_AXES, BOX_CENTER, BOX_HALF, BOX_RADIUS, BOX_WIDTH
 from collision_sensor.engine.traversal import axis_gap
-from collision_sensor.tools.bench.box_tests import (
+from benchmarks.box_tests import (
     CAT_NEAR, CAT_RANDOM, CAT_TOUCHING, contact_distance, mixed_pairs)
 
 

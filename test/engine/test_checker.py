@@ -641,8 +641,8 @@ def test_update_from_fronts_equals_check_in_near_contact(tmp_path, box_test):
     without a full check between, so fronts recorded in one place are used in another.
     Every row must equal the from-scratch answer, and fronts must really have been used."""
     from collision_sensor.engine.traversal import COUNT_FRONT_STARTS, COUNT_FRONT_UNTESTED
-    from collision_sensor.tools.bench.engine import stream
-    from collision_sensor.tools.bench.scenario_cells import demo_arm_cell
+    from benchmarks.robot_peers import stream
+    from benchmarks.scenario_cells import demo_arm_cell
     cell = demo_arm_cell(str(tmp_path))
     incremental = cell.checker(config={'box_test': box_test})
     scratch = cell.checker(config={'box_test': box_test})

@@ -432,8 +432,8 @@ def camera_clouds():
     """Scenario 12's cell (a Panda on a table beside a wall, a box nobody modelled) seen by
     its 640 x 480 depth camera at three random states: (q, (307200, 3) float32 world cloud)."""
     from collision_sensor.engine.sampling import random_configurations
-    from collision_sensor.tools.bench import scenario_clouds
-    from collision_sensor.tools.bench.scenario_cells import robot_cell
+    from benchmarks import scenario_clouds
+    from benchmarks.scenario_cells import robot_cell
     from collision_sensor.tools.depth_camera import DepthCamera
     cell = robot_cell('panda')
     world = cell.checker()
