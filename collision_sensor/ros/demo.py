@@ -27,7 +27,7 @@ DDS stays on this machine and out of the way: ``FASTDDS_BUILTIN_TRANSPORTS=SHM``
 ``ROS_DOMAIN_ID`` (1-100) unless they are set (the Makefile sets 42). The node inherits both.
 
 ``--dynamic`` plays the dynamic scene instead (``config/sequences/moving_part``, a bag of
-joint states and ``scene`` arrays, :func:`collision_sensor.tools.demo_cell.moving_part`):
+joint states and ``scene`` arrays, made by ``scripts/demo_cell.py``):
 each scene array is published on the node's ``scene`` topic before the frames it precedes, and
 the next frame waits for the node's answer to it (as ``collision_sensor_play`` keeps the order);
 a line says what it changed (an object appearing, attached to a link, dropped, removed; plain
@@ -48,8 +48,8 @@ state, the washer, the floor and the person; 160 x 120 at 15 Hz of the recording
 ``--camera-size`` and ``--camera-rate`` say otherwise) and publishes each organised cloud
 (``sensor_msgs/PointCloud2``, x y z float32, NaN where nothing is within 4 m) in the camera's
 frame on ``camera/depth/points``, the node's ``point_cloud_topics``, stamped with the time it
-shows, while the arm plays ``person_in_path``
-(:func:`~collision_sensor.tools.demo_cell.person_in_path`, or ``--sequence``). A cloud at time
+shows, while the arm plays ``person_in_path`` (``config/sequences/person_in_path.csv``, or
+``--sequence``). A cloud at time
 t is published once the joint states up to t are answered (the node places it with the state at
 its stamp) and the next frame waits for the node's verdict on it. The lines say when pairs with
 ``cloud/camera/depth/points`` come and go, with how far the arm truly is from the person (the
@@ -82,7 +82,7 @@ PROG = 'collision_sensor_demo'
 DEFAULT_SEQUENCE = 'paper_experiment'
 DYNAMIC_SEQUENCE = 'moving_part'
 MOTION_SEQUENCE = 'guard_rail_5hz'
-CAMERA_SEQUENCE = 'person_in_path'    # generated (tools.demo_cell.person_in_path), no file
+CAMERA_SEQUENCE = 'person_in_path'
 NAMESPACE = '/collision_sensor_demo'
 NODE_NAME = 'collision_sensor'          # the node's default name
 START_TIMEOUT = None    # s for the node to be ready; None: as long as the node process lives
@@ -396,8 +396,8 @@ class CameraFeed:
     """
 
     def __init__(self, seq, size: Tuple[int, int], rate: float):
-        from collision_sensor.tools.demo_camera import CLOUD_TOPIC, CameraCell
-        from collision_sensor.tools.demo_cell import CAMERA_OPTICAL_FRAME
+        from collision_sensor.tools.demo_camera import (
+            CAMERA_OPTICAL_FRAME, CLOUD_TOPIC, CameraCell)
         self.cell = CameraCell(size)
         self.seq, self.rate, self.size = seq, float(rate), (int(size[0]), int(size[1]))
         self.topic, self.frame = CLOUD_TOPIC, CAMERA_OPTICAL_FRAME
@@ -810,8 +810,8 @@ def build_parser() -> argparse.ArgumentParser:
                'Exit status: 0 done, 1 the node failed, 2 bad arguments, 130 interrupted.')
     parser.add_argument('--sequence', default=None, metavar='NAME|PATH',
                         help='a bundled sequence (paper_experiment, into_drum_clear, random, '
-                             'moving_part, guard_rail_5hz) or a CSV file or bag of the demo '
-                             f'arm (default {DEFAULT_SEQUENCE}, with --dynamic '
+                             'moving_part, guard_rail_5hz, person_in_path) or a CSV file or bag '
+                             f'of the demo arm (default {DEFAULT_SEQUENCE}, with --dynamic '
                              f'{DYNAMIC_SEQUENCE}, with --motion {MOTION_SEQUENCE}, with '
                              f'--camera {CAMERA_SEQUENCE})')
     parser.add_argument('--dynamic', action='store_true',
@@ -888,14 +888,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     from collision_sensor.model.sequences import read_sequence
     from collision_sensor.tools.offline_check import bundled_sequence_path
     try:
-        if args.camera and not args.sequence:
-            from collision_sensor.tools.demo_cell import person_in_path
-            seq = person_in_path()
-            seq = type(seq)(seq.joint_names, seq.times, seq.positions, CAMERA_SEQUENCE)
-        else:
-            name = args.sequence or (DYNAMIC_SEQUENCE if args.dynamic else
-                                     MOTION_SEQUENCE if args.motion else DEFAULT_SEQUENCE)
-            seq = read_sequence(bundled_sequence_path(name))
+        name = args.sequence or (DYNAMIC_SEQUENCE if args.dynamic else
+                                 MOTION_SEQUENCE if args.motion else
+                                 CAMERA_SEQUENCE if args.camera else DEFAULT_SEQUENCE)
+        seq = read_sequence(bundled_sequence_path(name))
     except CollisionSensorError as err:
         return _error(str(err), 2)
     if len(seq) == 0:

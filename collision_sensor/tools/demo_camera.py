@@ -1,9 +1,8 @@
 """The demo cell seen by a depth camera (``collision_sensor_demo --camera``), without ROS.
 
 :class:`CameraCell` is the world the camera looks at: a checker of its own holding the demo
-arm, the washer scene *and* a person standing in the arm's path
-(:func:`~collision_sensor.tools.demo_cell.person`, in no scene file: the sensor knows the person
-only from the clouds). It renders that world by ray casting
+arm, the washer scene *and* a person standing in the arm's path (``config/demo_person.yaml``,
+in no scene the sensor loads: the sensor knows the person only from the clouds). It renders that world by ray casting
 (:class:`~collision_sensor.tools.depth_camera.DepthCamera`) from the camera's link in the arm's
 URDF (``camera_optical_frame``, a fixed link), and says how far the arm truly is from the
 person and from everything else, for the demo's summary to hold the sensor's reports against.
@@ -15,8 +14,8 @@ import numpy as np
 
 from collision_sensor.engine.checker import CollisionChecker
 from collision_sensor.engine.dynamic_scene import AddObject
+from collision_sensor.model.scene import load_scene
 from collision_sensor.model.share import config_path
-from collision_sensor.tools import demo_cell
 from collision_sensor.tools.depth_camera import DepthCamera
 
 #: The topic the demo's camera publishes on (relative: in the demo's namespace).
@@ -26,6 +25,13 @@ CLOUD_TOPIC = 'camera/depth/points'
 DEFAULT_SIZE = (160, 120)
 DEFAULT_RATE = 15.0
 MAX_RANGE = 4.0     # m
+#: The frame the camera's clouds are stamped with: a fixed link of ``config/demo_arm.urdf``
+#: (the optical convention: z along the view, x right, y down).
+CAMERA_OPTICAL_FRAME = 'camera_optical_frame'
+#: What only the camera sees (``config/``; a scene file the sensor is never given).
+PERSON_SCENE = 'demo_person.yaml'
+#: Sections around the person's cylinder in the rendered world.
+PERSON_SECTIONS = 48
 
 
 class Clearance(NamedTuple):
@@ -45,6 +51,7 @@ class CameraCell:
 
     :param size: the image's width and height (pixels).
     :ivar world: the world's checker (the arm, the scene file's objects and the person).
+    :ivar person_names: the names of what only the camera sees (``PERSON_SCENE``'s objects).
     :ivar T_world_camera: (4, 4) the optical frame's pose (fixed: a link on a fixed joint).
     """
 
@@ -52,11 +59,13 @@ class CameraCell:
         self.world = CollisionChecker.from_urdf(config_path('demo_arm.urdf'),
                                                 srdf=config_path('demo_arm.srdf'),
                                                 scene=config_path('demo_scene.yaml'))
-        self.world.apply_scene_changes([AddObject(demo_cell.person())])
+        person = load_scene(config_path(PERSON_SCENE), primitive_sections=PERSON_SECTIONS)
+        self.world.apply_scene_changes([AddObject(body) for body in person])
+        self.person_names = frozenset(body.name for body in person)
         self.camera = DepthCamera(width=int(size[0]), height=int(size[1]), max_range=MAX_RANGE)
         tree = self.world.kinematics
         T_world_link = tree.forward_kinematics(np.zeros(len(tree.joint_names)))
-        self.T_world_camera = T_world_link[tree.link_names.index(demo_cell.CAMERA_OPTICAL_FRAME)]
+        self.T_world_camera = T_world_link[tree.link_names.index(CAMERA_OPTICAL_FRAME)]
 
     def _positions(self, joint_names: Sequence[str], q) -> Mapping[str, float]:
         return dict(zip(joint_names, (float(v) for v in q)))
@@ -78,6 +87,6 @@ class CameraCell:
             link, other = ((record.link_a, record.link_b) if record.link_a in links
                            else (record.link_b, record.link_a))
             links_near[link] = min(links_near.get(link, math.inf), record.distance)
-            if other == demo_cell.PERSON_NAME:
+            if other in self.person_names:
                 person = min(person, record.distance)
         return Clearance(person, links_near)

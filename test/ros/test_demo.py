@@ -213,8 +213,8 @@ def test_the_camera_demo_sees_the_person_and_keeps_the_arm_out_of_its_cloud():
     import yourdfpy
 
     from collision_sensor.model.share import config_path, share_directory
-    from collision_sensor.tools import demo_cell
     from collision_sensor.tools.demo_camera import CLOUD_TOPIC
+    from scripts import demo_cell
 
     run = run_demo('--camera', '--as-fast-as-possible')
     assert run.returncode == 0, run.stdout + run.stderr
@@ -239,7 +239,7 @@ def test_the_camera_demo_sees_the_person_and_keeps_the_arm_out_of_its_cloud():
             model.endModel()
             models[link.name] = model
     radius, height = demo_cell.PERSON
-    T = demo_cell.person().T_world_object
+    T = demo_cell.person_pose()
     person = fcl.CollisionObject(fcl.Cylinder(radius, height), fcl.Transform(T[:3, :3], T[:3, 3]))
     seq = demo_cell.person_in_path()
 

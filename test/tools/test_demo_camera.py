@@ -13,8 +13,9 @@ import trimesh
 import yourdfpy
 
 from collision_sensor import CollisionChecker
-from collision_sensor.tools import demo_cell
+from collision_sensor.model.sequences import read_sequence
 from collision_sensor.tools.demo_camera import CameraCell
+from scripts import demo_cell
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 CONFIG = os.path.join(ROOT, 'config')
@@ -57,7 +58,7 @@ class ArmOracle:
     def distance_to_person(self, meshes):
         """{link: python-fcl distance to the person (0 in contact)}."""
         radius, height = demo_cell.PERSON
-        T = demo_cell.person().T_world_object
+        T = demo_cell.person_pose()
         person = fcl.CollisionObject(fcl.Cylinder(radius, height),
                                      fcl.Transform(T[:3, :3], T[:3, 3]))
         out = {}
@@ -126,10 +127,18 @@ def test_the_self_filter_removes_the_rendered_arm_and_only_what_is_near_it(oracl
     assert prepared.stats.self_filtered == len(valid) - len(kept)
 
 
-def test_the_person_is_in_no_scene_file_and_the_sequence_reaches_it_only_mid_way(oracle):
+def test_the_person_is_in_no_scene_file_and_the_sequence_reaches_it_only_mid_way(oracle, cell):
     with open(os.path.join(CONFIG, 'demo_scene.yaml')) as stream:
         assert demo_cell.PERSON_NAME not in stream.read()
-    seq = demo_cell.person_in_path()
+    # The camera's world holds the person the generator placed, as a cylinder of its size.
+    assert cell.person_names == {demo_cell.PERSON_NAME}
+    person = cell.world.link_poses()[demo_cell.PERSON_NAME]
+    np.testing.assert_allclose(person, demo_cell.person_pose(), atol=1e-12)
+    # The sequence the demo plays is the one designed here (bundled as a file).
+    seq = read_sequence(os.path.join(CONFIG, 'sequences', 'person_in_path.csv'))
+    designed = demo_cell.person_in_path()
+    assert seq.joint_names == designed.joint_names
+    np.testing.assert_array_equal(seq.positions, designed.positions)
     touching = [i for i in range(0, len(seq), 5)
                 if min(oracle.distance_to_person(oracle.posed(seq.joint_names,
                                                               seq.positions[i])).values()) == 0]

@@ -16,7 +16,7 @@ import yaml
 import yourdfpy
 
 from collision_sensor.model.sequences import read_sequence
-from collision_sensor.tools import demo_cell
+from scripts import demo_cell
 
 # The committed files of this checkout (also under colcon test, which imports the installed
 # package: the generator's default output is then not this tree).

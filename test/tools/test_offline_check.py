@@ -317,7 +317,7 @@ def test_a_recorded_array_the_node_would_reject_stops_the_run(capsys, tmp_path):
 def _guard_rail_oracle(oracle, seq):
     """python-fcl on the demo cell with the guard rail (the bag's scene array, placed here from
     the generator's constants) at each of ``states``: colliding pairs per state."""
-    from collision_sensor.tools.demo_cell import GUARD_RAIL, GUARD_RAIL_AT
+    from scripts.demo_cell import GUARD_RAIL, GUARD_RAIL_AT
     import math
     distance, bearing, height = GUARD_RAIL_AT
     T = np.eye(4)
