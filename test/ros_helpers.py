@@ -1,6 +1,6 @@
 """Real rclpy in the test process, without launch: a Context, an executor, a namespace.
 
-Each test gets a :class:`RosHarness` of its own (``ros`` fixture in ``test_node.py``), so no
+Each test gets a :class:`RosHarness` of its own (``ros`` fixture in ``ros/node_harness.py``), so no
 test sees another's topics or parameters, and everything is torn down even when it fails.
 DDS stays in shared memory, in this run's domain (``test/conftest.py``).
 """

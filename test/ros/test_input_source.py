@@ -12,7 +12,7 @@ from std_msgs.msg import Bool  # noqa: E402
 
 from collision_sensor.ros.input_source import InputSource, Timeout  # noqa: E402
 from collision_sensor.ros.sensor_node import CollisionSensorNode  # noqa: E402
-from test_node import (  # noqa: E402,F401
+from node_harness import (  # noqa: E402,F401
     Probe, expected, frames, joint_state, pairs_of, panda, panda_parameters, poses, ros)
 
 

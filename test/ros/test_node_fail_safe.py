@@ -20,7 +20,7 @@ from std_msgs.msg import Bool, Float64  # noqa: E402
 from collision_sensor import CollisionChecker  # noqa: E402
 from collision_sensor.ros.node import CollisionSensorNode  # noqa: E402
 from ros_helpers import reliable  # noqa: E402
-from test_node import (  # noqa: E402,F401 - the fixtures of the node's tests
+from node_harness import (  # noqa: E402,F401 - the fixtures of the node's tests
     ARM, GRIPPER, Probe, expected, frames, joint_state, logged, panda, panda_parameters, pairs_of,
     poses, ros, stamp_of, start_node)
 

@@ -17,7 +17,7 @@ from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
 from collision_sensor.ros.node import quaternion_from_matrix  # noqa: E402
 from ros_helpers import reliable  # noqa: E402
 from test_motion_stream import PLATE, crossing  # noqa: E402,F401 - the case's fixture
-from test_node import (  # noqa: E402,F401 - the fixtures of the node's tests
+from node_harness import (  # noqa: E402,F401 - the fixtures of the node's tests
     ARM, GRIPPER, Probe, joint_state, panda_parameters, ros, start_node)
 
 NAMES = ARM + GRIPPER

@@ -22,7 +22,7 @@ from collision_sensor import CollisionChecker, ConfigError  # noqa: E402
 from collision_sensor.ros.node_parameters import (  # noqa: E402
     DYNAMIC, closest_name, settings_from_values)
 from ros_helpers import reliable  # noqa: E402
-from test_node import (  # noqa: E402,F401 - the fixtures of the node's tests
+from node_harness import (  # noqa: E402,F401 - the fixtures of the node's tests
     ARM, GRIPPER, NODE_SCRIPT, Probe, assert_clean_exit, expected, frames, joint_state, logged,
     node_process, pairs_of, panda, panda_parameters, poses, ros, start_node, stop)
 

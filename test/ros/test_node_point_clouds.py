@@ -18,7 +18,7 @@ from std_msgs.msg import Header  # noqa: E402
 
 from collision_sensor.errors import ConfigError  # noqa: E402
 from collision_sensor.ros.node import CollisionSensorNode  # noqa: E402
-from test_node import (  # noqa: E402,F401 - the fixtures of the node's tests
+from node_harness import (  # noqa: E402,F401 - the fixtures of the node's tests
     ARM, GRIPPER, Probe, frames, expected, joint_state, panda, panda_parameters, pairs_of,
     poses, ros, start_node)
 

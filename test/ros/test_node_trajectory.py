@@ -26,7 +26,7 @@ from collision_sensor.ros.trajectory_source import MAX_TRAJECTORY_BACKLOG  # noq
 from collision_sensor.untrusted_text import printable  # noqa: E402
 from ros_helpers import node_status, reliable  # noqa: E402
 from test_motion_stream import crossing, scene_of  # noqa: E402,F401 - the case's fixture
-from test_node import (  # noqa: E402,F401 - the fixtures of the node's tests
+from node_harness import (  # noqa: E402,F401 - the fixtures of the node's tests
     ARM, GRIPPER, Probe, joint_state, panda_parameters, ros, start_node)
 
 NAMES = ARM + GRIPPER

@@ -322,7 +322,7 @@ def test_a_bags_clouds_reach_the_node_in_order_and_answer_as_the_offline_check(
     from collision_sensor import CollisionChecker
     from collision_sensor.tools import offline_check
     from cloud_bags import PANDA_JOINTS, panda_sweep, write_bag
-    from test_node import panda_parameters, start_node
+    from node_harness import panda_parameters, start_node
 
     checker = CollisionChecker.from_urdf(panda_urdf, panda_srdf,
                                          package_paths=erd_package_paths)

@@ -1,7 +1,7 @@
 """The warning zone on real robots (issue 28, item 4): pairs nearer than warning_distance
 wherever the robot goes are named at start-up with the fix, and ``warning_ignore`` leaves them
 out. The UR5 as a user runs it (the console script), Talos in the test process; the references
-are fresh checkers (their proximity is checked against python-fcl in test_node and
+are fresh checkers (their proximity is checked against python-fcl in test_node_warning_zone and
 test/engine/test_distance)."""
 import os
 
@@ -17,7 +17,7 @@ from std_msgs.msg import Bool  # noqa: E402
 from collision_sensor import CollisionChecker  # noqa: E402
 from collision_sensor.engine.sampling import random_configurations  # noqa: E402
 from ros_helpers import reliable  # noqa: E402
-from test_node import (  # noqa: E402,F401
+from node_harness import (  # noqa: E402,F401
     assert_clean_exit, logged, node_process, pairs_of, ros, start_node, stop)
 
 WARNING = 0.05
