@@ -14,7 +14,7 @@ params file or on the command line (which rcl reads as "not set"), reads as the 
 
 Every parameter is listed, with comments, in ``config/collision_sensor.yaml``; keep the two in
 step (``test_params_file_lists_every_parameter_with_its_default`` in
-``test/ros/test_node.py`` checks it).
+``test/ros/test_node_configuration.py`` checks it).
 """
 import difflib
 import math
