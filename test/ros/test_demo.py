@@ -13,7 +13,7 @@ import time
 import pytest
 
 from collision_sensor.model.sequences import read_sequence
-from collision_sensor.ros import demo
+from collision_sensor.ros import demo_node_process
 from collision_sensor.ros.console_scripts import console_command
 from collision_sensor.tools import offline_check
 
@@ -147,7 +147,7 @@ class Matched:
 
 def test_a_slow_start_is_waited_for_with_progress_lines():
     said = []
-    seconds = demo.wait_until_ready(FakeNode(ready_after=2.0), Matched(), Matched(), None,
+    seconds = demo_node_process.wait_until_ready(FakeNode(ready_after=2.0), Matched(), Matched(), None,
                                     said.append, progress_period=0.1)
     assert seconds >= 2.0 and len(said) >= 2
     assert all(line.startswith('still waiting for collision_sensor_node to be ready')
@@ -155,8 +155,8 @@ def test_a_slow_start_is_waited_for_with_progress_lines():
 
 
 def test_a_node_that_exits_while_starting_is_a_clear_error():
-    with pytest.raises(demo.DemoError, match='exited with status 1 before it was ready'):
-        demo.wait_until_ready(FakeNode(exit_after=0.1), Matched(), Matched(), None,
+    with pytest.raises(demo_node_process.DemoError, match='exited with status 1 before it was ready'):
+        demo_node_process.wait_until_ready(FakeNode(exit_after=0.1), Matched(), Matched(), None,
                               lambda line: None)
 
 

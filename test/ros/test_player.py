@@ -205,7 +205,7 @@ def test_as_fast_as_possible_into_the_node_in_another_process(ros):
     another process. The timeout only catches a hang: the 571 frames took 4 s here, and
     took 28 min before the fix."""
     from diagnostic_msgs.msg import DiagnosticArray
-    from collision_sensor.ros.demo import demo_cell_parameters
+    from collision_sensor.ros.demo_node_process import demo_cell_parameters
     seq = read_sequence(PAPER)
     totals, record = _node_totals(f'{ros.namespace.strip("/")}/collision_sensor: '
                                   'collision sensor')

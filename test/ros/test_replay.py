@@ -24,7 +24,7 @@ from std_msgs.msg import Bool  # noqa: E402
 
 from collision_sensor.model.sequences import read_sequence  # noqa: E402
 from collision_sensor.ros import player  # noqa: E402
-from collision_sensor.ros.demo import demo_cell_parameters  # noqa: E402
+from collision_sensor.ros.demo_node_process import demo_cell_parameters  # noqa: E402
 from collision_sensor.ros.node import CollisionSensorNode  # noqa: E402
 from collision_sensor.tools import offline_check
 from ros_helpers import PlayerThread, RosHarness  # noqa: E402
