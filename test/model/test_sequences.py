@@ -244,15 +244,15 @@ def fast_parser(request):
 
 def test_the_engine_registers_its_number_parser():
     from collision_sensor.engine.compiled import engine
-    from collision_sensor.model import sequences
-    assert sequences._number_table_parser is engine.parse_number_table
+    from collision_sensor.model import sequence_csv
+    assert sequence_csv._number_table_parser is engine.parse_number_table
 
 
 def test_the_fast_csv_reader_gives_the_exact_readers_floats(tmp_path, fast_parser):
     """The fast path (the engine's parser, or numpy's) against Python's float (the exact path)
     on values of every magnitude, subnormal and largest included, written as repr and as
     people write them."""
-    from collision_sensor.model import sequences
+    from collision_sensor.model import sequence_csv
     rng = np.random.default_rng(7)
     values = np.concatenate([rng.normal(0, 1, 3000), rng.normal(0, 1e-9, 300),
                              rng.uniform(-1e6, 1e6, 300), [0.0, -0.0, 5e-324, 1e308]])
@@ -261,7 +261,7 @@ def test_the_fast_csv_reader_gives_the_exact_readers_floats(tmp_path, fast_parse
     body = '\n'.join(f'{k * 0.01!r},{a},{b},{c}' for k, (a, b, c) in enumerate(rows))
     path = tmp_path / 'mixed.csv'
     path.write_text('# header comment\n\ntime,a,b,c\n' + body + '\n\n')
-    fast = sequences._read_csv_fast(str(path), path.read_text(), None)
+    fast = sequence_csv.read_csv_fast(str(path), path.read_text(), None)
     assert fast is not None
     exact = np.array([[float(x) for x in row] for row in rows])
     np.testing.assert_array_equal(fast.positions, exact)
@@ -277,16 +277,16 @@ def test_the_fast_csv_reader_gives_the_exact_readers_floats(tmp_path, fast_parse
 def test_what_the_fast_reader_refuses_the_exact_reader_judges(tmp_path, body, fast_parser):
     """The engine's parser refuses every one of these bodies; numpy's refuses them or reads
     what the exact reader reads (it takes a non-breaking space for a blank, as Python does)."""
-    from collision_sensor.model import sequences
+    from collision_sensor.model import sequence_csv
     path = tmp_path / 'odd.csv'
     path.write_text('time,a\n' + body)
-    fast = sequences._read_csv_fast(str(path), path.read_text(), None)
+    fast = sequence_csv.read_csv_fast(str(path), path.read_text(), None)
     if fast_parser == 'engine':
         assert fast is None
     elif fast is not None:
-        assert fast == sequences._read_csv(str(path), None)
+        assert fast == sequence_csv.read_csv(str(path), None)
     try:
-        exact = sequences._read_csv(str(path), None)
+        exact = sequence_csv.read_csv(str(path), None)
     except SequenceError as err:
         assert 'line' in str(err)     # the exact reader names the line
     else:  # quoted and empty rows are fine, and what Python's float reads
@@ -331,14 +331,14 @@ def test_clouds_are_read_in_stamp_order_and_scheduled_by_the_frames(tmp_path, fm
     assert [e.frame for e in schedule.after_last] == ['b3']
     assert read_sequence(path, cloud_topics=['b']).clouds[0].frame == 'b1'
     # Memory is bounded: clouds read ahead of their turn are kept up to a limit.
-    import collision_sensor.model.sequences as sequences
-    limit, sequences.MAX_READ_AHEAD = sequences.MAX_READ_AHEAD, 10
+    from collision_sensor.model import sequence_bag
+    limit, sequence_bag.MAX_READ_AHEAD = sequence_bag.MAX_READ_AHEAD, 10
     try:
         with pytest.raises(SequenceError, match='the cloud of b stamped 1.050 s was recorded '
                            'after more than 0 MiB of clouds stamped later'):
             list(iter_cloud_messages(seq.clouds))
     finally:
-        sequences.MAX_READ_AHEAD = limit
+        sequence_bag.MAX_READ_AHEAD = limit
     # The state at a cloud's stamp: linear between the frames around it.
     assert seq.positions_at(1.05) == pytest.approx([1.05, -1.05, 2.1])
     assert seq.positions_at(0.5) == pytest.approx(positions[0])
