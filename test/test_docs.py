@@ -18,8 +18,9 @@ PAGES = [os.path.join(REPO, 'README.md')] + sorted(
 FENCE = re.compile(r'^(```|~~~).*?^\1[ \t]*$', re.M | re.S)
 LINK = re.compile(r'!?\[[^\]]*\]\(\s*<?([^)\s>]+)>?(?:\s+"[^"]*")?\s*\)')
 HEADING = re.compile(r'^(#{1,6})[ \t]+(.+?)[ \t]*#*[ \t]*$', re.M)
-#: Modules of collision_sensor/ros/ that are tools beside the node, not the node itself.
-NOT_THE_NODE = ('player.py', 'demo.py')
+#: Modules of collision_sensor/ros/ that are tools beside the node, not the node itself (the
+#: player's and the demo's; names starting so).
+NOT_THE_NODE = ('player.py', 'sequence_player.py', 'playback_', 'demo')
 
 
 def read(path):
@@ -141,7 +142,7 @@ def node_topics():
     call = re.compile(r"create_(?:publisher|subscription)\(\s*\w+\s*,\s*'([^']+)'")
     topics = set()
     for name in os.listdir(ros):
-        if name.endswith('.py') and name not in NOT_THE_NODE:
+        if name.endswith('.py') and not name.startswith(NOT_THE_NODE):
             topics.update(call.findall(read(os.path.join(ros, name))))
     return topics
 

@@ -11,7 +11,7 @@ With no arguments it
    the node process lives; it fails, with the node's output above, only if the node exits, or
    after ``--timeout`` seconds when one is given;
 2. plays the paper's experiment (``config/sequences/paper_experiment.csv``) into it with the
-   player's :class:`~collision_sensor.ros.player.SequencePlayer`, at the recorded timing, header
+   player's :class:`~collision_sensor.ros.sequence_player.SequencePlayer`, at the recorded timing, header
    stamps set to the recorded times;
 3. prints a line whenever the set of colliding pairs the node reports on ``colliding_pairs``
    changes (the time, the pairs entering ``+`` and leaving ``-``), and at the end a summary:

@@ -44,7 +44,8 @@ def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-    from collision_sensor.ros.player import SequencePlayer, frame_offsets
+    from collision_sensor.ros.playback_schedule import frame_offsets
+    from collision_sensor.ros.sequence_player import SequencePlayer
 
     def say(text=''):
         print(text, file=out, flush=True)

@@ -8,7 +8,11 @@ import numpy as np
 import pytest
 
 from collision_sensor.model.sequences import JointSequence, read_sequence, write_sequence
-from collision_sensor.ros import player
+from collision_sensor.ros import playback_schedule, player
+
+pytest.importorskip('rclpy')
+
+from sensor_msgs.msg import JointState, PointCloud2  # noqa: E402
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BUNDLED = os.path.join(REPO, 'config', 'sequences')
@@ -19,8 +23,8 @@ PAPER = os.path.join(BUNDLED, 'paper_experiment.csv')
 
 def test_frame_offsets_follow_recorded_times_or_the_rate():
     times = np.array([10.0, 10.5, 11.75])
-    assert player.frame_offsets(times).tolist() == [0.0, 0.5, 1.75]
-    assert player.frame_offsets(times, rate=4.0).tolist() == [0.0, 0.25, 0.5]
+    assert playback_schedule.frame_offsets(times).tolist() == [0.0, 0.5, 1.75]
+    assert playback_schedule.frame_offsets(times, rate=4.0).tolist() == [0.0, 0.25, 0.5]
 
 
 def test_clouds_go_at_their_log_time_unless_it_is_another_clocks():
@@ -30,11 +34,11 @@ def test_clouds_go_at_their_log_time_unless_it_is_another_clocks():
         CloudEvent(10.06, 'c', 'f', 'bag', 1, log_time=1.7e9),       # simulated time
         CloudEvent(10.07, 'c', 'f', 'bag', 2, log_time=10.0),        # logged before its stamp
         CloudEvent(10.15, 'c', 'f', 'bag', 3, log_time=10.16)])
-    assert player.recorded_cloud_offsets(seq) == pytest.approx([0.08, 0.08, 0.08, 0.16])
+    assert playback_schedule.recorded_cloud_offsets(seq) == pytest.approx([0.08, 0.08, 0.08, 0.16])
 
 
 def test_loop_period_adds_one_typical_gap():
-    assert player.loop_period(np.array([0.0, 0.1, 0.2, 0.6])) == pytest.approx(0.7)
+    assert playback_schedule.loop_period(np.array([0.0, 0.1, 0.2, 0.6])) == pytest.approx(0.7)
 
 
 # --- bad input fails before ROS starts ---------------------------------------------------------
@@ -78,7 +82,7 @@ def _keep_all():
 
 def test_as_fast_as_possible_delivers_every_frame_in_order(ros):
     seq = read_sequence(PAPER)
-    received = ros.record(player.JointState, 'joint_states', _keep_all())
+    received = ros.record(JointState, 'joint_states', _keep_all())
     play = PlayerThread([PAPER, '--as-fast-as-possible', '--progress', 'never',
                          '--ros-args', '-r', f'__ns:={ros.namespace}'])
     try:
@@ -98,7 +102,7 @@ def test_remapped_topic_rate_and_recorded_stamps(ros, tmp_path):
                         np.array([[0.0, 1.0], [0.5, 1.5], [1.0, 2.0]]), 'three')
     path = tmp_path / 'three.csv'
     write_sequence(seq, path)
-    received = ros.record(player.JointState, 'remapped', _keep_all())
+    received = ros.record(JointState, 'remapped', _keep_all())
     play = PlayerThread([str(path), '--rate', '50', '--stamp', 'recorded',
                          '--wait-for-subscribers', '1', '--joints', 'b,a',
                          '--ros-args', '-r', f'__ns:={ros.namespace}',
@@ -120,7 +124,7 @@ def test_loop_runs_until_shutdown(ros, tmp_path):
     seq = JointSequence(('a',), np.array([0.0, 0.01, 0.02]), np.array([[1.0], [2.0], [3.0]]))
     path = tmp_path / 'short.csv'
     write_sequence(seq, path)
-    received = ros.record(player.JointState, 'joint_states', _keep_all())
+    received = ros.record(JointState, 'joint_states', _keep_all())
     play = PlayerThread([str(path), '--loop', '--wait-for-subscribers', '1',
                          '--ros-args', '-r', f'__ns:={ros.namespace}'])
     try:
@@ -242,7 +246,7 @@ def test_as_fast_as_possible_into_the_node_in_another_process(ros):
 
 
 def _keep_all_recorder(ros):
-    return ros.record(player.JointState, 'joint_states', _keep_all())
+    return ros.record(JointState, 'joint_states', _keep_all())
 
 
 def test_recorded_timing_waits_for_the_subscriber_and_loses_no_frame(ros, tmp_path):
@@ -396,9 +400,9 @@ def test_recorded_timing_publishes_each_cloud_as_recorded(ros, tmp_path):
               for topic, log, stamp, points, _ in sent]
     bag = str(tmp_path / 'c.db3')
     write_bag(bag, 'sqlite3', ('a', 'b'), times, positions, clouds)
-    frames = ros.record(player.JointState, 'joint_states', _keep_all())
-    cam = ros.record(player.PointCloud2, 'cam/points', qos_profile_sensor_data)
-    lidar = ros.record(player.PointCloud2, 'lidar', qos_profile_sensor_data)
+    frames = ros.record(JointState, 'joint_states', _keep_all())
+    cam = ros.record(PointCloud2, 'cam/points', qos_profile_sensor_data)
+    lidar = ros.record(PointCloud2, 'lidar', qos_profile_sensor_data)
     play = PlayerThread([bag, '--stamp', 'recorded', '--progress', 'never',
                          '--ros-args', '-r', f'__ns:={ros.namespace}'])
     try:

@@ -23,7 +23,7 @@ from rclpy.qos import (  # noqa: E402
 from std_msgs.msg import Bool  # noqa: E402
 
 from collision_sensor.model.sequences import read_sequence  # noqa: E402
-from collision_sensor.ros import player  # noqa: E402
+from collision_sensor.ros import playback_messages  # noqa: E402
 from collision_sensor.ros.demo_node_process import demo_cell_parameters  # noqa: E402
 from collision_sensor.ros.node import CollisionSensorNode  # noqa: E402
 from collision_sensor.tools import offline_check
@@ -86,7 +86,8 @@ def test_node_verdicts_equal_the_offline_check(ros, tmp_path, capsys, name):
         play.stop()
     assert done, f'{len(pairs)} verdicts for {len(expected)} frames'
 
-    want = [(player._stamp_from_seconds(frame['time']), frame['pairs']) for frame in expected]
+    want = [(playback_messages.stamp_from_seconds(frame['time']), frame['pairs'])
+            for frame in expected]
     assert len(contact.messages) == len(pairs.messages) == total
     on_frames = [(msg, bool_msg.data) for msg, bool_msg in zip(pairs.messages, contact.messages)
                  if not msg.header.frame_id]     # not the answers to scene arrays
