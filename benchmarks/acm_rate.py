@@ -21,7 +21,7 @@ import numpy as np
 from collision_sensor.engine.checker import CollisionChecker
 from collision_sensor.engine.sampling import sampling_bounds, uniform_configurations
 from collision_sensor.model.example_robots import example_robot
-from collision_sensor.tools.acm import find_adjacent, pair_checker
+from collision_sensor.tools.collision_matrix import find_adjacent, pair_checker
 from benchmarks.peers import PinocchioPeer
 
 

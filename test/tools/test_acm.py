@@ -18,7 +18,7 @@ from collision_sensor.engine.sampling import sampling_bounds, uniform_configurat
 from collision_sensor.model.share import config_path
 from collision_sensor.model.srdf import load_srdf
 from collision_sensor.model.srdf_merge import merge_disable_collisions, new_srdf
-from collision_sensor.tools import acm
+from collision_sensor.tools import acm, collision_matrix, collision_matrix_report
 from engine_oracles import FclOracle
 
 SAMPLES = 1500        # per Always round
@@ -75,7 +75,7 @@ def panda_base(panda_urdf, erd_package_paths):
 
 @pytest.fixture(scope='module')
 def panda_matrix(panda_base):
-    return acm.compute_matrix(panda_base, never=True, samples_per_round=SAMPLES,
+    return collision_matrix.compute_matrix(panda_base, never=True, samples_per_round=SAMPLES,
                               never_samples=NEVER_SAMPLES, seed=11)
 
 
@@ -89,29 +89,29 @@ def test_panda_compared_with_the_shipped_srdf(panda_matrix, panda_srdf):
     shipped = _pairs_of(panda_srdf)
     found = {f.pair: f.reason for f in panda_matrix.findings}
     print(f'\nPanda (URDF only, seed {panda_matrix.seed}) against the shipped SRDF:')
-    for reason in acm.REASONS:
+    for reason in collision_matrix.REASONS:
         want = {p for p, r in shipped.items() if r == reason}
         got = {p for p, r in found.items() if r == reason}
         print(f'  {reason:<8} shipped {len(want):2d}  found {len(got & want):2d}  '
               f'missing {sorted(want - got)}  extra {sorted(got - want)}')
     other = {p: (r, found.get(p)) for p, r in shipped.items() if found.get(p) != r}
     print(f'  pairs where the reasons differ (shipped, ours): {other}')
-    shipped_adjacent = {p for p, r in shipped.items() if r == acm.ADJACENT}
-    assert shipped_adjacent <= set(panda_matrix.pairs(acm.ADJACENT))
+    shipped_adjacent = {p for p, r in shipped.items() if r == collision_matrix.ADJACENT}
+    assert shipped_adjacent <= set(panda_matrix.pairs(collision_matrix.ADJACENT))
 
 
 def test_panda_adjacent_pairs_match_the_urdf_tree(panda_matrix, panda_urdf):
     # panda_hand hangs under panda_link8, which has no geometry: adjacent to panda_link7.
-    assert set(panda_matrix.pairs(acm.ADJACENT)) == _adjacent_by_etree(panda_urdf)
-    assert ('panda_hand', 'panda_link7') in panda_matrix.pairs(acm.ADJACENT)
+    assert set(panda_matrix.pairs(collision_matrix.ADJACENT)) == _adjacent_by_etree(panda_urdf)
+    assert ('panda_hand', 'panda_link7') in panda_matrix.pairs(collision_matrix.ADJACENT)
 
 
 def test_panda_default_pairs_are_what_python_fcl_sees_at_zero(panda_base, panda_matrix,
                                                               panda_urdf):
-    adjacent = set(panda_matrix.pairs(acm.ADJACENT))
+    adjacent = set(panda_matrix.pairs(collision_matrix.ADJACENT))
     oracle = FclOracle(panda_base, panda_urdf)
     at_zero = set(oracle.colliding_pairs(np.zeros(len(panda_base.joint_names)))) - adjacent
-    assert set(panda_matrix.pairs(acm.DEFAULT)) == at_zero
+    assert set(panda_matrix.pairs(collision_matrix.DEFAULT)) == at_zero
 
 
 def test_panda_always_pairs_hold_in_fresh_samples(panda_base, panda_matrix, fresh_panda):
@@ -121,8 +121,8 @@ def test_panda_always_pairs_hold_in_fresh_samples(panda_base, panda_matrix, fres
 def test_panda_sampled_statuses_agree_with_python_fcl(panda_base, panda_matrix, fresh_panda,
                                                       panda_urdf):
     """The raw matrix the tool counts: check_batch against python-fcl on fresh samples."""
-    sampled = [p for p in panda_base.checked_pairs if p not in panda_matrix.pairs(acm.ADJACENT)]
-    sampler = acm.pair_checker(panda_base, sampled)
+    sampled = [p for p in panda_base.checked_pairs if p not in panda_matrix.pairs(collision_matrix.ADJACENT)]
+    sampler = collision_matrix.pair_checker(panda_base, sampled)
     oracle = FclOracle(sampler, panda_urdf)
     subset = fresh_panda[:60]
     ours = sampler.check_batch(subset)
@@ -133,32 +133,32 @@ def test_panda_sampled_statuses_agree_with_python_fcl(panda_base, panda_matrix, 
 
 
 def test_panda_never_pairs_report_their_samples(panda_matrix):
-    never = [f for f in panda_matrix.findings if f.reason == acm.NEVER]
+    never = [f for f in panda_matrix.findings if f.reason == collision_matrix.NEVER]
     assert never and all(f.hits == 0 and f.samples == NEVER_SAMPLES for f in never)
     assert all(f.clearance is None for f in never)
-    assert acm.NO_DISTANCE in acm.report(panda_matrix)
-    assert 'not proof' in acm.report(panda_matrix)
+    assert collision_matrix_report.NO_DISTANCE in collision_matrix_report.report(panda_matrix)
+    assert 'not proof' in collision_matrix_report.report(panda_matrix)
 
 
 def test_panda_default_state_from_the_srdf(panda_base, panda_srdf, panda_urdf):
     srdf = load_srdf(panda_srdf)
-    matrix = acm.compute_matrix(panda_base, srdf=srdf, default_state='default',
+    matrix = collision_matrix.compute_matrix(panda_base, srdf=srdf, default_state='default',
                                 samples_per_round=200, seed=1)
-    q = acm.default_configuration(panda_base, srdf, 'default')
+    q = collision_matrix.default_configuration(panda_base, srdf, 'default')
     assert q[panda_base.joint_names.index('panda_joint4')] == -2.35619
     oracle = FclOracle(panda_base, panda_urdf)
-    expected = set(oracle.colliding_pairs(q)) - set(matrix.pairs(acm.ADJACENT))
-    assert set(matrix.pairs(acm.DEFAULT)) == expected
+    expected = set(oracle.colliding_pairs(q)) - set(matrix.pairs(collision_matrix.ADJACENT))
+    assert set(matrix.pairs(collision_matrix.DEFAULT)) == expected
     assert matrix.default_state == 'default'
 
 
 def _assert_always_hold(checker, matrix, fresh):
     """Each Always pair collides in >= the fraction of fresh samples, less 4 standard errors."""
-    always = matrix.pairs(acm.ALWAYS)
+    always = matrix.pairs(collision_matrix.ALWAYS)
     if not always:
         print(f'\n{matrix.robot_name}: no Always pair at {matrix.always_fraction}')
         return
-    sampler = acm.pair_checker(checker, always)
+    sampler = collision_matrix.pair_checker(checker, always)
     rates = sampler.check_batch(fresh).mean(axis=0)
     f = matrix.always_fraction
     margin = 4.0 * math.sqrt(f * (1.0 - f) / len(fresh))
@@ -211,17 +211,17 @@ def slider_base(slider_urdf):
 
 
 def test_slider_matrix_is_the_one_the_geometry_implies(slider_base):
-    matrix = acm.compute_matrix(slider_base, never=True, clearance=True,
+    matrix = collision_matrix.compute_matrix(slider_base, never=True, clearance=True,
                                 samples_per_round=SAMPLES, never_samples=NEVER_SAMPLES, seed=5)
-    assert set(matrix.pairs(acm.ADJACENT)) == {('base', 'mast'), ('base', 'gate'),
+    assert set(matrix.pairs(collision_matrix.ADJACENT)) == {('base', 'mast'), ('base', 'gate'),
                                                ('mast', 'slider')}
-    assert matrix.pairs(acm.DEFAULT) == []
-    assert matrix.pairs(acm.ALWAYS) == [('base', 'slider')]
-    assert matrix.pairs(acm.NEVER) == [('gate', 'mast')]
+    assert matrix.pairs(collision_matrix.DEFAULT) == []
+    assert matrix.pairs(collision_matrix.ALWAYS) == [('base', 'slider')]
+    assert matrix.pairs(collision_matrix.NEVER) == [('gate', 'mast')]
     assert matrix.stable and matrix.rounds >= 2
-    never, = [f for f in matrix.findings if f.reason == acm.NEVER]
+    never, = [f for f in matrix.findings if f.reason == collision_matrix.NEVER]
     assert never.clearance == pytest.approx(GATE_MAST_CLEARANCE, abs=1e-6)
-    assert f'smallest clearance {GATE_MAST_CLEARANCE:.4f} m over ' in acm.report(matrix)
+    assert f'smallest clearance {GATE_MAST_CLEARANCE:.4f} m over ' in collision_matrix_report.report(matrix)
 
 
 # Gate and slider: the bar's end is 1.5 - (q + 1) = 0.5 - q from the gate for q < 0.5, in
@@ -233,7 +233,7 @@ def test_slider_matrix_is_the_one_the_geometry_implies(slider_base):
     (3.0, {('gate', 'slider'): 0.5, ('gate', 'mast'): GATE_MAST_CLEARANCE}),
 ])
 def test_slider_warning_zone_is_the_one_the_geometry_implies(slider_base, distance, listed):
-    matrix = acm.compute_matrix(slider_base, samples_per_round=300, seed=5,
+    matrix = collision_matrix.compute_matrix(slider_base, samples_per_round=300, seed=5,
                                 warning_distance=distance, warning_samples=500)
     zone = matrix.warning_zone
     # Checked: every pair but the Adjacent ones and the Always one (base, slider).
@@ -250,21 +250,21 @@ def test_warning_zone_leaves_out_the_srdf_pairs(slider_base, slider_urdf, tmp_pa
                          'link2="gate" reason="User"/></robot>')
     from collision_sensor.model.srdf import load_srdf_for_model
     srdf = load_srdf_for_model(str(srdf_path), slider_base.model)
-    matrix = acm.compute_matrix(slider_base, srdf=srdf, samples_per_round=300, seed=5,
+    matrix = collision_matrix.compute_matrix(slider_base, srdf=srdf, samples_per_round=300, seed=5,
                                 warning_distance=3.0, warning_samples=200)
     assert matrix.warning_zone.candidates == 1
     assert list(matrix.warning_zone.farthest) == [('gate', 'mast')]
 
 
 def test_slider_always_rates_match_the_closed_form(slider_base):
-    matrix = acm.compute_matrix(slider_base, always_fraction=0.4, samples_per_round=SAMPLES,
+    matrix = collision_matrix.compute_matrix(slider_base, always_fraction=0.4, samples_per_round=SAMPLES,
                                 seed=6)
-    assert set(matrix.pairs(acm.ALWAYS)) == {('base', 'slider'), ('gate', 'slider')}
+    assert set(matrix.pairs(collision_matrix.ALWAYS)) == {('base', 'slider'), ('gate', 'slider')}
     fresh = uniform_configurations(*sampling_bounds(slider_base), FRESH,
                                       np.random.default_rng(99))
     q = fresh[:, 0]
     closed_form = {('base', 'slider'): np.mean(q >= 0.02), ('gate', 'slider'): np.mean(q >= 0.5)}
-    sampler = acm.pair_checker(slider_base, list(closed_form))
+    sampler = collision_matrix.pair_checker(slider_base, list(closed_form))
     statuses = sampler.check_batch(fresh)
     for column, pair in enumerate(sampler.checked_pairs):
         away = np.abs(q - (0.02 if pair[0] == 'base' else 0.5)) > 1e-6
@@ -280,8 +280,8 @@ def test_slider_always_rates_match_the_closed_form(slider_base):
 
 
 def test_same_seed_same_matrix(slider_base):
-    first = acm.compute_matrix(slider_base, never=True, samples_per_round=300, seed=8)
-    again = acm.compute_matrix(slider_base, never=True, samples_per_round=300, seed=8)
+    first = collision_matrix.compute_matrix(slider_base, never=True, samples_per_round=300, seed=8)
+    again = collision_matrix.compute_matrix(slider_base, never=True, samples_per_round=300, seed=8)
     assert first == again
 
 
@@ -307,7 +307,7 @@ def test_generated_list_clears_the_zero_pose(capsys, tmp_path, robot, ur5_urdf,
     assert f'allowed_collisions: [{", ".join(chr(34) + e + chr(34) for e in listed)}]' in out
     written = _pairs_of(str(srdf))
     assert {tuple(sorted(e.split(':'))) for e in listed} == set(written)
-    assert set(written.values()) <= set(acm.REASONS)
+    assert set(written.values()) <= set(collision_matrix.REASONS)
     assert {p for p, r in written.items() if r == 'Adjacent'} == _adjacent_by_etree(urdf)
     zero = np.zeros
     for ignore_adjacent in (True, False):
