@@ -15,7 +15,7 @@ and max over the runs), the ratios of each round, frames per second per core nex
 without reading, fan-out and report), how busy the machine was (load average, and the cores
 busy during each run by ``/proc/stat``), and whether every run gave the same report lines.
 
-Targets (issue 26): ``--jobs 2`` >= 1.8x the throughput of ``--jobs 1``; Ray within 15 % of
+Targets: ``--jobs 2`` >= 1.8x the throughput of ``--jobs 1``; Ray within 15 % of
 ``--jobs 2``. Throughput is judged end to end (start to last line, the workers' start
 included); the steady rate after the first line is printed beside it.
 """

@@ -6,7 +6,7 @@ the limits put its moving links' geometry somewhere; each object is centred at o
 places (jittered), so every object is within reach. Sizes scale with the reach ``R`` (the
 farthest such place from the root, m): boxes of edges ``U(0.002, 0.15) R`` (plates and rods
 among them), cylinders of radius ``U(0.002, 0.05) R`` and length ``U(0.05, 0.4) R``, balls of
-radius ``U(0.01, 0.08) R``; the scene of issue 25's tests scaled to each robot. None is on
+radius ``U(0.01, 0.08) R``; the motion tests' scene scaled to each robot. None is on
 the base: an object met in more than ``MAX_CONTACT_SHARE`` of random configurations is drawn
 again (a base in contact would make every state a contact; so would a link that no joint
 takes far, such as a shoulder turning in place).

@@ -26,7 +26,7 @@ from benchmarks.scenario_peers import fcl_bvh
 
 Pair = Tuple[str, str]
 
-#: rad or m: the oracle's sampling resolution (issue 25: at most 1e-3).
+#: rad or m: the oracle's sampling resolution (at most 1e-3: finer than any gap it must see).
 SAMPLE_STEP = 1e-3
 #: fcl's distances and our contact rule agree to this, m (the triangle test's tolerance is
 #: 1e-12 relative, fcl's triangle distance is exact up to rounding).

@@ -31,7 +31,7 @@ motion checks). ``--trajectories RATE`` publishes, during each run, planned traj
 ``trajectory`` topic, to measure the joint states' latency while trajectories are checked;
 their results' count and latency are printed.
 
-``--clouds RATE`` measures the joint states beside a depth camera (issue 29's target: their
+``--clouds RATE`` measures the joint states beside a depth camera (the target: their
 p99 within 10 % of the same run without clouds): the node subscribes to ``points``
 (``point_cloud_topics``), and each rate runs ``--repeat`` times without clouds, then with
 organised clouds (``--cloud-size``, 640 x 480 by default, NaN holes) published at RATE Hz by a

@@ -1,4 +1,4 @@
-"""Scenario 12: point clouds from a depth camera (issue 29's target).
+"""Scenario 12: point clouds from a depth camera.
 
 A Panda on a table beside a wall, a box nobody modelled in front of it; a 640 x 480 depth
 camera (``collision_sensor.tools.depth_camera``: ray casting, 2 mm depth noise, NaN where it
@@ -20,8 +20,8 @@ The two must give the same links in contact (checked on every cloud). Ours: the 
 ran the peer's pipeline is slower for a while after it: its allocations), with the checker's
 default ``threads`` (0: every core, what a user's checker does) and on one thread (the
 benchmark's cells are set to one thread elsewhere, for the peers' sake); the peer, hundreds of
-times slower, is timed once per cloud (its mean), while its answers are checked. Targets
-(issue 29): <= 10 ms per cloud; <= 0.2x the peer (ours with the default threads).
+times slower, is timed once per cloud (its mean), while its answers are checked. Targets:
+<= 10 ms per cloud; <= 0.2x the peer (ours with the default threads).
 """
 import math
 import time

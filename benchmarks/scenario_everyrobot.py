@@ -7,7 +7,7 @@ against pinocchio+coal on the same pairs as scenario 7 times its six
 ``check`` against one ``computeCollisions`` each. Bigger robots get fewer configurations
 (``PAIR_BUDGET`` pair checks per pass, within ``CONFIGURATIONS``). A URDF that we or pinocchio
 cannot load is a row saying so; one without a collision mesh is named below the table. Then
-the distribution of the ratios over the robots, and the two targets of issue 27: every robot
+the distribution of the ratios over the robots, and its two targets: every robot
 at most 0.5x pinocchio+coal, the median robot at most 0.2x.
 
 Part B: a real link mesh of about 2,000 triangles fixed (TIAGo Pro's second arm link), a

@@ -1,4 +1,4 @@
-"""Scenario 10: motion between states, certified (issue 25's targets).
+"""Scenario 10: motion between states, certified against its targets.
 
 A. Certified, never sampled. Random straight motions (``U(0.2, 2)`` rad long, Euclidean in
    joint space, from clear starts, within the limits) of example-robot-data robots with meshes,
@@ -49,7 +49,7 @@ from benchmarks.scenario_peers import optional_peer, pinocchio_peer
 from benchmarks.scenario_proximity import WALK_STEP
 from benchmarks.scenario_report import Section, load_note, ratio, spread, us
 
-TITLE = 'Scenario 10: motion between states, certified (issue 25)'
+TITLE = 'Scenario 10: motion between states, certified'
 #: Part B: check_motion <= this x pinocchio+coal on the discretized motion ...
 PINOCCHIO_RATIO = 0.5
 #: ... and below this x our check_batch on it.

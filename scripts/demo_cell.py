@@ -764,7 +764,7 @@ SPARSE_RATE = 5.0                   # Hz: a slow driver, a planner's waypoints
 
 def guard_rail_5hz() -> JointSequence:
     """A recording at 5 Hz in which every frame is clear and a motion between two of them is
-    not (issue 25).
+    not.
 
     A guard rail, a 1 cm rod (a ``scene`` array at the start), stands beside the washer; the
     arm, reaching out at the tool's height, swings its pan from 1.5 to 0.55 rad across it in

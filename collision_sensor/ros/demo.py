@@ -113,8 +113,8 @@ def build_parser() -> argparse.ArgumentParser:
                              f'reaches the person, its own points filtered out; plays '
                              f'{CAMERA_SEQUENCE}')
     parser.add_argument('--camera-size', default='160x120', metavar='WxH',
-                        help='the camera\'s image in pixels (default %(default)s; ray casting '
-                             '320x240 costs about four times as much)')
+                        help='the camera\'s image in pixels (default %(default)s; '
+                             'the cost of rendering grows with the pixels)')
     parser.add_argument('--camera-rate', type=float, default=15.0, metavar='HZ',
                         help='clouds per second of the recording (default %(default)g)')
     timing = parser.add_mutually_exclusive_group()

@@ -20,8 +20,8 @@ from collision_sensor.tools.depth_camera import DepthCamera
 
 #: The topic the demo's camera publishes on (relative: in the demo's namespace).
 CLOUD_TOPIC = 'camera/depth/points'
-#: The camera's image (pixels) and frame rate (Hz) unless given: ray casting 160 x 120 costs
-#: about 25 to 50 ms on the shared 2-core machine, 320 x 240 about 110 to 200 ms.
+#: The camera's image (pixels) and frame rate (Hz) unless given: small enough for the ray
+#: casting to keep up with the rate on a small machine (its cost grows with the pixels).
 DEFAULT_SIZE = (160, 120)
 DEFAULT_RATE = 15.0
 MAX_RANGE = 4.0     # m

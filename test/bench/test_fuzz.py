@@ -35,7 +35,7 @@ def assert_node_survived(run, report):
     assert int(d['received_total']) == MESSAGES, d
     assert int(d['verdicts_total']) == totals['checked'], d
     assert int(d['skipped_total']) == MESSAGES - totals['checked'], d
-    # Every message answered (issue 28): a refused one too, by a failure entry.
+    # Every message answered: a refused one too, by a failure entry.
     assert totals['expected'] == totals['received'] == MESSAGES, out
     assert d['lost_total'] == '0' and d['skipped_engine_error'] == '0', d
     # Bounded memory: 100 unknown names remembered whatever the flood, the rest counted; the
