@@ -9,7 +9,7 @@ order; ``--full`` uses ``checker.check`` instead. The robot defaults to the bund
 
 A bag's scene changes (``visualization_msgs/MarkerArray`` on ``/scene``, ``--scene-topic``)
 are applied before the frames they precede, by the node's rules
-(:mod:`collision_sensor.scene_markers`): objects added, moved, attached and removed while the
+(:mod:`collision_sensor.engine.scene_markers`): objects added, moved, attached and removed while the
 robot moves. A recorded array the node would reject stops the run with its reason (status 2).
 
 A bag's point clouds (``sensor_msgs/PointCloud2``: every topic of that type, or the topics of
@@ -149,7 +149,7 @@ def run_sequence(checker, seq: JointSequence, incremental: bool = True,
     The first frame is checked once from scratch before timing starts, so the per-frame times
     measure the steady state (not one-off compilation). The scene events due before a frame
     (``seq.scene_before``) are applied to ``checker`` before it, outside the timed check, as
-    the node applies ``scene`` arrays (:func:`~collision_sensor.scene_markers.apply_array`).
+    the node applies ``scene`` arrays (:func:`~collision_sensor.engine.scene_markers.apply_array`).
     :param seq: columns in ``checker.joint_names`` order.
     :param max_distance: with a value > 0, each frame's nearest pair closer than this (m) is
         measured too (``checker.proximity``, outside the timed check).
