@@ -113,3 +113,49 @@ def expected_keys(times: np.ndarray, pairs_per_frame) -> dict:
 
 def by_source(records) -> dict:
     return {record['source']: record for record in records}
+
+
+def urdf_limits(path: str) -> dict:
+    """``{joint: (lower, upper)}`` read straight from a URDF file's ``<limit>`` tags."""
+    import xml.etree.ElementTree as ElementTree
+    return {joint.get('name'): (float(joint.find('limit').get('lower')),
+                                float(joint.find('limit').get('upper')))
+            for joint in ElementTree.parse(path).getroot().iter('joint')
+            if joint.find('limit') is not None}
+
+
+#: A LeRobot arm's recording: body joints -100..100 over their range (elbow counted the other
+#: way), as the joint map below says.
+NORMALISED_MAP = 'joints:\n' + ''.join(
+    f'  {name}.pos: {{joint: {name}, range: [{bounds}]}}\n'
+    for name, bounds in ((name, '100, -100' if name == 'elbow' else '-100, 100')
+                         for name in JOINTS))
+
+
+def write_normalised(root: str, limits: dict) -> dict:
+    """Write a v2.1 dataset of the bundled paths in -100..100 units (as LeRobot's SO-101 body
+    joints) and its joint map; return ``{source: (times, positions)}``, the positions computed
+    here from the float32 values and ``limits``."""
+    from lerobot_writer import write_v21
+
+    fps = 30
+    episodes = [bundled('paper_experiment').positions[::4], bundled('random').positions[::3]]
+    lower = np.array([limits[name][0] for name in JOINTS])
+    upper = np.array([limits[name][1] for name in JOINTS])
+    flip = np.array([name == 'elbow' for name in JOINTS])
+    states = []
+    for q in episodes:
+        values = -100.0 + 200.0 * (q - lower) / (upper - lower)
+        values[:, flip] *= -1.0
+        states.append(np.column_stack([values, np.full(len(q), 50.0)]).astype(np.float32))
+    dataset = os.path.join(root, 'normalised')
+    write_v21(dataset, STATE_NAMES, states, fps=fps)
+    with open(os.path.join(root, 'normalised.yaml'), 'w') as stream:
+        stream.write(NORMALISED_MAP)
+    out = {}
+    for index, episode in enumerate(states):
+        values = episode[:, :len(JOINTS)].astype(np.float64)
+        values[:, flip] *= -1.0
+        times = (np.arange(len(episode)) / fps).astype(np.float32).astype(float)
+        out[f'{dataset}#{index}'] = (times, lower + (values + 100.0) / 200.0 * (upper - lower))
+    return out

@@ -14,7 +14,7 @@ import pytest
 pytest.importorskip('pyarrow')
 
 from collision_sensor.errors import ConfigError  # noqa: E402
-from collision_sensor.tools import offline_check  # noqa: E402
+from collision_sensor.tools import frame_check, offline_check  # noqa: E402
 from collision_sensor.tools.audit import batch, local_pool, report, shipping  # noqa: E402
 from collision_sensor.tools.audit.local_pool import LocalPool  # noqa: E402
 from collision_sensor.tools.audit.unit_check import (  # noqa: E402
@@ -110,7 +110,7 @@ def test_the_scene_changes_of_a_bag_are_replayed_as_the_single_check_does(
                                          srdf=os.path.join(CONFIG, 'demo_arm.srdf'),
                                          scene=os.path.join(CONFIG, 'demo_scene.yaml'))
     seq = read_sequence(source, joint_names=checker.joint_names)
-    frames = offline_check.run_sequence(checker, seq)   # checked against python-fcl there
+    frames = frame_check.run_sequence(checker, seq)   # checked against python-fcl there
     assert line['scene_changes'] == len(seq.scene) > 0
     assert line['frames_in_collision'] == sum(f.in_collision for f in frames)
     assert {(p['link_a'], p['link_b']) for p in line['pairs']} == \
@@ -150,6 +150,70 @@ def test_a_worker_reads_a_shipped_recording_without_its_path(fleet, spec, option
         expected = dict(lines[unit.source])
         expected.pop('settings')
         assert line == expected, unit.source
+
+
+def _frame_keys(path) -> dict:
+    """The report's contact keys, recomputed from the frames of ``--json`` FILE."""
+    frames = [json.loads(line) for line in path.read_text().splitlines()]
+    assert [frame['index'] for frame in frames] == list(range(len(frames)))
+    return audit_fleet.expected_keys([frame['time'] for frame in frames],
+                                     [[tuple(pair) for pair in frame['pairs']]
+                                      for frame in frames])
+
+
+def test_a_unit_the_report_names_is_checked_alone_frame_by_frame(fleet, serial_records,
+                                                                expected, capsys, tmp_path):
+    """An episode (``DATASET#N``) or a recording from a report line, checked alone: ``--json``
+    gives its frames, which agree with python-fcl and with the report's line."""
+    root = fleet[0]
+    lines = audit_fleet.by_source(serial_records.records)
+    path = tmp_path / 'frames.jsonl'
+    for source in (os.path.join(root, 'ds_v21') + '#1', os.path.join(root, 'ds_v3') + '#0',
+                   os.path.join(root, 'a', 'random.mcap')):
+        status, out, err = _cli(capsys, [source, '--joint-map',
+                                         os.path.join(root, 'joint_map.yaml'), '--json',
+                                         str(path)])
+        keys = _frame_keys(path)
+        assert keys == expected[source], source
+        assert {key: lines[source][key] for key in ('frames', 'frames_in_collision', 'pairs')} \
+            == {key: keys[key] for key in ('frames', 'frames_in_collision', 'pairs')}
+        assert status == (1 if keys['frames_in_collision'] else 0), err
+        assert f'sequence:  {source} ({keys["frames"]} frames' in out
+    assert any(expected[source]['frames_in_collision'] for source in (
+        os.path.join(root, 'ds_v21') + '#1', os.path.join(root, 'ds_v3') + '#0'))
+    status, _, err = _cli(capsys, [os.path.join(root, 'ds_v21') + '#7'])
+    dataset = os.path.join(root, 'ds_v21')
+    assert status == 2
+    assert f'the dataset {dataset} has no episode 7; it has episodes 0 to 1 (2 in all)' in err
+    status, _, err = _cli(capsys, [os.path.join(root, 'ds_v21'), '--json', str(path)])
+    assert status == 2 and f'check the one the report names alone: collision_sensor_check ' \
+        f'"{os.path.join(root, "ds_v21")}#0" --json FILE' in err
+
+
+def test_a_dataset_in_normalised_units_maps_onto_the_joint_limits(fleet, capsys, tmp_path):
+    """Body joints recorded -100..100 over their range (one counted the other way), mapped by
+    ``range:`` onto the URDF's limits (read here from the file): every line and every frame
+    agrees with python-fcl at the positions computed here."""
+    limits = audit_fleet.urdf_limits(os.path.join(CONFIG, 'demo_arm.urdf'))
+    good = audit_fleet.write_normalised(str(tmp_path), limits)
+    oracle = FclCell()
+    wanted = {source: audit_fleet.expected_keys(times, [oracle.colliding_pairs(q)
+                                                        for q in positions])
+              for source, (times, positions) in good.items()}
+    assert any(keys['frames_in_collision'] for keys in wanted.values())
+    joint_map = str(tmp_path / 'normalised.yaml')
+    report = tmp_path / 'normalised.jsonl'
+    status, _, err = _cli(capsys, [str(tmp_path / 'normalised'), '--joint-map', joint_map,
+                                   '--report', str(report), '--jobs', '1'])
+    assert status == 1, err
+    for line in map(json.loads, report.read_text().splitlines()):
+        keys = wanted[line['source']]
+        assert {key: line[key] for key in ('frames', 'frames_in_collision', 'pairs')} == \
+            {key: keys[key] for key in ('frames', 'frames_in_collision', 'pairs')}
+    frames = tmp_path / 'frames.jsonl'
+    source = str(tmp_path / 'normalised') + '#0'
+    _cli(capsys, [source, '--joint-map', joint_map, '--json', str(frames)])
+    assert _frame_keys(frames) == wanted[source]
 
 
 def _cli(capsys, argv):
@@ -414,7 +478,7 @@ def test_closest_approach_is_the_single_checks(fleet, spec, capsys):
                                          srdf=os.path.join(CONFIG, 'demo_arm.srdf'),
                                          scene=os.path.join(CONFIG, 'demo_scene.yaml'))
     seq = read_sequence(source, joint_names=checker.joint_names)
-    frames = offline_check.run_sequence(checker, seq, max_distance=0.05)
+    frames = frame_check.run_sequence(checker, seq, max_distance=0.05)
     clear = [f for f in frames if not f.in_collision and f.min_distance is not None]
     best = min(clear, key=lambda f: f.min_distance)
     assert line['closest_approach'] == {'distance': best.min_distance,

@@ -13,7 +13,7 @@ import pytest
 import trimesh
 
 from collision_sensor.model.sequences import JointSequence, read_sequence
-from collision_sensor.tools import offline_check
+from collision_sensor.tools import frame_check, offline_check
 from test_demo_cell import CONFIG, FclCell
 
 SEQUENCES = os.path.join(CONFIG, 'sequences')
@@ -59,11 +59,11 @@ def test_checked_pairs_match_the_oracles(checker, oracle):
 @pytest.mark.parametrize('name', BUNDLED)
 def test_incremental_answers_match_python_fcl_on_every_frame(checker, oracle_answers, name):
     seq = read_sequence(os.path.join(SEQUENCES, name + '.csv'), joint_names=checker.joint_names)
-    results = offline_check.run_sequence(checker, seq, incremental=True)
+    results = frame_check.run_sequence(checker, seq, incremental=True)
     mismatches = [(r.index, seq.positions[r.index].tolist(), r.pairs, expected)
                   for r, expected in zip(results, oracle_answers[name]) if r.pairs != expected]
     assert not mismatches, f'{name}: (frame, q, engine, fcl) {mismatches[:3]}'
-    full = offline_check.run_sequence(checker, seq, incremental=False)
+    full = frame_check.run_sequence(checker, seq, incremental=False)
     assert [r.pairs for r in full] == [r.pairs for r in results]
 
 
@@ -197,14 +197,14 @@ def test_usage_errors_exit_2(capsys):
 # --- summary and spans, on hand-made answers ---------------------------------------------------
 
 def _frames(pairs_per_frame, times):
-    return [offline_check.FrameResult(i, t, bool(p), p, 0.001)
+    return [frame_check.FrameResult(i, t, bool(p), p, 0.001)
             for i, (t, p) in enumerate(zip(times, pairs_per_frame))]
 
 
 def test_pair_spans_give_first_last_frames_and_duration():
     ab, ac = ('a', 'b'), ('a', 'c')
     results = _frames([(), (ab,), (ab, ac), (), (ab,)], [0.0, 0.1, 0.2, 0.3, 0.5])
-    spans = {s.pair: s for s in offline_check.pair_spans(results)}
+    spans = {s.pair: s for s in frame_check.pair_spans(results)}
     assert (spans[ab].first, spans[ab].last, spans[ab].frames) == (0.1, 0.5, 3)
     assert spans[ab].duration == pytest.approx(0.1 + 0.1 + 0.2)   # last frame: previous gap
     assert (spans[ac].first, spans[ac].last, spans[ac].frames) == (0.2, 0.2, 1)
@@ -212,13 +212,13 @@ def test_pair_spans_give_first_last_frames_and_duration():
 
 def test_plot_with_distances_draws_gaps_where_none_was_near(tmp_path):
     seq = JointSequence(('a',), np.array([0.0, 1.0, 2.0]), np.zeros((3, 1)), 'near.csv')
-    frames = [offline_check.FrameResult(0, 0.0, False, (), 0.001, 0.05, ('a', 'b')),
-              offline_check.FrameResult(1, 1.0, False, (), 0.001),
-              offline_check.FrameResult(2, 2.0, True, (('a', 'b'),), 0.001, 0.0, ('a', 'b'))]
+    frames = [frame_check.FrameResult(0, 0.0, False, (), 0.001, 0.05, ('a', 'b')),
+              frame_check.FrameResult(1, 1.0, False, (), 0.001),
+              frame_check.FrameResult(2, 2.0, True, (('a', 'b'),), 0.001, 0.0, ('a', 'b'))]
     path = tmp_path / 'near.png'
-    offline_check.plot_timeline(frames, seq, str(path), max_distance=0.1)
+    frame_check.plot_timeline(frames, seq, str(path), max_distance=0.1)
     assert path.read_bytes()[:4] == b'\x89PNG'
-    line = offline_check.distance_summary(frames, 0.0, 0.1)
+    line = frame_check.distance_summary(frames, 0.0, 0.1)
     assert line == ('closest approach while clear: 0.050000 m (a -- b) at 0.000 s; 1 clear '
                     'frames with a pair within 0.1 m')
 
@@ -226,7 +226,7 @@ def test_plot_with_distances_draws_gaps_where_none_was_near(tmp_path):
 def test_plot_without_contacts_still_draws(tmp_path):
     seq = JointSequence(('a',), np.array([0.0, 1.0]), np.zeros((2, 1)), 'quiet.csv')
     path = tmp_path / 'quiet.png'
-    offline_check.plot_timeline(_frames([(), ()], [0.0, 1.0]), seq, str(path))
+    frame_check.plot_timeline(_frames([(), ()], [0.0, 1.0]), seq, str(path))
     assert path.read_bytes()[:4] == b'\x89PNG'
 
 
@@ -273,7 +273,7 @@ def test_moving_part_replay_matches_python_fcl_on_every_frame(oracle):
                                          srdf=os.path.join(CONFIG, 'demo_arm.srdf'),
                                          scene=os.path.join(CONFIG, 'demo_scene.yaml'))
     seq = read_sequence(os.path.join(SEQUENCES, 'moving_part'), joint_names=checker.joint_names)
-    results = offline_check.run_sequence(checker, seq, incremental=True)
+    results = frame_check.run_sequence(checker, seq, incremental=True)
     objects, mismatches, attached_frames = {}, [], 0
     for index, events in enumerate(seq.scene_before()):
         for marker in (m for event in events for m in event.markers):

@@ -463,15 +463,7 @@ class UnitChecker:
                 raise SequenceError(shipping.relabel(str(err), local, unit.path)) from None
 
     def _read(self, unit: Unit, payload, local: str) -> JointSequence:
-        names = self.checker.joint_names
-        if unit.kind == 'lerobot':
-            joint_map = self.options.joint_map or JointMap.identity(names)
-            return lerobot.read_episode(unit.episode, joint_map, names, data=payload)
-        seq = read_sequence(local, topic=self.options.topic, joint_names=names,
-                            scene_topic=self.options.scene_topic,
-                            cloud_topics=self.options.cloud_topics)
-        return JointSequence(seq.joint_names, seq.times, seq.positions, unit.path, seq.scene,
-                             seq.clouds)
+        return read_unit(unit, self.options, self.checker.joint_names, payload, local)
 
     def _run(self, seq: JointSequence):
         """Run every check over the frames, the recorded scene arrays and point clouds
@@ -501,6 +493,25 @@ class UnitChecker:
             self._checker = None   # whatever state an error left, the next unit starts clean
             raise
         return [check.result() for check in checks], (clouds.counts() if seq.clouds else None)
+
+
+def read_unit(unit: Unit, options: CheckOptions, joint_names, payload=None,
+              local: Optional[str] = None) -> JointSequence:
+    """Read ``unit``'s frames as positions of ``joint_names``: a dataset episode through
+    ``options.joint_map`` (or its entries named as the joints), a recording by the topics of
+    ``options``; the sequence's ``source`` is the unit's own path, also when shipped.
+
+    :param payload: an episode's parquet bytes when shipped (:mod:`shipping`), else None.
+    :param local: where a shipped recording was unpacked (None: ``unit.path``).
+    :raises SequenceError: naming the recording or episode and the fault.
+    """
+    if unit.kind == 'lerobot':
+        joint_map = options.joint_map or JointMap.identity(joint_names)
+        return lerobot.read_episode(unit.episode, joint_map, joint_names, data=payload)
+    seq = read_sequence(local or unit.path, topic=options.topic, joint_names=joint_names,
+                        scene_topic=options.scene_topic, cloud_topics=options.cloud_topics)
+    return JointSequence(seq.joint_names, seq.times, seq.positions, unit.path, seq.scene,
+                         seq.clouds)
 
 
 def rss_bytes() -> int:

@@ -1,10 +1,11 @@
 """Units of work: every recording and every dataset episode that the inputs name, once each.
 
 An input is a file (``.csv``, ``.mcap``, ``.db3``), a rosbag2 bag directory (``metadata.yaml``),
-a LeRobot dataset directory (``meta/info.json``: one unit per episode), any other directory
-(searched recursively for all of these; a bag or dataset found is not searched further), or a
-glob (``'fleet/**/*.mcap'``, quoted so the tool expands it, ``**`` crossing directories). Units
-come out sorted within each input, inputs in the order given, each source once.
+a LeRobot dataset directory (``meta/info.json``: one unit per episode), one episode of a
+dataset as a report names it (``DATASET#N``), any other directory (searched recursively for all
+of these; a bag or dataset found is not searched further), or a glob (``'fleet/**/*.mcap'``,
+quoted so the tool expands it, ``**`` crossing directories). Units come out sorted within each
+input, inputs in the order given, each source once.
 """
 import glob
 import os
@@ -85,6 +86,25 @@ def _input_units(path: str) -> List[Unit]:
     return [_file_unit(path)]
 
 
+def _episode_unit(value: str) -> Optional[Unit]:
+    """The unit of ``DATASET#N`` (an episode as a report names it), or None when ``value`` is
+    not of that form.
+
+    :raises ConfigError: a dataset that has no episode N, naming those it has.
+    """
+    root, mark, index = value.rpartition('#')
+    if not mark or not index.isdigit() or not lerobot.is_dataset(root):
+        return None
+    lerobot.require_pyarrow()
+    episodes = lerobot.list_episodes(root)
+    for episode in episodes:
+        if episode.index == int(index):
+            return Unit(episode.source, 'lerobot', episode.root, episode)
+    have = (f'episodes {episodes[0].index} to {episodes[-1].index} ({len(episodes)} in all)'
+            if episodes else 'no episodes')
+    raise ConfigError(f'{value}: the dataset {root} has no episode {int(index)}; it has {have}')
+
+
 def find_units(inputs: Iterable[str], resolve: Callable[[str], str] = lambda value: value
                ) -> List[Unit]:
     """Return the units of ``inputs`` (see the module docstring).
@@ -94,23 +114,30 @@ def find_units(inputs: Iterable[str], resolve: Callable[[str], str] = lambda val
     """
     units, seen = [], set()
     for value in inputs:
-        value = resolve(value)
-        if os.path.exists(value):
-            paths = [value]
-        elif _GLOB_CHARS & set(value):
-            paths = sorted(glob.glob(value, recursive=True))
-            if not paths:
-                raise ConfigError(f'{value}: no file matches this pattern')
-        else:
-            raise ConfigError(f'{value}: no such file or directory; check the path')
-        found = []
-        for path in paths:
-            found += _input_units(os.path.normpath(path))
-        if not found:
-            raise ConfigError(f'{value}: no recordings in it (.csv, .mcap, .db3 files, rosbag2 '
-                              'bag directories, LeRobot datasets)')
-        for unit in found:
+        for unit in _value_units(resolve(value)):
             if unit.source not in seen:
                 seen.add(unit.source)
                 units.append(unit)
     return units
+
+
+def _value_units(value: str) -> List[Unit]:
+    """The units of one input (see :func:`find_units`)."""
+    episode = None if os.path.exists(value) else _episode_unit(value)
+    if episode is not None:
+        return [episode]
+    if os.path.exists(value):
+        paths = [value]
+    elif _GLOB_CHARS & set(value):
+        paths = sorted(glob.glob(value, recursive=True))
+        if not paths:
+            raise ConfigError(f'{value}: no file matches this pattern')
+    else:
+        raise ConfigError(f'{value}: no such file or directory; check the path')
+    found = []
+    for path in paths:
+        found += _input_units(os.path.normpath(path))
+    if not found:
+        raise ConfigError(f'{value}: no recordings in it (.csv, .mcap, .db3 files, rosbag2 '
+                          'bag directories, LeRobot datasets)')
+    return found
