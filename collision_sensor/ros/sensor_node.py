@@ -39,7 +39,8 @@ colliding_pairs     out  diagnostic_msgs/DiagnosticArray     reliable, transient
 near                out  std_msgs/Bool                       as contact (``warning_distance`` > 0)
 min_distance        out  std_msgs/Float64                    as contact (``warning_distance`` > 0)
 near_pairs          out  diagnostic_msgs/DiagnosticArray     as contact (``warning_distance`` > 0)
-trajectory_result   out  diagnostic_msgs/DiagnosticArray     as contact, one per trajectory
+trajectory_result   out  diagnostic_msgs/DiagnosticArray     reliable, volatile, depth 100, one
+                                                             per trajectory
 trajectory_out      out  trajectory_msgs/JointTrajectory     reliable, depth 10 (valid ones)
 ~/markers           out  visualization_msgs/MarkerArray      reliable, depth 10 (if enabled)
 /diagnostics        out  diagnostic_msgs/DiagnosticArray     reliable, depth 10, once a second

@@ -181,13 +181,14 @@ class SequencePlayer:
     def wait_for_verdicts(self, condition, timeout: Optional[float] = None) -> bool:
         """Spin the player's node until ``condition()`` holds (the node's answers counted);
         return False if ``timeout`` (s) passed first."""
-        waited, warned = 0.0, False
+        # Time is read from the clock: spin_once returns early for every message it takes.
+        started, warned = time.monotonic(), False
         while not condition():
             self._ok()
+            waited = time.monotonic() - started
             if timeout is not None and waited >= timeout:
                 return False
             self._executor.spin_once(timeout_sec=_POLL)
-            waited += _POLL
             if waited >= SLOW_WARNING and not warned:
                 self.node.get_logger().warning(
                     f'no verdict on colliding_pairs for {waited:.0f} s: is the node running, '

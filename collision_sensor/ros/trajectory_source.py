@@ -6,8 +6,8 @@ each trajectory along the path joint_trajectory_controller will follow
 cubic or quintic between points, segment 0 from the current state at rest, wrap-around for
 continuous joints), from the joint state accepted last, with the node's
 ``joint_limit_tolerance`` for the joint limits along the way. Each trajectory is answered by
-one ``diagnostic_msgs/DiagnosticArray`` on ``trajectory_result`` (reliable, transient local,
-as the verdicts), its header the trajectory's, with one status:
+one ``diagnostic_msgs/DiagnosticArray`` on ``trajectory_result`` (:data:`RESULT_QOS`: reliable,
+volatile), its header the trajectory's, with one status:
 
 - name ``<node>: trajectory``, level OK (valid) or ERROR, message ``valid`` or the reason,
   ``hardware_id`` the root link;
@@ -17,7 +17,14 @@ as the verdicts), its header the trajectory's, with one status:
   when none), ``time_from_start`` (s, of the first contact or limit violation; empty when
   none), ``link_a``, ``link_b`` (the first pair in contact there; empty when none),
   ``colliding_pairs`` (every pair in contact there, ``a:b`` comma-separated), ``reason``
-  (empty when valid), ``points``, ``joints``.
+  (empty when valid), ``points``, ``joints``, ``trajectory_digest`` (:func:`trajectory_digest`
+  of the trajectory; empty for one answered undecoded: ``oversized``, ``dropped``, and
+  ``malformed`` bytes that do not decode).
+
+A client matches its answer by the digest, which it computes from what it sent (the header
+alone identifies nothing: planners send stamp 0, and a non-zero stamp changes when
+joint_trajectory_controller starts the trajectory). Answers are volatile: a client subscribed
+before it sends gets its own, and one that joins later is not handed other clients' old answers.
 
 A valid trajectory is then relayed unchanged (the bytes received) on ``trajectory_out``
 (reliable), so the node can sit between a planner and a controller's ``joint_trajectory``
@@ -37,13 +44,17 @@ calls, so joint states keep being answered meanwhile. It holds the checker-chang
 (``host.checker_changes``) throughout instead: a scene array or a new checker waits until the
 trajectory is answered, so a trajectory is checked against one scene and one model.
 """
+import array
+import hashlib
+import struct
+import sys
 import time
 from typing import Optional
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from trajectory_msgs.msg import JointTrajectory
@@ -52,7 +63,6 @@ from collision_sensor.engine.trajectory import (
     TrajectoryPoint, TrajectoryResult, build_segments)
 from collision_sensor.ros.input_source import InputSource
 from collision_sensor.ros.joint_state_source import Oversized, header_of
-from collision_sensor.ros.verdicts import VERDICT_QOS
 from collision_sensor.ros.work_queue import BACKGROUND_NICE, NewestFirstWorker
 from collision_sensor.untrusted_text import listing, printable
 
@@ -66,6 +76,12 @@ TRAJECTORY_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
 RELAY_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE)
+#: ``trajectory_result``: reliable, volatile (an answer is for the client that sent the
+#: trajectory, subscribed when it sent it: a late joiner must not take old answers for its own),
+#: keep last 100 (the ``trajectory`` subscription's depth: a burst is answered whole).
+RESULT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                        reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.VOLATILE)
 #: Trajectories that may wait to be checked; more are answered ``dropped`` at once.
 MAX_TRAJECTORY_BACKLOG = 10
 #: Longest reason in a result (characters).
@@ -83,6 +99,47 @@ class Dropped:
 
     def __init__(self, data: bytes):
         self.header = header_of(data)
+
+
+_COUNT = struct.Struct('<I')
+_TIME = struct.Struct('<iI')
+
+
+def _float64s(values) -> bytes:
+    """``values`` as float64 little-endian (rclpy's arrays of float64 as they are)."""
+    if isinstance(values, array.array) and values.typecode == 'd' and sys.byteorder == 'little':
+        return values.tobytes()
+    return struct.pack(f'<{len(values)}d', *values)
+
+
+def trajectory_digest(msg: JointTrajectory) -> str:
+    """Return the identifier of a trajectory's answer (``trajectory_digest``): the SHA-256, in
+    hex, of every field of ``msg`` in the message's order, with integers as 4 bytes
+    little-endian, a string as its UTF-8 length (uint32) then its bytes, and an array as its
+    length (uint32) then its items (float64 little-endian)::
+
+        header.stamp.sec (int32), header.stamp.nanosec (uint32), header.frame_id,
+        len(joint_names), each name, len(points), for each point: positions, velocities,
+        accelerations, effort, time_from_start.sec (int32), time_from_start.nanosec (uint32)
+
+    A client computes it from the message it sends (not from serialized bytes: rclpy's
+    ``serialize_message`` leaves the CDR padding undefined).
+    """
+    def text(value: str) -> bytes:
+        data = value.encode('utf-8')
+        return _COUNT.pack(len(data)) + data
+
+    stamp = msg.header.stamp
+    parts = [_TIME.pack(stamp.sec, stamp.nanosec), text(msg.header.frame_id),
+             _COUNT.pack(len(msg.joint_names))]
+    parts += [text(name) for name in msg.joint_names]
+    parts.append(_COUNT.pack(len(msg.points)))
+    for point in msg.points:
+        for values in (point.positions, point.velocities, point.accelerations, point.effort):
+            parts.append(_COUNT.pack(len(values)))
+            parts.append(_float64s(values))
+        parts.append(_TIME.pack(point.time_from_start.sec, point.time_from_start.nanosec))
+    return hashlib.sha256(b''.join(parts)).hexdigest()
 
 
 def points_of(msg: JointTrajectory) -> list:
@@ -141,8 +198,10 @@ class TrajectorySource(InputSource):
 
     def start(self) -> None:
         host = self.host
-        self._result_pub = host.create_publisher(DiagnosticArray, 'trajectory_result',
-                                                 VERDICT_QOS)
+        self._result_pub = host.create_publisher(
+            DiagnosticArray, 'trajectory_result', RESULT_QOS,
+            event_callbacks=PublisherEventCallbacks(
+                incompatible_qos=self._on_incompatible_result_qos, use_default_callbacks=False))
         self._relay_pub = host.create_publisher(JointTrajectory, 'trajectory_out', RELAY_QOS)
         self._worker = NewestFirstWorker(self._check_batch, 'trajectory checker', None,
                                          nice=BACKGROUND_NICE)
@@ -190,6 +249,12 @@ class TrajectorySource(InputSource):
             f'match (policy {event.last_policy_kind}); its trajectories are never received. '
             'Publish reliable')
 
+    def _on_incompatible_result_qos(self, event) -> None:
+        self.host.log.warn(
+            'trajectory_result_qos', 'a subscriber of trajectory_result asks for a QoS it does '
+            f'not offer (policy {event.last_policy_kind}); it receives no answer. Answers are '
+            'reliable and volatile: subscribe volatile before sending a trajectory')
+
     # -- the checking thread ------------------------------------------------------------------
 
     def _check_batch(self, batch: list, _newest_only: bool) -> None:
@@ -230,6 +295,7 @@ class TrajectorySource(InputSource):
         points = points_of(msg)
         names = list(msg.joint_names)
         size = (len(points), len(names))
+        digest = trajectory_digest(msg)
         started = time.perf_counter()
         with host.checker_changes:
             with host.lock:
@@ -238,14 +304,14 @@ class TrajectorySource(InputSource):
                     host.joints.start_state(checker, time.monotonic())
                 tolerance = host.settings.joint_limit_tolerance
             if start is None:
-                self._publish(msg.header, 'no_start', None, why, notes, size)
+                self._publish(msg.header, 'no_start', None, why, notes, size, digest)
                 return
             try:
                 result = checker.check_trajectory(names, points, start=start,
                                                   limit_tolerance=tolerance)
             except Exception as error:  # noqa: B902 - answered, never relayed
                 self._publish(msg.header, 'engine_error', None, 'the check failed: '
-                              f'{printable(repr(error), 300)}', notes, size)
+                              f'{printable(repr(error), 300)}', notes, size, digest)
                 return
             elapsed = time.perf_counter() - started
             self.check_time_max = max(self.check_time_max, elapsed)
@@ -259,7 +325,7 @@ class TrajectorySource(InputSource):
             self._relay_pub.publish(data)   # the bytes received: unchanged
         self._publish(msg.header, kind_of(result), result, printable(result.reason,
                                                                     MAX_REASON_CHARS), notes,
-                      size)
+                      size, digest)
 
     def _show_contact(self, checker, msg, names, points, start, result) -> None:
         """Show on ``~/markers`` the boxes of the pairs in contact at the first contact, or
@@ -284,8 +350,9 @@ class TrajectorySource(InputSource):
             host.markers.trajectory_contact(boxes, msg.header.stamp, text)
 
     def _publish(self, header, kind: str, result: Optional[TrajectoryResult], reason: str,
-                 notes: list, size=(0, 0)) -> None:
-        """Publish the one status answering a trajectory; log an invalid one (throttled)."""
+                 notes: list, size=(0, 0), digest: str = '') -> None:
+        """Publish the one status answering a trajectory (``digest``: its
+        :func:`trajectory_digest`, '' when undecoded); log an invalid one (throttled)."""
         host = self.host
         valid = kind == 'valid'
         segment = result.first_invalid_segment if result is not None else None
@@ -304,6 +371,7 @@ class TrajectorySource(InputSource):
             'reason': reason,
             'points': str(size[0]),
             'joints': str(size[1]),
+            'trajectory_digest': digest,
         }
         status = DiagnosticStatus(
             level=DiagnosticStatus.OK if valid else DiagnosticStatus.ERROR,

@@ -7,6 +7,7 @@ and tolerance.
 The case (test_motion_stream.py): the Panda's elbow move across a 2 mm plate; the robot stands at
 0.5 of the way, a trajectory back to 0.3 is free, one on to 0.8 crosses the plate.
 """
+import hashlib
 import math
 
 import numpy as np
@@ -27,7 +28,7 @@ from collision_sensor.untrusted_text import printable  # noqa: E402
 from ros_helpers import node_status, reliable  # noqa: E402
 from test_motion_stream import crossing, scene_of  # noqa: E402,F401 - the case's fixture
 from node_harness import (  # noqa: E402,F401 - the fixtures of the node's tests
-    ARM, GRIPPER, Probe, joint_state, panda_parameters, ros, start_node)
+    ARM, GRIPPER, Probe, joint_state, logged, panda_parameters, ros, start_node)
 
 NAMES = ARM + GRIPPER
 TOLERANCE = 0.01    # the node's joint_limit_tolerance (its default)
@@ -57,11 +58,11 @@ class TrajectoryProbe(Probe):
     def __init__(self, ros, markers=False):
         super().__init__(ros, markers=markers)
         self.trajectories = ros.publisher(JointTrajectory, 'trajectory', reliable(100))
-        self.results = ros.record(DiagnosticArray, 'trajectory_result',
-                                  reliable(100, latched=True))
+        self.results = ros.record(DiagnosticArray, 'trajectory_result', reliable(100))
         self.relayed = ros.record(JointTrajectory, 'trajectory_out', reliable(100))
         assert ros.wait_for_subscribers(self.trajectories)
         assert ros.spin_until(lambda: self.relayed_publishers() > 0)
+        assert ros.spin_until(lambda: self.result_publishers() > 0)
 
     def trajectory_status(self, condition, timeout=5.0):
         """The node's ``trajectory`` status on /diagnostics once ``condition(status,
@@ -70,6 +71,9 @@ class TrajectoryProbe(Probe):
 
     def relayed_publishers(self):
         return self.ros.probe.count_publishers(f'{self.ros.namespace}/trajectory_out')
+
+    def result_publishers(self):
+        return self.ros.probe.count_publishers(f'{self.ros.namespace}/trajectory_result')
 
     def check(self, msg):
         """Publish ``msg`` (a JointTrajectory, or its bytes); return the result's values."""
@@ -86,7 +90,33 @@ class TrajectoryProbe(Probe):
         assert status.message == ('valid' if values['valid'] == 'true' else values['reason'])
         if not isinstance(msg, bytes):
             assert result.header == msg.header     # the trajectory's header
+            assert values['trajectory_digest'] == (
+                '' if values['kind'] in ('oversized', 'dropped') else digest_by_the_recipe(msg))
         return values
+
+
+def digest_by_the_recipe(msg):
+    """``trajectory_digest`` as docs/node.md's recipe says, written out again here."""
+    def u32(n):
+        return int(n).to_bytes(4, 'little')
+
+    def i32(n):
+        return int(n).to_bytes(4, 'little', signed=True)
+
+    def text(value):
+        data = value.encode('utf-8')
+        return u32(len(data)) + data
+
+    def floats(values):
+        return u32(len(values)) + np.asarray(values, dtype='<f8').tobytes()
+
+    out = i32(msg.header.stamp.sec) + u32(msg.header.stamp.nanosec) + text(msg.header.frame_id)
+    out += u32(len(msg.joint_names)) + b''.join(text(name) for name in msg.joint_names)
+    out += u32(len(msg.points))
+    for p in msg.points:
+        out += floats(p.positions) + floats(p.velocities) + floats(p.accelerations)
+        out += floats(p.effort) + i32(p.time_from_start.sec) + u32(p.time_from_start.nanosec)
+    return hashlib.sha256(out).hexdigest()
 
 
 def oracle_says(checker, msg, start):
@@ -307,12 +337,66 @@ def test_a_burst_is_answered_in_order_the_excess_dropped_at_once(ros, crossing, 
     assert ros.spin_until(lambda: len(probe.results) >= count + sent, 120.0)
     results = probe.results.messages[count:]
     assert [r.header.stamp.sec for r in results] == list(range(100, 100 + sent))
-    kinds = [{kv.key: kv.value for kv in r.status[0].values}['kind'] for r in results]
+    answers = [{kv.key: kv.value for kv in r.status[0].values} for r in results]
+    kinds = [values['kind'] for values in answers]
     assert set(kinds) == {'malformed', 'dropped'}, kinds
     assert kinds.count('malformed') >= 1
+    # Each decoded one names its trajectory by its digest; a dropped one, never decoded, by
+    # its header alone.
+    for k, values in enumerate(answers):
+        msg.header.stamp.sec = 100 + k
+        assert values['trajectory_digest'] == (digest_by_the_recipe(msg)
+                                               if values['kind'] == 'malformed' else '')
     ros.spin_for(0.2)
     assert len(probe.relayed) == 0
     _, values = probe.trajectory_status(lambda _, v: v['trajectories_total'] == str(sent))
     assert values['dropped_total'] == str(kinds.count('dropped'))
     assert values['lost_total'] == '0'
     probe.trajectory_status(lambda status, _: status.level == DiagnosticStatus.WARN)
+
+
+def test_each_client_matches_its_answers_and_a_late_one_gets_no_old_ones(
+        ros, capfd, crossing, scene_file, panda_urdf, panda_srdf, erd_share):
+    """Planners send stamp 0: two trajectories in flight at once, both stamped 0 with the same
+    frame, are told apart by the digest each client computes from what it sent. A client that
+    subscribes after answers were given receives none of them, then its own."""
+    from rclpy.node import Node
+    from collision_sensor.ros.trajectory_source import trajectory_digest
+    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share, scene_path=scene_file))
+    probe = TrajectoryProbe(ros)
+    a, b, c = crossing.q0, crossing.q_half, crossing.q1
+    probe.send(joint_state(b, names=NAMES))
+    free, through = trajectory([(1.0, arm(a))], stamp=0), trajectory([(1.0, arm(c))], stamp=0)
+    assert free.header == through.header
+    count = len(probe.results)
+    probe.trajectories.publish(through)
+    probe.trajectories.publish(free)
+    assert ros.spin_until(lambda: len(probe.results) >= count + 2, 30.0)
+    answers = {}
+    for result in probe.results.messages[count:]:
+        values = {kv.key: kv.value for kv in result.status[0].values}
+        answers[values['trajectory_digest']] = values
+    assert answers[trajectory_digest(free)]['kind'] == 'valid'
+    assert answers[trajectory_digest(through)]['kind'] == 'contact'
+    assert trajectory_digest(free) == digest_by_the_recipe(free)
+
+    late = ros.add(Node('late_planner', namespace=ros.namespace, context=ros.context))
+    heard = []
+    late.create_subscription(DiagnosticArray, 'trajectory_result', heard.append, reliable(100))
+    sender = late.create_publisher(JointTrajectory, 'trajectory', reliable(100))
+    assert ros.spin_until(lambda: sender.get_subscription_count() > 0 and late.count_publishers(
+        f'{ros.namespace}/trajectory_result') > 0)
+    ros.spin_for(0.5)
+    assert heard == []      # the two answers above are not handed to it
+    from rclpy.qos import DurabilityPolicy
+    offered = late.get_publishers_info_by_topic(f'{ros.namespace}/trajectory_result')
+    assert [info.qos_profile.durability for info in offered] == [DurabilityPolicy.VOLATILE]
+    # A client still asking for old answers (transient local) is told so by the node.
+    late.create_subscription(DiagnosticArray, 'trajectory_result', heard.append,
+                             reliable(100, latched=True))
+    assert 'subscribe volatile before sending' in logged(ros, capfd, 'trajectory_result asks')
+    sender.publish(through)
+    assert ros.spin_until(lambda: len(heard) == 1, 30.0)
+    values = {kv.key: kv.value for kv in heard[0].status[0].values}
+    assert (values['trajectory_digest'], values['kind']) == (trajectory_digest(through),
+                                                             'contact')

@@ -421,3 +421,51 @@ def test_recorded_timing_publishes_each_cloud_as_recorded(ros, tmp_path):
             ('x', 0, 7, 1), ('y', 4, 7, 1), ('z', 8, 7, 1)]
         assert np.array_equal(np.frombuffer(bytes(msg.data), '<f4').reshape(-1, 3),
                               points.astype('<f4'))
+
+
+def test_waiting_for_verdicts_counts_seconds_not_the_messages_taken(ros):
+    """The dynamic demo's false "no verdict on colliding_pairs for 5 s": every message taken
+    while waiting counted as one poll period (0.05 s), so 100 verdicts of earlier frames,
+    taken in a fraction of a second, made 5 s (and a wait gave up long before its timeout)."""
+    import threading
+    import time
+    from diagnostic_msgs.msg import DiagnosticArray
+    from visualization_msgs.msg import Marker
+    from collision_sensor.model.sequences import SceneEvent
+    seq = JointSequence(('a',), np.array([0.0]), np.array([[0.0]]),
+                        scene=(SceneEvent(0.0, (Marker(ns='box', type=Marker.CUBE),)),))
+    import rclpy
+    context = rclpy.Context()
+    rclpy.init(args=['--ros-args', '-r', f'__ns:={ros.namespace}'], context=context)
+    play = player.SequencePlayer(seq, context=context)
+    warnings = []
+
+    class Logger:
+        def warning(self, text):
+            warnings.append(text)
+
+    play.node.get_logger = Logger
+    flood = ros.publisher(DiagnosticArray, 'colliding_pairs', player.VERDICT_QOS)
+    try:
+        assert ros.wait_for_subscribers(flood)
+        stop = threading.Event()
+
+        def publish():      # far more messages than 5 s of poll periods, in about 1.5 s
+            while not stop.is_set():
+                flood.publish(DiagnosticArray())
+                time.sleep(0.002)
+        publisher = threading.Thread(target=publish, daemon=True)
+        publisher.start()
+        started = time.monotonic()
+        try:
+            done = play.wait_for_verdicts(lambda: time.monotonic() - started >= 1.5,
+                                          timeout=4.0)
+        finally:
+            stop.set()
+            publisher.join()
+        assert done, f'gave up after {time.monotonic() - started:.2f} s of a 4 s timeout'
+        assert play.frame_verdicts > 100     # the messages were taken meanwhile
+        assert warnings == []
+    finally:
+        play.destroy()
+        rclpy.try_shutdown(context=context)
