@@ -432,12 +432,13 @@ def test_waiting_for_verdicts_counts_seconds_not_the_messages_taken(ros):
     from diagnostic_msgs.msg import DiagnosticArray
     from visualization_msgs.msg import Marker
     from collision_sensor.model.sequences import SceneEvent
+    from collision_sensor.ros import sequence_player
     seq = JointSequence(('a',), np.array([0.0]), np.array([[0.0]]),
                         scene=(SceneEvent(0.0, (Marker(ns='box', type=Marker.CUBE),)),))
     import rclpy
     context = rclpy.Context()
     rclpy.init(args=['--ros-args', '-r', f'__ns:={ros.namespace}'], context=context)
-    play = player.SequencePlayer(seq, context=context)
+    play = sequence_player.SequencePlayer(seq, context=context)
     warnings = []
 
     class Logger:
@@ -445,7 +446,7 @@ def test_waiting_for_verdicts_counts_seconds_not_the_messages_taken(ros):
             warnings.append(text)
 
     play.node.get_logger = Logger
-    flood = ros.publisher(DiagnosticArray, 'colliding_pairs', player.VERDICT_QOS)
+    flood = ros.publisher(DiagnosticArray, 'colliding_pairs', sequence_player.VERDICT_QOS)
     try:
         assert ros.wait_for_subscribers(flood)
         stop = threading.Event()
