@@ -149,3 +149,64 @@ def write_v30(root: str, names: Sequence[str], episodes: List[np.ndarray], fps: 
     pq.write_table(pa.Table.from_pylist(rows), path)
     pq.write_table(pa.table({'task_index': [0], '__index_level_0__': [TASK]}),
                    os.path.join(root, 'meta', 'tasks.parquet'))
+
+
+#: LeRobot's SO-101 follower: its state entries, and the joint map that reads them onto the
+#: URDF of example-robot-data (``so_arm_description/urdf/so101.urdf``): body joints -100..100
+#: over the calibrated range, wrist_roll calibrated over a full turn, the gripper 0..100.
+SO101_NAMES = ('shoulder_pan.pos', 'shoulder_lift.pos', 'elbow_flex.pos', 'wrist_flex.pos',
+               'wrist_roll.pos', 'gripper.pos')
+SO101_MAP = ('joints:\n'
+             '  shoulder_pan.pos: {joint: shoulder_pan, range: [-100, 100]}\n'
+             '  shoulder_lift.pos: {joint: shoulder_lift, range: [-100, 100]}\n'
+             '  elbow_flex.pos: {joint: elbow_flex, range: [-100, 100]}\n'
+             '  wrist_flex.pos: {joint: wrist_flex, range: [-100, 100]}\n'
+             '  wrist_roll.pos: {joint: wrist_roll, scale: 0.031415926535897934}\n'
+             '  gripper.pos: {joint: gripper, range: [0, 100]}\n')
+#: The SO-101's rest pose (folded, as LeRobot's arms start and end an episode), in the
+#: recorded units.
+SO101_REST = (0.0, -95.0, 90.0, 70.0, 0.0, 1.0)
+
+
+def so101_episodes(count: int, frames: int, seed: int, fps: int = 30) -> List[np.ndarray]:
+    """``count`` SO-101 episodes of ``frames`` states each (float32, the recorded units of
+    SO101_NAMES), as a pick-and-place records them: from the rest pose through random poses
+    and back, each move a minimum-jerk profile of 1 to 2.5 s, the gripper opening and closing
+    on the way."""
+    rng = np.random.default_rng(seed)
+    rest = np.array(SO101_REST)
+    episodes = []
+    for _ in range(count):
+        points = [rest]
+        while len(points) * 1.75 * fps < frames:
+            points.append(np.array([rng.uniform(-90, 90), rng.uniform(-90, 60),
+                                    rng.uniform(-80, 95), rng.uniform(-90, 90),
+                                    rng.uniform(-60, 60), rng.uniform(0, 100)]))
+        points.append(rest)
+        path = [rest]
+        for a, b in zip(points, points[1:]):
+            steps = int(rng.uniform(1.0, 2.5) * fps)
+            s = np.linspace(0.0, 1.0, steps + 1)[1:, None]
+            path.append(a + (b - a) * (10 * s ** 3 - 15 * s ** 4 + 6 * s ** 5))
+        states = np.vstack(path)
+        if len(states) < frames:
+            states = np.vstack([states, np.repeat(rest[None], frames - len(states), axis=0)])
+        episodes.append(states[:frames].astype(np.float32))
+    return episodes
+
+
+def so101_positions(states: np.ndarray, limits: dict) -> np.ndarray:
+    """The URDF joint positions (rad) SO101_MAP gives for ``states``, computed here from the
+    float32 values and ``{joint: (lower, upper)}``; columns in SO101_NAMES order."""
+    values = np.asarray(states, dtype=np.float64)
+    out = np.empty_like(values)
+    for k, name in enumerate(SO101_NAMES):
+        joint = name[:-len('.pos')]
+        lower, upper = limits[joint]
+        if joint == 'wrist_roll':
+            out[:, k] = values[:, k] * (np.pi / 100.0)
+        elif joint == 'gripper':
+            out[:, k] = lower + values[:, k] / 100.0 * (upper - lower)
+        else:
+            out[:, k] = lower + (values[:, k] + 100.0) / 200.0 * (upper - lower)
+    return out

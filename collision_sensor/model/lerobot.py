@@ -30,7 +30,7 @@ import json
 import math
 import os
 from dataclasses import dataclass
-from typing import List, Optional, Sequence, Tuple
+from typing import List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -233,14 +233,14 @@ def _state_matrix(column, where: str, feature: str) -> np.ndarray:
 
 
 def read_episode(episode: Episode, joint_map: JointMap, joint_names: Sequence[str],
-                 data: Optional[bytes] = None) -> JointSequence:
+                 data: Union[bytes, str, None] = None) -> JointSequence:
     """Read one episode's frames as joint positions.
 
     :param joint_map: which state entries are which joints (:meth:`JointMap.identity` when
         the entries are named as the joints).
     :param joint_names: the robot's joints, the sequence's columns.
-    :param data: the data file's bytes (shipped to a worker that cannot read the path), or
-        None to read ``episode.root / episode.data_file``.
+    :param data: the data file's bytes or the path of a copy of it (shipped to a worker that
+        cannot read the dataset), or None to read ``episode.root / episode.data_file``.
     :return: the sequence, ``source`` ``root#index``; times from ``timestamp``.
     :raises SequenceError: a missing or unreadable file, missing rows, NaN values.
     """
@@ -252,7 +252,8 @@ def read_episode(episode: Episode, joint_map: JointMap, joint_names: Sequence[st
     names = episode.feature_names(feature)
     path = os.path.join(episode.root, episode.data_file)
     try:
-        parquet = pq.ParquetFile(pa.BufferReader(data) if data is not None else path)
+        parquet = pq.ParquetFile(pa.BufferReader(data) if isinstance(data, bytes) else
+                                 data or path)
         schema = parquet.schema_arrow.names
         missing = [c for c in ('episode_index', feature) if c not in schema]
         if missing:

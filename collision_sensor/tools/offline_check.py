@@ -75,7 +75,7 @@ from collision_sensor.tools.audit.batch import (
 from collision_sensor.tools.audit.ray_pool import require_ray
 from collision_sensor.tools.audit.report import plot_batch
 from collision_sensor.tools.audit.unit_check import (
-    CheckOptions, RobotSpec, read_unit, with_demo_arm_hint)
+    UNIT_THREADS, CheckOptions, RobotSpec, read_unit, with_demo_arm_hint)
 from collision_sensor.tools.audit.units import find_units
 from collision_sensor.tools.command_line import run_command
 # FrameResult and pair_spans are the command's frame answers, imported from here by its users.
@@ -304,7 +304,8 @@ def _run(args) -> int:
     if args.ray is not None:
         require_ray()    # before the robot loads: say at once how to install it
     spec = _robot(args)
-    checker = spec.build()
+    # Many units: this checker is the workers' too (forked), on one thread each.
+    checker = spec.build(threads=UNIT_THREADS if batch else None)
     joint_map = load_joint_map(args.joint_map) if args.joint_map else None
     if joint_map is not None:
         joint_map = joint_map.for_robot(checker.joint_names, checker.joint_limits)
@@ -320,7 +321,7 @@ def _run(args) -> int:
 
 
 def _run_batch(args, units, spec, checker, options: CheckOptions) -> int:
-    runner = make_runner(spec, options, args.jobs, args.ray)
+    runner = make_runner(spec, options, args.jobs, args.ray, checker)
     label = (f'Ray ({args.ray})' if args.ray else
              f'{args.jobs or default_jobs()} local worker processes'
              if (args.jobs or default_jobs()) > 1 else 'this process')

@@ -9,13 +9,14 @@ import os
 import signal
 import sys
 
+import numpy as np
 import pytest
 
 pytest.importorskip('pyarrow')
 
 from collision_sensor.errors import ConfigError  # noqa: E402
 from collision_sensor.tools import frame_check, offline_check  # noqa: E402
-from collision_sensor.tools.audit import batch, local_pool, report, shipping  # noqa: E402
+from collision_sensor.tools.audit import batch, report, scheduling, shipping  # noqa: E402
 from collision_sensor.tools.audit.local_pool import LocalPool  # noqa: E402
 from collision_sensor.tools.audit.unit_check import (  # noqa: E402
     CheckOptions, RobotSpec, UnitChecker, record_keys)
@@ -315,7 +316,8 @@ def test_a_death_inside_a_call_of_several_units_charges_that_unit(fleet, spec, o
     the units it had finished in that call are checked again."""
     path = os.path.join(fleet[0], 'a', 'paper_experiment.csv')
     units = [Unit(f'{path}?{k}', 'csv', path) for k in range(40)]
-    assert len(local_pool.take_call(collections.deque(range(40)), units, 16, set(),
+    weights = [scheduling.unit_weight(unit) for unit in units]
+    assert len(scheduling.take_call(collections.deque(range(40)), weights, 16, set(),
                                     False)) == 16
     check = UnitChecker.check
 
@@ -334,6 +336,68 @@ def test_a_death_inside_a_call_of_several_units_charges_that_unit(fleet, spec, o
             assert 'died on each of 2 attempts (last: killed by SIGKILL)' in line['error']
         else:
             assert line == {**expected, 'source': f'{path}?{k}'}
+
+
+def test_a_unit_that_changes_the_scene_leaves_the_checker_as_loaded(fleet, spec, options,
+                                                                   serial_records):
+    """After a bag with scene arrays the same checker has the spec's scene again (not a new
+    checker: forked workers keep sharing its trees), and the next units' lines are the
+    serial run's (those the fleet's oracle checks come after this bag there too)."""
+    checker = UnitChecker(spec, options)
+    engine = checker.checker
+    root = fleet[0]
+    line = checker.check(find_units([os.path.join(root, 'b', 'moving')])[0])
+    assert line['scene_changes'] > 0 and line['error'] is None
+    assert checker.checker is engine
+    assert engine.object_names == tuple(obj.name for obj in spec.scene)
+    for obj, now in zip(spec.scene, engine.scene_objects):
+        np.testing.assert_array_equal(obj.T_world_object, now.T_world_object)
+    assert not engine.point_cloud_sources
+    lines = audit_fleet.by_source(serial_records.records)
+    for unit in find_units([os.path.join(root, 'a'), os.path.join(root, 'ds_v3')]):
+        expected = dict(lines[unit.source])
+        expected.pop('settings')
+        assert checker.check(unit) == expected
+
+
+@pytest.mark.slow
+def test_forked_workers_share_the_so101_model_the_tool_built(erd_share, tmp_path):
+    """The SO-101 (398,884 triangles) built once, by the process that forks the workers:
+    each worker holds under a tenth of that process's memory as its own, and the lines of an
+    SO-101 dataset in LeRobot's units are the serial ones and python-fcl's."""
+    from engine_oracles import FclOracle
+    from lerobot_writer import SO101_MAP, SO101_NAMES, so101_episodes, so101_positions, \
+        write_v30
+    from collision_sensor.model.joint_map import joint_map_from_mapping
+    import yaml
+    urdf = os.path.join(erd_share, 'robots', 'so_arm_description', 'urdf', 'so101.urdf')
+    spec = RobotSpec.load(urdf, package_paths={'example-robot-data': erd_share},
+                          label='so101')
+    built = UnitChecker(spec, CheckOptions())
+    joint_map = joint_map_from_mapping(yaml.safe_load(SO101_MAP), 'so101.yaml').for_robot(
+        built.checker.joint_names, built.checker.joint_limits)
+    options = CheckOptions(joint_map=joint_map)
+    shared = UnitChecker(spec, options, built.checker)
+    episodes = so101_episodes(6, 150, seed=4)
+    write_v30(str(tmp_path / 'so101'), SO101_NAMES, episodes, fps=30, per_file=3)
+    units = find_units([str(tmp_path / 'so101')])
+    serial = batch.run_batch(units, spec, options, batch.SerialRunner(spec, options, shared),
+                             progress='never')
+    pooled = batch.run_batch(units, spec, options, LocalPool(spec, options, 2, shared),
+                             progress='never')
+    assert pooled.records == serial.records and pooled.stats.workers == 2
+    driver = serial.stats.rss['driver'][1]
+    for worker, (_, last) in pooled.stats.private.items():
+        assert 0 < last < 0.1 * driver, (worker, last / 2 ** 20, driver / 2 ** 20)
+    oracle = FclOracle(built.checker, urdf)
+    order = [SO101_NAMES.index(name + '.pos') for name in built.checker.joint_names]
+    for line, states in zip(serial.records, episodes):
+        positions = so101_positions(states, built.checker.joint_limits)[:, order]
+        times = (np.arange(len(states)) / 30).astype(np.float32).astype(float)
+        keys = audit_fleet.expected_keys(times, [oracle.colliding_pairs(q) for q in positions])
+        assert {key: line[key] for key in ('frames', 'frames_in_collision', 'pairs')} == \
+            {key: keys[key] for key in ('frames', 'frames_in_collision', 'pairs')}
+    assert any(line['frames_in_collision'] for line in serial.records)
 
 
 def test_worker_memory_does_not_grow_with_units(fleet, spec, options):
@@ -438,9 +502,9 @@ def test_ctrl_c_keeps_a_valid_report_that_resume_completes(fleet, serial_records
         os.killpg(process.pid, signal.SIGSTOP)
         # Frozen: the driver writes no line and the workers finish no unit until SIGCONT.
         # What can still be reported is what the workers hold (the unit each checks and the
-        # next, local_pool.DEPTH); units never handed out are provably left to resume.
+        # next, scheduling.DEPTH); units never handed out are provably left to resume.
         before = [json.loads(line) for line in path.read_text().splitlines()]
-        assert 1 <= len(before) and len(before) + jobs * local_pool.DEPTH < units, (
+        assert 1 <= len(before) and len(before) + jobs * scheduling.DEPTH < units, (
             f'{len(before)} of {units} units reported when the run was frozen: too few '
             f'left to interrupt (exit {process.poll()})')
         os.killpg(process.pid, signal.SIGINT)
@@ -452,7 +516,7 @@ def test_ctrl_c_keeps_a_valid_report_that_resume_completes(fleet, serial_records
     assert 'stopped; the report' in err and '--resume continues it' in err
     stopped = [json.loads(line) for line in path.read_text().splitlines()]   # valid JSON lines
     assert stopped[:len(before)] == before
-    assert len(stopped) <= len(before) + jobs * local_pool.DEPTH < units
+    assert len(stopped) <= len(before) + jobs * scheduling.DEPTH < units
     # Under colcon test the source tree (the working directory) has no engine.
     done = subprocess.run(argv + ['--resume'], capture_output=True, text=True, timeout=300,
                           cwd=str(tmp_path))

@@ -1,106 +1,252 @@
-"""collision_sensor_check on a real local Ray cluster (num_cpus=2, started once for the module):
-the same report lines as a serial run, from the API and from the command line joining the
-cluster; a killed actor costs only its unit. No Ray mock anywhere."""
+"""collision_sensor_check on a multi-node Ray cluster on this machine (``ray.cluster_utils``:
+a head without CPUs beside the driver and one-CPU worker nodes, started once for the module):
+a few hundred recordings and LeRobot episodes in a folder only the driver reads (relative
+paths from its working directory, which no node shares), the same lines as a serial run; a
+node lost mid-run; a worker that dies; the command, Ctrl-C and --resume with nodes joining and
+leaving between the runs. No Ray mock anywhere. The cluster tests are the ``cluster`` tier."""
 import json
 import os
+import signal
 import subprocess
 import sys
+import threading
+import time
 
+import numpy as np
 import pytest
 
-ray = pytest.importorskip('ray')
-pytest.importorskip('pyarrow')
+ray = pytest.importorskip('ray', reason='the cluster tests need Ray: pip install '
+                                        '"collision_sensor[cluster]"')
+pytest.importorskip('pyarrow', reason='the cluster tests read LeRobot datasets: pip install '
+                                      '"collision_sensor[parquet]"')
 
 from collision_sensor.tools.audit import batch  # noqa: E402
 from collision_sensor.tools.audit.ray_pool import RayPool  # noqa: E402
-from collision_sensor.tools.audit.units import find_units  # noqa: E402
-from test_audit import check_kills, fleet, options, spec  # noqa: E402,F401 (fixtures)
+from collision_sensor.tools.audit.units import Unit, find_units  # noqa: E402
+import audit_fleet  # noqa: E402
+from lerobot_writer import write_v21, write_v30  # noqa: E402
+from collision_sensor.model.joint_map import load_joint_map  # noqa: E402
+from collision_sensor.tools.audit.unit_check import CheckOptions  # noqa: E402
+from test_audit import spec  # noqa: E402,F401 (a fixture)
 
-
-@pytest.fixture(scope='module', autouse=True)
-def cluster(tmp_path_factory):
-    """A local Ray cluster of 2 CPUs for the whole module (starting one takes ~10 s): a new
-    one (``address='local'``), even where a ``ray start`` cluster runs, which a plain
-    ``ray.init`` would join (and refuse the CPUs asked for)."""
-    if ray.is_initialized():
-        ray.shutdown()
-    # Ray's workers start in the driver's working directory, which is the source tree under
-    # colcon test (no engine there): the cluster starts elsewhere.
-    here = os.getcwd()
-    os.chdir(str(tmp_path_factory.mktemp('ray')))
-    try:
-        context = ray.init(address='local', num_cpus=2, include_dashboard=False,
-                           log_to_driver=False, configure_logging=False)
-    finally:
-        os.chdir(here)
-    yield context
-    ray.shutdown()
+pytestmark = pytest.mark.cluster
+#: Recordings, and episodes of each of two datasets, in the module's fleet.
+RECORDINGS, EPISODES = 200, 50
 
 
 @pytest.fixture(scope='module')
-def serial(fleet, spec, options):
-    units = find_units([fleet[0]])
-    return batch.run_batch(units, spec, options, batch.SerialRunner(spec, options),
-                           progress='never').records
+def crashed(tmp_path_factory):
+    """Where the workers' fault injection marks a unit that crashed once."""
+    return str(tmp_path_factory.mktemp('crashed'))
 
 
-@pytest.mark.parametrize('ship', [None, True])
-def test_ray_actors_give_the_serial_lines(fleet, spec, options, serial, ship):
-    """Actors on this machine read the files; shipped (as to another machine), the bytes
-    travel through the object store and the lines are the same."""
-    units = find_units([fleet[0]])
-    result = batch.run_batch(units, spec, options, RayPool(spec, options, 'auto', ship=ship),
-                             progress='never')
+@pytest.fixture(scope='module')
+def cluster(tmp_path_factory, crashed):
+    """A head node without CPUs (the driver's) and two one-CPU worker nodes. Their processes
+    start in a directory of their own; the workers' setup kills a worker checking a unit whose
+    source ends in ``?crash`` (every time) or ``?crash-once`` (the first time): faults of the
+    recordings, injected into the worker processes as a monkeypatch would be."""
+    from ray.cluster_utils import Cluster
+
+    def inject_crashes():
+        import os
+        import signal
+        from collision_sensor.tools.audit.unit_check import UnitChecker
+        check = UnitChecker.check
+
+        def crashing(self, unit, payload=None):
+            mark = os.path.join(crashed, os.path.basename(unit.source))
+            if unit.source.endswith('?crash') or (unit.source.endswith('?crash-once')
+                                                  and not os.path.exists(mark)):
+                open(mark, 'w').close()
+                os.kill(os.getpid(), signal.SIGKILL)
+            return check(self, unit, payload)
+        UnitChecker.check = crashing
+
+    if ray.is_initialized():
+        ray.shutdown()
+    here = os.getcwd()
+    os.chdir(str(tmp_path_factory.mktemp('raylets')))
+    try:
+        cluster = Cluster(initialize_head=True, head_node_args={'num_cpus': 0})
+        nodes = [cluster.add_node(num_cpus=1) for _ in range(2)]
+        cluster.wait_for_nodes()
+        ray.init(address=cluster.address, log_to_driver=False, configure_logging=False,
+                 runtime_env={'worker_process_setup_hook': inject_crashes})
+    finally:
+        os.chdir(here)
+    yield cluster, nodes
+    ray.shutdown()
+    cluster.shutdown()
+
+
+@pytest.fixture(scope='module')
+def driver_only(tmp_path_factory):
+    """``(folder, inputs)``: the fleet of test_audit, 200 CSV recordings (stretches of the
+    bundled paths) and two datasets of 50 episodes each (v2.1, and v3.0 with 25 episodes a
+    file), under ``folder``; ``inputs`` relative to it."""
+    folder = tmp_path_factory.mktemp('driver')
+    root = str(folder / 'fleet')
+    os.makedirs(root)
+    audit_fleet.build(root)
+    paths = [audit_fleet.bundled(name) for name in ('paper_experiment', 'random')]
+    os.makedirs(os.path.join(root, 'many'))
+    from collision_sensor.model.sequences import JointSequence, write_sequence
+    rng = np.random.default_rng(46)
+    episodes = []
+    for k in range(RECORDINGS + 2 * EPISODES):
+        seq = paths[k % 2]
+        start = int(rng.integers(0, len(seq) - 60))
+        stop = start + int(rng.integers(40, 60))
+        piece = JointSequence(seq.joint_names, seq.times[start:stop],
+                              seq.positions[start:stop])
+        if k < RECORDINGS:
+            write_sequence(piece, os.path.join(root, 'many', f'r{k:03d}.csv'))
+        else:
+            episodes.append(audit_fleet.dataset_states(piece))
+    write_v21(os.path.join(root, 'many_v21'), audit_fleet.STATE_NAMES, episodes[:EPISODES])
+    write_v30(os.path.join(root, 'many_v3'), audit_fleet.STATE_NAMES, episodes[EPISODES:],
+              per_file=25)
+    return str(folder), ['fleet']
+
+
+@pytest.fixture(scope='module')
+def joint_map(driver_only):
+    return os.path.join(driver_only[0], 'fleet', 'joint_map.yaml')
+
+
+@pytest.fixture(scope='module')
+def options(joint_map):
+    return CheckOptions(joint_map=load_joint_map(joint_map))
+
+
+@pytest.fixture(scope='module')
+def serial(driver_only, spec, options):
+    here = os.getcwd()
+    os.chdir(driver_only[0])
+    try:
+        units = find_units(driver_only[1])
+        result = batch.run_batch(units, spec, options, batch.SerialRunner(spec, options),
+                                 progress='never')
+    finally:
+        os.chdir(here)
+    assert len(result.records) >= RECORDINGS + 2 * EPISODES
+    return result.records
+
+
+def _audit(driver_only, spec, options, monkeypatch, **kwargs):
+    monkeypatch.chdir(driver_only[0])
+    units = find_units(driver_only[1])
+    return batch.run_batch(units, spec, options, RayPool(spec, options, 'auto'),
+                           progress='never', **kwargs)
+
+
+def test_the_cluster_gives_the_serial_lines_reading_every_file_through_the_driver(
+        cluster, driver_only, spec, options, serial, monkeypatch):
+    """No node can read the folder (the paths are relative to the driver's directory): every
+    unit's files travel, and every line is the serial run's, unit for unit."""
+    result = _audit(driver_only, spec, options, monkeypatch)
     assert result.records == serial
-    assert result.stats.workers == 2 and result.stats.deaths == 0
+    assert result.stats.nodes == 2 and result.stats.workers == 2
+    assert result.stats.deaths == result.stats.lost_nodes == 0
     assert ray.is_initialized()           # a cluster it joined is left running
 
 
-def test_the_command_joins_the_running_cluster(fleet, serial, tmp_path):
-    """``--ray auto`` from another process, as a user runs it next to ``ray start``."""
-    root = fleet[0]
-    path = tmp_path / 'ray.jsonl'
-    env = dict(os.environ, RAY_ADDRESS=ray.get_runtime_context().gcs_address)
-    done = subprocess.run(
-        [sys.executable, '-m', 'collision_sensor.tools.offline_check', root, '--joint-map',
-         os.path.join(root, 'joint_map.yaml'), '--ray', 'auto', '--report', str(path),
-         '--plot', str(tmp_path / 'ray.png'), '--progress', 'never'],
-        capture_output=True, text=True, env=env, timeout=300,
-        cwd=str(tmp_path))   # not the source tree: under colcon test it has no engine
-    assert done.returncode == 3, done.stderr
-    lines = [json.loads(line) for line in path.read_text().splitlines()]
-    assert sorted(lines, key=lambda r: r['source']) == sorted(serial, key=lambda r: r['source'])
-    assert 'on Ray (auto)' in done.stdout and 'failed units (3):' in done.stdout
+def test_a_node_lost_mid_run_costs_no_unit(cluster, driver_only, spec, options, serial,
+                                           monkeypatch, tmp_path):
+    """A third node joins; its raylet is killed once a third of the units are reported. The
+    audit ends; every unit is reported once, with the serial line; none is charged, and the
+    summary says how many were checked again and why."""
+    cluster, _ = cluster
+    node = cluster.add_node(num_cpus=1)
+    cluster.wait_for_nodes()
+    report = tmp_path / 'lost.jsonl'
+    removed = []
+
+    def remove_later():
+        while not report.exists() or report.read_text().count('\n') < len(serial) // 3:
+            time.sleep(0.01)
+        cluster.remove_node(node, allow_graceful=False)
+        removed.append(report.read_text().count('\n'))
+
+    killer = threading.Thread(target=remove_later, daemon=True)
+    killer.start()
+    result = _audit(driver_only, spec, options, monkeypatch, report_path=str(report))
+    killer.join(timeout=60)
+    assert removed and removed[0] < len(serial), 'the node was removed after the run'
+    assert result.records == serial
+    lines = [json.loads(line) for line in report.read_text().splitlines()]
+    assert len(lines) == len({line['source'] for line in lines}) == len(serial)
+    stats = result.stats
+    assert stats.lost_nodes == 1 and stats.rerun >= 1 and stats.deaths == 0
+    assert stats.nodes == 3
+    text = '\n'.join(batch.run_lines(stats, len(result.new)))
+    assert f'nodes:     1 lost; {stats.rerun} units they held checked again on the others ' \
+        '(none charged)' in text
 
 
-def test_a_killed_actor_costs_only_its_unit(fleet, spec, options, serial, tmp_path):
-    error = check_kills(lambda: RayPool(spec, options, 'auto', ship=True), fleet, spec,
-                        options, serial, tmp_path)
-    assert '(last: the Ray actor died' in error
-
-
-def test_a_death_in_a_call_of_several_units_names_the_unit_that_kills(fleet, spec, options,
-                                                                       serial):
-    """Small recordings go several to a call; an actor dying in such a call charges none of
-    them: they are sent again one per call, and the one that kills again is charged, tried
-    alone once more, then reported. Every other line is the serial one."""
-    import signal
-    from collision_sensor.tools.audit.units import Unit
-    path = os.path.join(fleet[0], 'a', 'paper_experiment.csv')
-    units = [Unit(f'{path}?{k}', 'csv', path) for k in range(40)]
-    killed = []
-
-    def kill(index, attempt, pid):
-        if index == 10:
-            killed.append(attempt)
-            os.kill(pid, signal.SIGKILL)
-
+def test_a_worker_that_dies_costs_only_its_unit(cluster, driver_only, spec, options, serial,
+                                                monkeypatch, crashed):
+    """A unit that kills its worker every time is reported after its retry; one that kills it
+    once is checked on its retry; the node's host forks a new worker each time and no other
+    unit is touched."""
+    monkeypatch.chdir(driver_only[0])
+    units = find_units(driver_only[1])[:60]
+    path = os.path.join('fleet', 'a', 'paper_experiment.csv')
+    units[10] = Unit(f'{path}?crash-once', 'csv', path)
+    units[40] = Unit(f'{path}?crash', 'csv', path)
     result = batch.run_batch(units, spec, options, RayPool(spec, options, 'auto'),
-                             on_start=kill, progress='never')
-    assert killed == [1, 1, 2] and result.stats.deaths == 3 and result.stats.retried == 1
-    (expected,) = [line for line in serial if line['source'] == path]
-    for k, line in enumerate(result.records):
-        if k == 10:
-            assert 'died on each of 2 attempts (last: the Ray actor died' in line['error']
+                             progress='never')
+    assert result.stats.deaths == 3 and result.stats.retried == 2
+    assert result.stats.lost_nodes == 0
+    lines = audit_fleet.by_source(serial)
+    for unit, line in zip(units, result.records):
+        if unit.source.endswith('?crash'):
+            assert line['frames'] is None and 'died on each of 2 attempts (last: killed by ' \
+                'SIGKILL)' in line['error']
+        elif unit.source.endswith('?crash-once'):
+            assert line == {**lines[unit.path], 'source': unit.source}
         else:
-            assert line == {**expected, 'source': f'{path}?{k}'}
+            assert line == lines[unit.source]
+
+
+def test_the_command_stops_on_ctrl_c_and_resumes_on_other_nodes(
+        cluster, driver_only, serial, joint_map, tmp_path):
+    """``--ray auto`` from another process, as a user runs it beside ``ray start``: Ctrl-C
+    stops it (exit 130, whole lines); a node joins and another leaves; --resume completes the
+    report with the serial lines."""
+    cluster, nodes = cluster
+    folder, inputs = driver_only
+    report = tmp_path / 'cluster.jsonl'
+    argv = [sys.executable, '-m', 'collision_sensor.tools.offline_check', *inputs,
+            '--joint-map', joint_map, '--ray', 'auto',
+            '--report', str(report), '--progress', 'never']
+    env = dict(os.environ, RAY_ADDRESS=cluster.address)
+    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               cwd=folder, env=env)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and process.poll() is None and (
+                not report.exists() or report.read_text().count('\n') < 20):
+            time.sleep(0.01)
+        assert process.poll() is None, f'ended before 20 lines: {process.stderr.read()}'
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 130, err
+    assert 'stopped; the report' in err and '--resume continues it' in err
+    stopped = [json.loads(line) for line in report.read_text().splitlines()]
+    assert 20 <= len(stopped) < len(serial)
+    joined = cluster.add_node(num_cpus=1)
+    cluster.remove_node(nodes[0], allow_graceful=True)
+    cluster.wait_for_nodes()
+    nodes[0] = joined
+    done = subprocess.run(argv + ['--resume'], capture_output=True, text=True, timeout=300,
+                          cwd=folder, env=env)
+    assert done.returncode == 3, done.stderr
+    assert 'on Ray (auto)' in done.stdout and 'failed units (3):' in done.stdout
+    after = [json.loads(line) for line in report.read_text().splitlines()]
+    assert after[:len(stopped)] == stopped
+    assert sorted(after, key=lambda r: r['source']) == sorted(serial, key=lambda r: r['source'])

@@ -13,9 +13,11 @@ from dataclasses import dataclass
 from typing import Callable, List, Optional
 
 from collision_sensor.tools.audit import report
-from collision_sensor.tools.audit.local_pool import LocalPool, PoolStats
+from collision_sensor.tools.audit.local_pool import LocalPool
+from collision_sensor.tools.audit.scheduling import PoolStats
 from collision_sensor.tools.audit.unit_check import CheckOptions, RobotSpec, UnitChecker, \
     checks_for, rss_bytes
+from collision_sensor.tools.audit.workers import memory
 from collision_sensor.tools.audit.units import Unit
 from collision_sensor.tools.progress import ProgressBar
 from collision_sensor.tools.recorded_clouds import cloud_summary_lines
@@ -58,10 +60,14 @@ def in_collision(record: dict) -> bool:
 
 
 class SerialRunner:
-    """``--jobs 1``: every unit in this process, with one checker."""
+    """``--jobs 1``: every unit in this process, with one checker.
 
-    def __init__(self, spec: RobotSpec, options: CheckOptions):
-        self.checker = UnitChecker(spec, options)
+    :param checker: the checker to use (None: built here).
+    """
+
+    def __init__(self, spec: RobotSpec, options: CheckOptions,
+                 checker: Optional[UnitChecker] = None):
+        self.checker = checker if checker is not None else UnitChecker(spec, options)
 
     def run(self, units, on_record, on_start=None) -> PoolStats:
         stats = PoolStats(workers=1)
@@ -71,17 +77,24 @@ class SerialRunner:
                 on_start(index, 1, os.getpid())
             on_record(index, self.checker.check(unit))
             stats.note_rss('driver', rss_bytes())
+        stats.note_private('driver', memory()[1])
         return stats
 
 
 def make_runner(spec: RobotSpec, options: CheckOptions, jobs: Optional[int],
-                ray_address: Optional[str]):
-    """Return the runner for ``--jobs`` / ``--ray``."""
+                ray_address: Optional[str], checker=None):
+    """Return the runner for ``--jobs`` / ``--ray``.
+
+    :param checker: a checker of ``spec`` built with UNIT_THREADS threads, which this process
+        and the workers it forks then use (None: one is built).
+    """
     if ray_address:
         from collision_sensor.tools.audit.ray_pool import RayPool
         return RayPool(spec, options, ray_address, jobs)
     jobs = jobs or default_jobs()
-    return SerialRunner(spec, options) if jobs == 1 else LocalPool(spec, options, jobs)
+    shared = UnitChecker(spec, options, checker) if checker is not None else None
+    return SerialRunner(spec, options, shared) if jobs == 1 else \
+        LocalPool(spec, options, jobs, shared)
 
 
 def run_batch(units: List[Unit], spec: RobotSpec, options: CheckOptions, runner,
@@ -113,8 +126,11 @@ def run_batch(units: List[Unit], spec: RobotSpec, options: CheckOptions, runner,
         writer.write(record)
         new.append(record)
         frames[0] += record['frames'] or 0
-        bar[0].update(len(new), note=f'{frames[0]:,} frames')
+        elapsed = time.perf_counter() - start
+        bar[0].update(len(new), note=f'{frames[0]:,} frames, {frames[0] / elapsed:,.0f} '
+                      'frames/s')
 
+    cpu = time.process_time()
     try:
         stats = runner.run(todo, on_record, on_start) if todo else PoolStats()
     finally:
@@ -122,9 +138,37 @@ def run_batch(units: List[Unit], spec: RobotSpec, options: CheckOptions, runner,
         if bar:
             bar[0].close()
     seconds = time.perf_counter() - start
+    if not isinstance(runner, SerialRunner):
+        stats.driver_cpu = time.process_time() - cpu   # feeding the workers, the report
     order = {unit.source: k for k, unit in enumerate(units)}
     new.sort(key=lambda record: order.get(record['source'], len(order)))
     return BatchResult(done + new, new, stats, seconds, first[0])
+
+
+def run_lines(stats: PoolStats, units: int) -> List[str]:
+    """Return the summary's lines on how the run went: the cluster, faults, memory, the
+    driver's CPU."""
+    lines = []
+    if stats.nodes > 1 or stats.lost_nodes:
+        lines.append(f'cluster:   {stats.nodes} nodes, {stats.workers} workers; the first ready '
+                     f'{stats.start_seconds:.1f} s after the start')
+    if stats.retried or stats.deaths:
+        lines.append(f'workers:   {stats.deaths} died; {stats.retried} units tried again (the '
+                     'one each was checking)')
+    if stats.lost_nodes:
+        lines.append(f'nodes:     {stats.lost_nodes} lost; {stats.rerun} units they held '
+                     'checked again on the others (none charged)')
+    if stats.rss:
+        last = max(v[1] for v in stats.rss.values()) / 2 ** 20
+        own = max((v[1] for v in stats.private.values()), default=0) / 2 ** 20
+        if stats.workers > 1 and own:
+            lines.append(f'memory:    {last:.0f} MiB resident per worker, {own:.1f} MiB of it '
+                         'its own (largest worker; the model is shared)')
+        else:
+            lines.append(f'memory:    {last:.0f} MiB resident (largest worker)')
+    if stats.driver_cpu and units:
+        lines.append(f'driver:    {1e3 * stats.driver_cpu / units:.2f} ms of CPU per unit')
+    return lines
 
 
 def print_summary(result: BatchResult, spec: RobotSpec, checker, options: CheckOptions,
@@ -148,20 +192,10 @@ def print_summary(result: BatchResult, spec: RobotSpec, checker, options: CheckO
     run += f' on {runner_label}'
     if resumed:
         run += f'; {resumed} units resumed from the report'
-    lines += ['', run]
-    if result.stats.retried or result.stats.deaths:
-        lines.append(f'workers:   {result.stats.deaths} died; {result.stats.retried} units '
-                     'tried again')
-    if result.stats.rss:
-        first = max(v[0] for v in result.stats.rss.values()) / 2 ** 20
-        last = max(v[1] for v in result.stats.rss.values()) / 2 ** 20
-        lines.append(f'worker RSS: {first:.0f} MiB when ready, {last:.0f} MiB at the end '
-                     '(largest worker)')
+    lines += ['', run] + run_lines(result.stats, len(result.new))
     status = result.status
+    met = any(in_collision(r) for r in result.records if r['error'] is None)
     verdict = {0: 'clear', 1: 'COLLISION',
-               3: 'COLLISION and FAILED UNITS' if any(in_collision(r)
-                                                     for r in result.records
-                                                     if r['error'] is None)
-               else 'FAILED UNITS'}[status]
+               3: 'COLLISION and FAILED UNITS' if met else 'FAILED UNITS'}[status]
     lines.append(f'result: {verdict}')
     print('\n'.join(lines), file=stream)

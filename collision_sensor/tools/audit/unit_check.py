@@ -24,12 +24,13 @@ import dataclasses
 import hashlib
 import os
 import pickle
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Dict, List, Mapping, Optional, Tuple, Type
 
 import numpy as np
 
 from collision_sensor.errors import CollisionSensorError, SequenceError
+from collision_sensor.engine.dynamic_scene import AddObject, RemoveObject
 from collision_sensor.engine.scene_markers import MarkerError, SceneTopic, apply_array
 from collision_sensor.model.joint_map import JointMap
 from collision_sensor.model import lerobot
@@ -351,8 +352,9 @@ class MotionCheck(UnitCheck):
         checked = [r for r in records if r.get('motion')]
         hit = [r for r in checked if r['motion']['segments_in_contact']]
         missed = [r for r in hit if r['motion']['missed_by_states']]
-        lines = ['', f'motion between frames: {sum(r["motion"]["segments_in_contact"] for r in hit)}'
-                 f' segments meet contact in {len(hit)} of {len(checked)} units']
+        met = sum(r['motion']['segments_in_contact'] for r in hit)
+        lines = ['', f'motion between frames: {met} segments meet contact in {len(hit)} of '
+                 f'{len(checked)} units']
         if missed:
             lines.append(f'  {sum(r["motion"]["missed_by_states"] for r in missed)} of them '
                          f'between two clear frames, in {len(missed)} units (checks of the '
@@ -385,26 +387,48 @@ def record_keys(options: CheckOptions) -> List[str]:
     return keys + ['error']
 
 
-@dataclass
 class UnitChecker:
-    """A worker's checker: built once, then one unit after another (see the module doc)."""
+    """A worker's checker: built once, then one unit after another (see the module doc).
 
-    spec: RobotSpec
-    options: CheckOptions
-    _checker: object = field(default=None, repr=False)
+    Built in the process that forks the workers, it is theirs too: a forked worker checks with
+    the parent's checker, its trees in pages shared copy-on-write with the parent (the
+    engine's queries write only the carried state, and the trees are never written), so N
+    workers hold the model once. A unit whose recording changes the scene or brings point
+    clouds lays out the engine's arrays anew (a copy of its own in that worker); afterwards
+    the scene as loaded is put back (:meth:`restore_scene`), not rebuilt.
+    """
 
-    def __post_init__(self):
-        if self.options.joint_map is not None:
-            self.options.joint_map.check_robot(self.checker.joint_names)
+    def __init__(self, spec: RobotSpec, options: CheckOptions, checker=None):
+        """:param checker: the checker of ``spec`` to use, built with UNIT_THREADS threads
+        (None: built here)."""
+        self.spec, self.options = spec, options
+        self._checker = checker
+        if options.joint_map is not None:
+            options.joint_map.check_robot(self.checker.joint_names)
 
     @property
     def checker(self):
-        """The checker, with the scene as loaded (rebuilt after a unit changed its scene).
-        A unit is checked on one core (UNIT_THREADS): the units are what runs in parallel, so
-        ``--jobs N`` uses N cores, not N times the engine's batch threads."""
+        """The checker, with the scene as loaded. A unit is checked on one core
+        (UNIT_THREADS): the units are what runs in parallel, so ``--jobs N`` uses N cores, not
+        N times the engine's batch threads."""
         if self._checker is None:
             self._checker = self.spec.build(threads=UNIT_THREADS)
         return self._checker
+
+    def restore_scene(self) -> None:
+        """Give the checker its scene as loaded again (the spec's objects, no point cloud):
+        every object removed and the spec's added back, in one change; the robot's trees are
+        kept. A checker that refuses is dropped (the next unit builds a new one)."""
+        checker = self._checker
+        if checker is None:
+            return
+        try:
+            for source in checker.point_cloud_sources:
+                checker.clear_points(source)
+            checker.apply_scene_changes([RemoveObject(name) for name in checker.object_names]
+                                        + [AddObject(obj) for obj in self.spec.scene])
+        except CollisionSensorError:
+            self._checker = None
 
     def check(self, unit: Unit, payload: Optional[shipping.Payload] = None) -> Dict[str, object]:
         """Return ``unit``'s report line (a dict in :func:`record_keys` order); never raises
@@ -477,8 +501,6 @@ class UnitChecker:
         starts = [0] + ([i for i in range(1, len(seq)) if events[i] or clouds.due(i)]
                         if seq.scene or seq.clouds else []) + [len(seq)]
         topic = SceneTopic(package_paths=dict(self.spec.package_paths) or None)
-        if seq.scene or seq.clouds:
-            self._checker = None   # the next unit gets the scene as loaded
         try:
             checker.check(seq.positions[0])
             for start, stop in zip(starts[:-1], starts[1:]):
@@ -489,9 +511,11 @@ class UnitChecker:
                 for check in checks:
                     check.segment(checker, start, stop)
             clouds.finish()
-        except BaseException:
-            self._checker = None   # whatever state an error left, the next unit starts clean
+        except Exception:
+            self.restore_scene()   # whatever state an error left, the next unit starts clean
             raise
+        if seq.scene or seq.clouds:
+            self.restore_scene()   # the next unit gets the scene as loaded
         return [check.result() for check in checks], (clouds.counts() if seq.clouds else None)
 
 
