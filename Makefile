@@ -28,10 +28,11 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest test
 
-# The benchmarks against pinocchio+coal and python-fcl (benchmarks/, not installed; its
-# docstring lists the options): `make bench BENCH_ARGS="--quick --scenario 1"`.
+# Every benchmark (benchmarks/, not installed), three runs each, into docs/performance.md:
+# `make bench`; one section again: `make bench BENCH_ARGS="--only node"`; the scenarios alone,
+# printed: `$(BIN)/python -m benchmarks --help`.
 bench: $(STAMP)
-	$(BIN)/python -m benchmarks $(BENCH_ARGS)
+	$(BIN)/python -m benchmarks page --runs 3 --output docs/performance.md $(BENCH_ARGS)
 
 clean:
 	rm -rf $(VENV) *.egg-info build
