@@ -23,6 +23,7 @@ def _installed(module):
     return importlib.util.find_spec(module) is not None
 
 
+@pytest.mark.slow
 def test_quick_run_writes_every_scenario_and_a_png(tmp_path, capsys):
     """Every scenario but 13, whose quick form still loads all 69 robots twice (ours and
     pinocchio's: about a minute); its test below runs it on a few."""
@@ -271,6 +272,7 @@ def test_motion_cells_segments_and_path_are_as_drawn():
     (['--rate', '200', '--duration', '1', '--clouds', '10', '--cloud-size', '64x48',
       '--cloud-renders', '4'], 'with / without'),
 ], ids=['rates', 'soak', 'motion', 'clouds'])
+@pytest.mark.node_process
 def test_node_latency_drives_the_console_script_from_another_process(args, line, tmp_path):
     """The node as a process of its own; the figures printed, the node's counters read back."""
     pytest.importorskip('rclpy')
@@ -319,6 +321,7 @@ def _bench(*args, cwd):
     return run_benchmark('benchmarks', *args, cwd=cwd)
 
 
+@pytest.mark.slow
 def test_urdf_runs_the_robot_scenarios_on_the_users_robot_against_both_peers(erd_share,
                                                                              tmp_path):
     """As a user runs it, on the UR5 moved into a package of the user's own naming (pinocchio

@@ -211,6 +211,7 @@ def _node_totals(status_name):
     return totals, record
 
 
+@pytest.mark.node_process
 def test_as_fast_as_possible_into_the_node_in_another_process(ros):
     """The 571 frames as fast as possible into a node in another process (a writer history
     that waited for Fast DDS's periodic heartbeat took one frame per 3 s there): every frame
@@ -251,6 +252,7 @@ def _keep_all_recorder(ros):
     return ros.record(JointState, 'joint_states', _keep_all())
 
 
+@pytest.mark.node_process
 def test_recorded_timing_waits_for_the_subscriber_and_loses_no_frame(ros, tmp_path):
     """A subscriber already running, the player started after it with its defaults: it waits
     for discovery to match the two before its first frame (else frames are lost)."""
@@ -272,6 +274,7 @@ def test_recorded_timing_waits_for_the_subscriber_and_loses_no_frame(ros, tmp_pa
     assert _summary(play.output) == ('', n, n)
 
 
+@pytest.mark.node_process
 def test_ctrl_c_says_what_was_published_and_acknowledged(ros):
     seq = read_sequence(PAPER)     # 11.4 s at its recorded timing
     received = _keep_all_recorder(ros)
@@ -295,6 +298,7 @@ def test_ctrl_c_says_what_was_published_and_acknowledged(ros):
     assert np.array_equal(positions, seq.positions[:published])
 
 
+@pytest.mark.node_process
 def test_frames_nobody_was_matched_for_are_said_to_be_received_by_nobody(ros, tmp_path):
     seq = JointSequence(('a',), np.arange(5) * 0.01, np.arange(5.0)[:, None])
     path = tmp_path / 'five.csv'

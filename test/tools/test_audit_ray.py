@@ -16,6 +16,8 @@ from collision_sensor.tools.audit.ray_pool import RayPool  # noqa: E402
 from collision_sensor.tools.audit.units import find_units  # noqa: E402
 from test_audit import check_kills, fleet, options, spec  # noqa: E402,F401 (fixtures)
 
+pytestmark = pytest.mark.ray
+
 
 @pytest.fixture(scope='module', autouse=True)
 def cluster(tmp_path_factory):
