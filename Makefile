@@ -1,4 +1,5 @@
-# The two commands: `make demo` and `make test` (`make demo DEMO_ARGS=--dynamic`: the dynamic
+# The two commands: `make demo` and `make test` (`make check`: the quick tier of the tests, for
+# the edit loop; `make bench`: the benchmarks; `make demo DEMO_ARGS=--dynamic`: the dynamic
 # scene; `--motion`: motions checked between frames; `--camera`: a depth camera's clouds, a
 # person no scene file holds; DEMO_ARGS go to collision_sensor_demo).
 # Each creates .venv when it is missing and installs the package with its `ros` and `test`
@@ -14,7 +15,15 @@ STAMP := $(VENV)/.collision_sensor-installed
 export FASTDDS_BUILTIN_TRANSPORTS ?= SHM
 export ROS_DOMAIN_ID ?= 42
 
-.PHONY: demo test bench clean
+# Test workers (pytest-xdist): one per core; each runs whole test files, in a DDS domain of its
+# own (test/conftest.py). JOBS=0 runs the tests in this process.
+JOBS ?= auto
+PYTEST := $(BIN)/python -m pytest test -n $(JOBS) --dist loadfile
+# The edit loop's tier: every test but the slow sweeps, packaging, demos, Ray and the node as a
+# process of its own (markers: setup.cfg).
+QUICK := not (slow or packaging or demo or ray or node_process)
+
+.PHONY: demo test check bench clean
 
 $(STAMP): setup.py setup.cfg package.xml pyproject.toml $(wildcard cpp/*.cpp cpp/*.hpp)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -26,12 +35,16 @@ demo: $(STAMP)
 	$(BIN)/collision_sensor_demo $(DEMO_ARGS)
 
 test: $(STAMP)
-	$(BIN)/python -m pytest test
+	$(PYTEST)
 
-# The benchmarks against pinocchio+coal and python-fcl (benchmarks/, not installed; its
-# docstring lists the options): `make bench BENCH_ARGS="--quick --scenario 1"`.
+check: $(STAMP)
+	$(PYTEST) -m "$(QUICK)"
+
+# Every benchmark (benchmarks/, not installed), three runs each, into docs/performance.md:
+# `make bench`; one section again: `make bench BENCH_ARGS="--only node"`; the scenarios alone,
+# printed: `$(BIN)/python -m benchmarks --help`.
 bench: $(STAMP)
-	$(BIN)/python -m benchmarks $(BENCH_ARGS)
+	$(BIN)/python -m benchmarks page --runs 3 --output docs/performance.md $(BENCH_ARGS)
 
 clean:
 	rm -rf $(VENV) *.egg-info build

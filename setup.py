@@ -111,6 +111,7 @@ setup(
             'pyarrow>=12',     # ... and write LeRobot datasets as LeRobot does
             'pybind11>=2.11',  # the packaging tests build wheels and colcon installs themselves
             'pytest>=7',
+            'pytest-xdist>=3.5',    # make test and make check run on every core
             'python-fcl>=0.7',
             'pin>=3.0',
             'example-robot-data>=4.0',

@@ -174,9 +174,9 @@ def run(recordings: int, frames: int, runs: int, seed: int, with_ray: bool, log)
     in_collision = sum(1 for r in reference if r['frames_in_collision'])
     ratio2 = [a / b for a, b in zip(walls['jobs 1'], walls['jobs 2'])]
     lines += [
-        f'Run {time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}: {recordings} CSV '
-        f'recordings of {frames} Panda frames ({total:,} frames; {in_collision} recordings '
-        f'touch themselves), {runs} runs, incremental check (the default). Machine: {cores} '
+        f'{recordings} CSV recordings of {frames} Panda frames ({total:,} frames; '
+        f'{in_collision} recordings touch themselves), {runs} runs, incremental check (the '
+        f'default). Machine: {cores} '
         + (f'cores; before the runs {others:.2f} cores were busy with others\' work (3 s '
            'sample) and ' if others is not None else 'cores; before the runs ')
         + f'the load average was {load_before[0]:.2f}; after, {load_after[0]:.2f}.', '',

@@ -38,7 +38,6 @@ times of scenario 1. Peers are optional: a missing one is reported as missing.
 """
 import argparse
 import dataclasses
-import datetime
 import importlib.metadata
 import os
 import platform
@@ -133,10 +132,8 @@ def _cpu() -> str:
     return platform.processor() or 'unknown CPU'
 
 
-def header(settings: Settings, numbers: Sequence[int],
-           robot: Optional[dict] = None) -> List[str]:
-    """Return the report's opening lines: machine, versions, run settings (and the user's
-    robot)."""
+def machine() -> str:
+    """Return the machine and the software the figures were measured with, in one sentence."""
     from collision_sensor.engine.compiled import engine
     import numpy
     try:
@@ -144,13 +141,17 @@ def header(settings: Settings, numbers: Sequence[int],
     except AttributeError:
         cores = os.cpu_count()
     peers = ', '.join(f'{label} {_version(dist)}' for label, dist in PEERS)
-    when = datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')
+    return (f'{_cpu()} ({cores} cores available); Python {platform.python_version()}, numpy '
+            f'{numpy.__version__}, engine C++ {engine.COMPILER}; peers: {peers}')
+
+
+def header(settings: Settings, numbers: Sequence[int],
+           robot: Optional[dict] = None) -> List[str]:
+    """Return the report's opening lines: machine, versions, run settings (and the user's
+    robot)."""
     return [
         '## Performance (python -m benchmarks)', '',
-        f'Run {when} on {_cpu()} ({cores} cores available, shared); Python '
-        f'{platform.python_version()}, numpy {numpy.__version__}, engine C++ '
-        f'{engine.COMPILER}; '
-        f'peers: {peers}. Settings: {"--quick, " if settings.quick else ""}seed '
+        f'Machine: {machine()}. Settings: {"--quick, " if settings.quick else ""}seed '
         f'{settings.seed}, scenarios {", ".join(map(str, numbers))}. Every figure is measured '
         'in this run; ratios are ours / peer (below 1: we are faster).',
     ] + ([f'Robot: {robot["urdf"]}' + (f' with {robot["srdf"]}' if robot['srdf'] else
@@ -237,11 +238,15 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if argv[:1] == ['audit']:    # checking many recordings: python -m benchmarks audit --help
         from benchmarks import audit
         return audit.main(argv[1:])
+    if argv[:1] == ['page']:     # every benchmark into docs/performance.md (make bench)
+        from benchmarks import page
+        return page.main(argv[1:])
     parser = argparse.ArgumentParser(
         prog=PROG, description=__doc__.split('\n\n')[0],
         epilog='Scenarios: ' + __doc__.split('\n\n')[-1].strip().replace('\n  ', ' ')
         + ' Checking many recordings (collision_sensor_check --jobs, --ray): '
-          'python -m benchmarks audit --help.')
+          'python -m benchmarks audit --help. Every benchmark into docs/performance.md: '
+          'python -m benchmarks page --help.')
     parser.add_argument('--quick', action='store_true',
                         help='small counts and meshes, for a smoke run (figures are rough)')
     parser.add_argument('--scenario', type=int, action='append', choices=SCENARIOS,
@@ -286,17 +291,16 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     if args.runs < 1:
         return _error(f'--runs {args.runs}: give at least 1')
-    reports, times = [], []
+    reports = []
     try:
         for run in range(args.runs):
             if args.runs > 1:
                 log(f'run {run + 1} of {args.runs}')
-            times.append(datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC'))
             sections = run_scenarios(numbers, settings, log, robot)
             reports.append(markdown(settings, numbers, sections, robot))
     except CollisionSensorError as err:   # the user's robot did not load: the file, the fix
         return _error(str(err))
-    text = merge_reports(reports, times)
+    text = merge_reports(reports)
     print(text)
     if args.markdown:
         with open(args.markdown, 'w', encoding='utf-8') as stream:

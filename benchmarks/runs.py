@@ -20,7 +20,7 @@ from typing import List, Sequence
 
 #: A figure in a report: digits with optional thousands separators and decimals, perhaps with
 #: a unit after it (0.07x, 33.5us), not inside a word, a time or a date (panda_link0, S12,
-#: 11:10 and 2026-11-25 stay text).
+#: 11:10 and 1998-06-30 stay text).
 NUMBER = re.compile(r'(?<![\w.:-])(?:\d{1,3}(?:,\d{3})+|\d+)(?:\.\d+)?(?![\d,.:-]\d)(?:[x%](?!\w))?')
 
 
@@ -61,24 +61,25 @@ def merge_text(texts: Sequence[str]) -> str:
     return ''.join(part + (out[k] if k < len(out) else '') for k, part in enumerate(parts))
 
 
-def merge_reports(reports: Sequence[str], times: Sequence[str]) -> str:
-    """Merge the markdown reports of N runs made at ``times`` (one string each)."""
+def merge_reports(reports: Sequence[str]) -> str:
+    """Merge the markdown reports of N runs (one string each)."""
     if len(reports) == 1:
         return reports[0]
     split = [report.splitlines() for report in reports]
-    note = (f'**{len(reports)} runs** ({", ".join(times)}), merged: each figure is the median '
-            'run\'s, with the range over the runs in brackets; where runs differ otherwise '
-            'their versions are listed side by side (run 1 / run 2 / ...).')
+    note = (f'**{len(reports)} runs**, merged: each figure is the median run\'s, with the range '
+            'over the runs in brackets; where runs differ otherwise their versions are listed '
+            'side by side (run 1 / run 2 / ...).')
     if any(len(lines) != len(split[0]) for lines in split):
         # The runs' tables differ in shape: each run whole, one after the other.
         out: List[str] = [note, '']
         for k, report in enumerate(reports):
-            out += [f'#### Run {k + 1} ({times[k]})', '', report]
+            out += [f'#### Run {k + 1}', '', report]
         return '\n'.join(out) + '\n'
     merged = [merge_line(lines) for lines in zip(*split)]
     for k, line in enumerate(split[0]):
-        if line.startswith('Run ') and ' on ' in line:     # the header's run line
-            merged[k] = 'Runs ' + ', '.join(times) + ' on ' + line.split(' on ', 1)[1]
+        if line.startswith('Machine: '):     # the header's machine line
             merged[k + 1:k + 1] = ['', note]
             break
+    else:
+        merged[0:0] = [note, '']
     return '\n'.join(merged) + '\n'

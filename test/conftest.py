@@ -43,6 +43,22 @@ _benchmarks_importable()
 # this run's own; .ci/run and the Makefile set both, this covers a bare `pytest`.
 os.environ.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'SHM')
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.SystemRandom().randint(1, 100)))
+#: Fast DDS maps a domain to UDP ports 7400 + 250 * domain + ...: 232 is the last that fits.
+LAST_DOMAIN = 232
+
+
+def worker_domain(base: int, worker: str) -> int:
+    """Return the DDS domain of pytest-xdist worker ``worker`` (``gw0``, ``gw1``, ...) in a run
+    whose domain is ``base``: ``base`` for the first, 100 further on for each next (wrapping
+    within 1..232), so that parallel workers never see each other's nodes, not even on
+    the global ``/diagnostics``."""
+    index = int(worker[2:]) if worker.startswith('gw') and worker[2:].isdigit() else 0
+    return 1 + (base - 1 + 100 * index) % LAST_DOMAIN
+
+
+if os.environ.get('PYTEST_XDIST_WORKER'):
+    os.environ['ROS_DOMAIN_ID'] = str(worker_domain(int(os.environ['ROS_DOMAIN_ID']),
+                                                    os.environ['PYTEST_XDIST_WORKER']))
 
 
 @pytest.fixture(scope='session')

@@ -15,6 +15,11 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
+#: s: the limit of a wait that ends on what it waits for (a message, a status, a process
+#: exiting). Far above what any takes on a quiet machine, so that a loaded one (CI shares its
+#: machine) never fails a test; a wait that succeeds returns as soon as its condition holds.
+WAIT = 300.0
+
 
 class Recorder:
     """Keep every message a probe subscription receives, in arrival order."""
@@ -70,7 +75,7 @@ class RosHarness:
         """Return a probe publisher on ``topic`` (relative to the namespace)."""
         return self.probe.create_publisher(msg_type, topic, qos)
 
-    def spin_until(self, condition: Callable[[], bool], timeout: float = 5.0) -> bool:
+    def spin_until(self, condition: Callable[[], bool], timeout: float = WAIT) -> bool:
         """Spin until ``condition()`` is true; return False if ``timeout`` seconds pass first."""
         deadline = time.monotonic() + timeout
         while not condition():
@@ -84,7 +89,7 @@ class RosHarness:
         """Spin for ``seconds``, whatever happens (to show that nothing arrives)."""
         self.spin_until(lambda: False, seconds)
 
-    def wait_for_subscribers(self, publisher, count: int = 1, timeout: float = 5.0) -> bool:
+    def wait_for_subscribers(self, publisher, count: int = 1, timeout: float = WAIT) -> bool:
         """Spin until ``publisher`` is matched by ``count`` subscriptions."""
         return self.spin_until(lambda: publisher.get_subscription_count() >= count, timeout)
 
@@ -99,7 +104,7 @@ class RosHarness:
 
 
 def node_status(ros: RosHarness, diagnostics: Recorder, which: str, condition,
-                timeout: float = 10.0):
+                timeout: float = WAIT):
     """Spin until the node ``collision_sensor``'s /diagnostics status ``which`` (``collision
     sensor``, ``scene``, ``trajectory``) satisfies ``condition(status, values)``; return the
     newest that does, as ``(status, {key: value})``.
@@ -141,12 +146,12 @@ class PlayerThread:
             daemon=True)
         self.thread.start()
 
-    def join(self, timeout=30.0):
+    def join(self, timeout=WAIT):
         """Wait for the player to finish; return its exit status (None if still running)."""
         self.thread.join(timeout)
         return self.status
 
-    def stop(self, timeout=10.0):
+    def stop(self, timeout=WAIT):
         """Shut the player's context down and wait for it; return its exit status."""
         rclpy.try_shutdown(context=self.context)
         self.thread.join(timeout)

@@ -132,7 +132,7 @@ def node_parameter_names():
 
 
 def test_the_node_reference_lists_every_parameter():
-    table = re.findall(r'^\| `([a-z_]+)` \|', read(os.path.join(DOCS, 'node.md')), re.M)
+    table = re.findall(r'^\| `([a-z_]+)` \|', read(os.path.join(DOCS, 'parameters.md')), re.M)
     assert set(table) >= node_parameter_names(), node_parameter_names() - set(table)
 
 

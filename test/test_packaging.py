@@ -151,6 +151,7 @@ def wheel(tmp_path_factory):
     return str(root / 'dist' / wheels[0])
 
 
+@pytest.mark.packaging
 def test_wheel_holds_the_package_the_data_and_the_ament_marker(wheel):
     with zipfile.ZipFile(wheel) as archive:
         names = set(archive.namelist())
@@ -180,6 +181,7 @@ def test_wheel_holds_the_package_the_data_and_the_ament_marker(wheel):
     assert [mesh for mesh in meshes if share + mesh not in data] == []
 
 
+@pytest.mark.packaging
 def test_wheel_has_an_entry_point_for_every_console_script(wheel):
     with zipfile.ZipFile(wheel) as archive:
         info = [n for n in archive.namelist() if n.endswith('.dist-info/entry_points.txt')]
@@ -234,6 +236,7 @@ def pip_venv(wheel, tmp_path_factory):
     return prefix
 
 
+@pytest.mark.packaging
 def test_pip_install_finds_its_data_under_the_prefix(pip_venv, tmp_path):
     proc = run([os.path.join(pip_venv, 'bin', 'python'), '-c', WHERE], cwd=str(tmp_path),
                env=clean_env())
@@ -242,6 +245,7 @@ def test_pip_install_finds_its_data_under_the_prefix(pip_venv, tmp_path):
     assert same_path(share, os.path.join(pip_venv, 'share', PACKAGE))
 
 
+@pytest.mark.packaging
 def test_pip_installed_check_finds_the_paper_collisions(pip_venv, tmp_path):
     for name in CONSOLE_SCRIPTS:
         assert os.access(os.path.join(pip_venv, 'bin', name), os.X_OK), name
@@ -293,6 +297,7 @@ print(json.dumps({'root': root, 'modules': modules, 'attempted': attempted,
 '''
 
 
+@pytest.mark.packaging
 def test_pip_install_imports_no_benchmark_and_no_peer(wheel, pip_venv, tmp_path):
     """The wheel holds the product alone: no module of benchmarks/ (nor scripts/), and no
     module of it imports python-fcl, pinocchio or coal (the benchmarks' peers, test extras),
@@ -313,6 +318,7 @@ def test_pip_install_imports_no_benchmark_and_no_peer(wheel, pip_venv, tmp_path)
     assert {top for top in tops if not top.startswith(PACKAGE)} == set(), tops
 
 
+@pytest.mark.packaging
 def test_the_import_check_sees_a_peer_imported_by_the_package(tmp_path):
     """The control: the same probe, on a copy of the package whose one module imports fcl in
     a function, reports it (read) and, when the module imports it at the top, the attempt."""
@@ -345,6 +351,7 @@ def check_demo(script, share, cwd, env):
     assert 'result: COLLISION' in proc.stdout and 'Traceback' not in proc.stderr
 
 
+@pytest.mark.packaging
 def test_pip_installed_demo_starts_the_node_of_its_own_install(pip_venv, tmp_path):
     check_demo(os.path.join(pip_venv, 'bin', 'collision_sensor_demo'),
                os.path.join(pip_venv, 'share', PACKAGE), str(tmp_path), clean_env())
@@ -396,6 +403,7 @@ def colcon_env(install, **extra):
                      PYTHONPATH=os.path.join(install, 'lib', PY, 'site-packages'), **extra)
 
 
+@pytest.mark.packaging
 def test_colcon_install_has_what_ros2_run_and_the_ament_index_need(colcon_install):
     # `ros2 run collision_sensor NAME` runs <prefix>/lib/collision_sensor/NAME.
     for name in CONSOLE_SCRIPTS:
@@ -410,6 +418,7 @@ def test_colcon_install_has_what_ros2_run_and_the_ament_index_need(colcon_instal
                                        'model', 'share.py'))
 
 
+@pytest.mark.packaging
 def test_colcon_install_finds_its_data_through_the_ament_index(colcon_install, tmp_path):
     with open(os.path.join(colcon_install, 'lib', PACKAGE, 'collision_sensor_check')) as script:
         python = script.readline()[2:].strip()   # the interpreter colcon wrote into the shebang
@@ -428,6 +437,7 @@ def test_colcon_install_finds_its_data_through_the_ament_index(colcon_install, t
         assert 'FileNotFoundError' in proc.stderr, proc.stderr
 
 
+@pytest.mark.packaging
 def test_colcon_installed_demo_runs_as_ros2_run_would(colcon_install, tmp_path):
     """``ros2 run collision_sensor collision_sensor_demo`` runs this script; the node it
     starts is in the same directory, which install/setup.sh does not put on PATH."""
@@ -436,6 +446,7 @@ def test_colcon_installed_demo_runs_as_ros2_run_would(colcon_install, tmp_path):
                colcon_env(colcon_install))
 
 
+@pytest.mark.packaging
 def test_colcon_installed_check_finds_the_paper_collisions(colcon_install, tmp_path):
     proc = run([os.path.join(colcon_install, 'lib', PACKAGE, 'collision_sensor_check'),
                 'paper_experiment'], cwd=str(tmp_path),

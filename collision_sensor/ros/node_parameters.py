@@ -12,9 +12,10 @@ string list from a params file is refused. String-array parameters are therefore
 type alone (``Parameter.Type.STRING_ARRAY``), and a parameter left unset, or set to ``[]`` in a
 params file or on the command line (which rcl reads as "not set"), reads as the empty list.
 
-Every parameter is listed, with comments, in ``config/collision_sensor.yaml``; keep the two in
-step (``test_params_file_lists_every_parameter_with_its_default`` in
-``test/ros/test_node_configuration.py`` checks it).
+:data:`PARAMETERS` is the one source of ``config/collision_sensor.yaml`` and
+``docs/parameters.md``: ``python scripts/parameter_reference.py`` writes both from it (with
+:mod:`collision_sensor.ros.parameter_notes`), ``test/test_parameter_reference.py`` fails when
+either is stale.
 """
 import difflib
 import math

@@ -23,6 +23,7 @@ def _installed(module):
     return importlib.util.find_spec(module) is not None
 
 
+@pytest.mark.slow
 def test_quick_run_writes_every_scenario_and_a_png(tmp_path, capsys):
     """Every scenario but 13, whose quick form still loads all 69 robots twice (ours and
     pinocchio's: about a minute); its test below runs it on a few."""
@@ -68,12 +69,13 @@ def test_runs_are_merged_figure_by_figure_with_their_range():
     verdicts = [row.replace('PASS', word) for row, word in zip(rows, ('PASS', 'MISS', 'PASS'))]
     assert merge_line(verdicts).endswith('| **PASS** / **MISS** / **PASS** |')
     assert merge_line([rows[0]] * 3) == rows[0]
-    reports = ['# R\n\nRun 2026-11-26 01:00 UTC on cpu; x.\n\n' + row + '\n' for row in rows]
-    merged = merge_reports(reports, ['2026-11-26 01:00 UTC', '01:03 UTC', '01:06 UTC'])
-    assert merged.startswith('# R\n\nRuns 2026-11-26 01:00 UTC, 01:03 UTC, 01:06 UTC on cpu')
-    assert '**3 runs**' in merged and '0.08x [0.07x-0.09x]' in merged
-    uneven = merge_reports([reports[0], reports[1] + 'more\n'], ['a', 'b'])
-    assert '#### Run 1 (a)' in uneven and '#### Run 2 (b)' in uneven and 'more' in uneven
+    reports = ['# R\n\nMachine: cpu; x.\n\n' + row + '\n' for row in rows]
+    merged = merge_reports(reports)
+    assert merged.startswith('# R\n\nMachine: cpu; x.\n\n**3 runs**')
+    assert '0.08x [0.07x-0.09x]' in merged
+    uneven = merge_reports([reports[0], reports[1] + 'more\n'])
+    assert '#### Run 1' in uneven and '#### Run 2' in uneven and 'more' in uneven
+    assert merge_reports(['a 1\n', 'a 2\n', 'a 3\n']).startswith('**3 runs**')
 
 
 def test_several_runs_make_one_report(tmp_path):
@@ -270,6 +272,7 @@ def test_motion_cells_segments_and_path_are_as_drawn():
     (['--rate', '200', '--duration', '1', '--clouds', '10', '--cloud-size', '64x48',
       '--cloud-renders', '4'], 'with / without'),
 ], ids=['rates', 'soak', 'motion', 'clouds'])
+@pytest.mark.node_process
 def test_node_latency_drives_the_console_script_from_another_process(args, line, tmp_path):
     """The node as a process of its own; the figures printed, the node's counters read back."""
     pytest.importorskip('rclpy')
@@ -318,6 +321,7 @@ def _bench(*args, cwd):
     return run_benchmark('benchmarks', *args, cwd=cwd)
 
 
+@pytest.mark.slow
 def test_urdf_runs_the_robot_scenarios_on_the_users_robot_against_both_peers(erd_share,
                                                                              tmp_path):
     """As a user runs it, on the UR5 moved into a package of the user's own naming (pinocchio

@@ -13,6 +13,8 @@ pytest.importorskip('rclpy')
 
 MESSAGES = 3000
 
+pytestmark = pytest.mark.node_process
+
 
 def run_fuzz(tmp_path, *args):
     report = tmp_path / 'fuzz.json'

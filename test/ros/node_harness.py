@@ -26,7 +26,7 @@ from visualization_msgs.msg import MarkerArray  # noqa: E402
 from collision_sensor import CollisionChecker  # noqa: E402
 from collision_sensor.ros.console_scripts import console_script  # noqa: E402
 from collision_sensor.ros.node import CollisionSensorNode  # noqa: E402
-from ros_helpers import RosHarness, reliable  # noqa: E402
+from ros_helpers import WAIT, RosHarness, reliable  # noqa: E402
 
 ARM = tuple(f'panda_joint{i}' for i in range(1, 8))
 GRIPPER = ('panda_finger_joint1',)
@@ -143,7 +143,7 @@ def stamp_of(k: int) -> Time:
 class Probe:
     """The test side: publishes joint states, records the node's outputs."""
 
-    def __init__(self, ros, markers=False, timeout=5.0):
+    def __init__(self, ros, markers=False, timeout=WAIT):
         self.ros = ros
         self.joint_states = ros.publisher(JointState, 'joint_states', reliable(100))
         self.contact = ros.record(Bool, 'contact', reliable(1000, latched=True))
@@ -154,7 +154,7 @@ class Probe:
         assert ros.wait_for_subscribers(self.joint_states, timeout=timeout), \
             'the node never subscribed'
 
-    def send(self, msg, wait=True, timeout=5.0):
+    def send(self, msg, wait=True, timeout=WAIT):
         """Publish ``msg``; with ``wait``, spin until the verdict for it arrived."""
         count = len(self.pairs)
         self.joint_states.publish(msg)
@@ -171,7 +171,7 @@ class Probe:
         self.ros.spin_for(seconds)
         return len(self.pairs) == count
 
-    def next_diagnostics(self, condition=lambda values: True, timeout=3.0):
+    def next_diagnostics(self, condition=lambda values: True, timeout=WAIT):
         """Spin until a /diagnostics status of this node satisfies ``condition(values)``."""
         found = []
         name = f'{self.ros.namespace.strip("/")}/collision_sensor: collision sensor'
@@ -188,7 +188,7 @@ class Probe:
         return found[0]
 
 
-def logged(ros, capfd, text, timeout=15.0):
+def logged(ros, capfd, text, timeout=WAIT):
     """Spin until the node has logged ``text`` (it logs after it published the verdict, once
     its lock is released); return everything captured on stderr since the last read.
 
@@ -224,7 +224,7 @@ def node_process(namespace, *extra, urdf=None, srdf=None, erd_share=None):
                             stderr=subprocess.STDOUT, text=True, env=env)
 
 
-def stop(process, signum, timeout=30.0):
+def stop(process, signum, timeout=WAIT):
     """Send ``signum``; return (exit status, output, seconds to exit)."""
     started = time.monotonic()
     process.send_signal(signum)
@@ -243,7 +243,7 @@ def assert_clean_exit(status, output):
     assert 'Error' not in output and 'Exception' not in output, output
 
 
-def wait_until_signals_are_handled(process, timeout=30.0):
+def wait_until_signals_are_handled(process, timeout=WAIT):
     """Wait until the process catches SIGTERM (bit 15 of SigCgt in /proc/PID/status).
 
     Before that the interpreter itself is starting (about 0.1 s, no package code has run):

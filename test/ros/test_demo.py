@@ -52,6 +52,7 @@ def assert_summary_lists(out, frames, spans):
                          'frames', out), name
 
 
+@pytest.mark.demo
 def test_make_demo_reports_the_contacts_of_the_offline_check(tmp_path, capsys):
     run = run_demo()    # what `make demo` runs: the paper's experiment at its recorded timing
     assert run.returncode == 0, run.stdout + run.stderr
@@ -81,6 +82,7 @@ def test_make_demo_reports_the_contacts_of_the_offline_check(tmp_path, capsys):
     assert 'result: COLLISION' in out
 
 
+@pytest.mark.demo
 def test_a_clear_sequence_played_as_fast_as_possible(tmp_path, capsys):
     run = run_demo('--sequence', 'into_drum_clear', '--as-fast-as-possible')
     assert run.returncode == 0, run.stdout + run.stderr
@@ -89,6 +91,7 @@ def test_a_clear_sequence_played_as_fast_as_possible(tmp_path, capsys):
     assert 'pairs in contact:    none' in run.stdout and 'result: clear' in run.stdout
 
 
+@pytest.mark.demo
 def test_the_dynamic_scene_reports_the_contacts_of_the_offline_check(tmp_path, capsys):
     """``make demo DEMO_ARGS=--dynamic``: objects come, are attached, dropped and removed
     through the node's scene topic, in order with the frames."""
@@ -110,6 +113,7 @@ def test_the_dynamic_scene_reports_the_contacts_of_the_offline_check(tmp_path, c
                      'a verdict at once', out), out
 
 
+@pytest.mark.demo
 def test_a_node_that_does_not_come_up_in_time_is_a_clear_error():
     run = run_demo('--timeout', '0.01')
     assert run.returncode == 1, run.stdout + run.stderr
@@ -160,6 +164,7 @@ def test_a_node_that_exits_while_starting_is_a_clear_error():
                               lambda line: None)
 
 
+@pytest.mark.demo
 def test_a_bad_sequence_fails_before_ros_starts(tmp_path):
     run = run_demo('--sequence', str(tmp_path / 'missing.csv'))
     assert run.returncode == 2
@@ -167,6 +172,7 @@ def test_a_bad_sequence_fails_before_ros_starts(tmp_path):
     assert 'starting collision_sensor_node' not in run.stdout
 
 
+@pytest.mark.demo
 def test_the_motion_demo_shows_what_instant_checks_miss(tmp_path, capsys):
     """``make demo DEMO_ARGS=--motion``: every frame of guard_rail_5hz is clear, the node
     with check_motion reports the motion through the guard rail, as the offline checker's
@@ -200,6 +206,7 @@ def test_the_motion_demo_shows_what_instant_checks_miss(tmp_path, capsys):
     assert 'result: COLLISION (on the way only)' in out
 
 
+@pytest.mark.demo
 def test_the_camera_demo_sees_the_person_and_keeps_the_arm_out_of_its_cloud():
     """``make demo DEMO_ARGS=--camera``: a camera on a link of the arm renders the cell with a
     person in no scene file; the node reports contact with the cloud when the arm reaches the

@@ -79,6 +79,7 @@ def test_bad_configuration_fails_with_a_clear_reason(ros, panda_urdf, panda_srdf
     assert 'configuration failed' in capfd.readouterr().err    # logged before raising
 
 
+@pytest.mark.node_process
 def test_bad_configuration_exits_non_zero_from_the_console_script(tmp_path):
     params = tmp_path / 'bad.yaml'
     params.write_text(yaml.safe_dump(

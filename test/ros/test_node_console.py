@@ -21,6 +21,8 @@ from node_harness import (  # noqa: E402,F401 - the fixtures of the node's tests
     panda, poses, ros, stamp_of, stop, wait_until_signals_are_handled)
 from ros_helpers import reliable  # noqa: E402
 
+pytestmark = pytest.mark.node_process
+
 
 def test_console_script_with_params_file(ros, tmp_path, panda_urdf, panda_srdf, erd_share, poses):
     with open(config_path('collision_sensor.yaml')) as stream:

@@ -37,6 +37,7 @@ def test_closest_names():
         settings_from_values({'paddding': 0.1})
 
 
+@pytest.mark.node_process
 def test_unknown_names_stop_the_node_naming_the_closest(tmp_path, panda_urdf, panda_srdf,
                                                         erd_share):
     """As in issue 28: ``-p srdf:=...`` and a misspelled warning_distance in a params file; ROS's
@@ -107,6 +108,7 @@ def verdict(checker, state):
     return result.in_collision, tuple(result.colliding_pairs)
 
 
+@pytest.mark.node_process
 def test_dynamic_parameters_set_from_another_node_reach_the_next_verdict(
         ros, panda_urdf, panda_srdf, erd_share, frames, expected):
     """Each dynamic parameter in turn on a node process: the verdicts that follow equal a fresh

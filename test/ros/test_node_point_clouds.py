@@ -21,6 +21,7 @@ from collision_sensor.ros.node import CollisionSensorNode  # noqa: E402
 from node_harness import (  # noqa: E402,F401 - the fixtures of the node's tests
     ARM, GRIPPER, Probe, frames, expected, joint_state, panda, panda_parameters, pairs_of,
     poses, ros, start_node)
+from ros_helpers import WAIT  # noqa: E402
 
 TOPIC = 'camera/points'
 CLOUD = 'cloud/' + TOPIC
@@ -54,7 +55,7 @@ class CloudProbe(Probe):
                                    qos_profile_sensor_data)
         assert ros.wait_for_subscribers(self.clouds, timeout=10.0)
 
-    def send_cloud(self, msg, answered=True, timeout=10.0):
+    def send_cloud(self, msg, answered=True, timeout=WAIT):
         """Publish a cloud; when ``answered``, wait for its verdict."""
         count = len(self.pairs)
         self.clouds.publish(msg)
@@ -63,7 +64,7 @@ class CloudProbe(Probe):
         assert self.ros.spin_until(lambda: len(self.pairs) > count, timeout), 'no cloud verdict'
         return self.contact.last.data, pairs_of(self.pairs.last)
 
-    def cloud_status(self, condition=lambda values: True, timeout=5.0):
+    def cloud_status(self, condition=lambda values: True, timeout=WAIT):
         name = f'{self.ros.namespace.strip("/")}/collision_sensor: point cloud {TOPIC}'
         found = []
 

@@ -18,7 +18,7 @@ from collision_sensor.ros.node import LATCHED_QOS, CollisionSensorNode  # noqa: 
 from node_harness import (  # noqa: E402,F401 - the fixtures of the node's tests
     Probe, SLIDER_URDF, expected, frames, joint_state, logged, pairs_of, panda, poses, ros,
     start_node)
-from ros_helpers import reliable  # noqa: E402
+from ros_helpers import WAIT, reliable  # noqa: E402
 
 
 def test_robot_from_topic_and_bad_description_rejected(ros, panda_urdf, erd_share, poses,
@@ -41,7 +41,7 @@ def test_robot_from_topic_and_bad_description_rejected(ros, panda_urdf, erd_shar
         result = bare.check(state)
         return result.in_collision, tuple(result.colliding_pairs)
 
-    def verdict_for(state, timeout=30.0):
+    def verdict_for(state, timeout=WAIT):
         count = len(probe.pairs)
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:    # the node ignores joint states until loaded

@@ -24,7 +24,7 @@ from collision_sensor import CollisionChecker  # noqa: E402
 from collision_sensor.engine.dynamic_scene import AddObject  # noqa: E402
 from collision_sensor.engine.scene_markers import SceneTopic  # noqa: E402
 from collision_sensor.ros.node import CollisionSensorNode, quaternion_from_matrix  # noqa: E402
-from ros_helpers import RosHarness, node_status, reliable  # noqa: E402
+from ros_helpers import WAIT, RosHarness, node_status, reliable  # noqa: E402
 from small_robot import SMALL_ROBOT  # noqa: E402
 from engine_oracles import SceneOracle  # noqa: E402
 
@@ -120,10 +120,10 @@ class SceneProbe:
     def expected(self):
         return self.oracle.colliding_pairs(self.q)
 
-    def scene_status(self, condition, timeout=10.0):
+    def scene_status(self, condition, timeout=WAIT):
         return self.status('scene', condition, timeout)
 
-    def status(self, which, condition, timeout=10.0):
+    def status(self, which, condition, timeout=WAIT):
         """The node's /diagnostics status ``which`` (``scene``, ``collision sensor``) once
         ``condition(status, values)``: (status, values)."""
         return node_status(self.ros, self.diagnostics, which, condition, timeout)

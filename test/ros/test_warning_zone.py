@@ -60,6 +60,7 @@ def zone_answers(ros, ur5, Q):
     return near_pairs.messages, near.messages
 
 
+@pytest.mark.node_process
 def test_pairs_near_everywhere_are_named_at_start_up_with_the_fix(ros, ur5, ur5_urdf, ur5_srdf,
                                                                   erd_share):
     near_pairs, near, output = run_ur5(ros, ur5, ur5_urdf, ur5_srdf, erd_share,
@@ -74,6 +75,7 @@ def test_pairs_near_everywhere_are_named_at_start_up_with_the_fix(ros, ur5, ur5_
     assert all(msg.data for msg in near)
 
 
+@pytest.mark.node_process
 def test_warning_ignore_leaves_the_pair_out(ros, ur5, ur5_urdf, ur5_srdf, erd_share):
     Q = random_configurations(ur5, 30, seed=3)
     near_pairs, near, output = run_ur5(ros, ur5, ur5_urdf, ur5_srdf, erd_share, Q, '-p',
@@ -89,6 +91,7 @@ def test_warning_ignore_leaves_the_pair_out(ros, ur5, ur5_urdf, ur5_srdf, erd_sh
     assert left     # some configurations are now clear of the zone
 
 
+@pytest.mark.node_process
 def test_an_unknown_name_in_warning_ignore_is_kept_and_reported(ros, ur5_urdf, ur5_srdf,
                                                                  erd_share):
     """A name that is no link may be a scene object still to come (a table): kept, named in

@@ -29,7 +29,7 @@ from collision_sensor.model.joint_map import load_joint_map  # noqa: E402
 from collision_sensor.tools.audit.unit_check import CheckOptions  # noqa: E402
 from test_audit import spec  # noqa: E402,F401 (a fixture)
 
-pytestmark = pytest.mark.cluster
+pytestmark = [pytest.mark.ray, pytest.mark.cluster]
 #: Recordings, and episodes of each of two datasets, in the module's fleet.
 RECORDINGS, EPISODES = 200, 50
 
