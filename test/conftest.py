@@ -43,6 +43,9 @@ _benchmarks_importable()
 # this run's own; .ci/run and the Makefile set both, this covers a bare `pytest`.
 os.environ.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'SHM')
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.SystemRandom().randint(1, 100)))
+# The collision_sensor fixture's sensors too (collision_sensor.testing picks a domain of its
+# own otherwise).
+os.environ.setdefault('COLLISION_SENSOR_TEST_DOMAIN', os.environ['ROS_DOMAIN_ID'])
 
 
 @pytest.fixture(scope='session')
