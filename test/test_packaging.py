@@ -29,7 +29,7 @@ PACKAGE = 'collision_sensor'
 SHIPPED = ('package.xml', 'setup.py', 'setup.cfg', 'pyproject.toml', 'MANIFEST.in', 'resource',
            'collision_sensor', 'cpp', 'config', 'meshes', 'LICENSE', 'README.md', 'docs')
 CONSOLE_SCRIPTS = ('collision_sensor_node', 'collision_sensor_play', 'collision_sensor_check',
-                   'collision_sensor_acm', 'collision_sensor_demo')
+                   'collision_sensor_acm', 'collision_sensor_demo', 'collision_sensor_ctl')
 ROS_FREE_MODULES = ('collision_sensor', 'collision_sensor.engine.checker',
                     'collision_sensor.model.sequences',
                     'collision_sensor.tools.acm', 'collision_sensor.tools.offline_check',
