@@ -74,6 +74,7 @@ _SCENE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
                         reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 _STALE = 'joint_states_stale'
+_CLOUD_TIMEOUT = 'point_cloud_timeout'
 
 
 def own_domain() -> int:
@@ -307,16 +308,20 @@ class SensorUnderTest:
             return None
         return verdict_from(self._contacts[index], self._pairs[index])
 
-    def _own_verdicts(self, since: int, latest_stamp=None) -> List[int]:
+    def _own_verdicts(self, since: int, latest_stamp=None, timed_out: str = '') -> List[int]:
         """Indices of the verdicts from ``since`` on that answer none of the client's joint
         states (the node's verdicts on a scene array, a cloud, a parameter change), without
-        stale-input entries; with ``latest_stamp``, only those stamped no later."""
+        the entries its timers publish on their own (stale joint states; with ``timed_out``,
+        that cloud topic's timeout); with ``latest_stamp``, only those stamped no later."""
         found = []
         for index in range(since, len(self._pairs)):
             msg = self._pairs[index]
             stamp = msg.header.stamp
             key = (stamp.sec, stamp.nanosec, msg.header.frame_id)
-            if key in self._sent_headers or any(s.name == _STALE for s in msg.status):
+            if key in self._sent_headers or any(
+                    s.name == _STALE or (timed_out and s.name == _CLOUD_TIMEOUT
+                                         and s.message.startswith(f'point cloud {timed_out}:'))
+                    for s in msg.status):
                 continue
             if latest_stamp is not None and (stamp.sec, stamp.nanosec) > latest_stamp:
                 continue
@@ -490,7 +495,7 @@ class SensorUnderTest:
         status_name = f'point cloud {topic}'
 
         def answered():     # a verdict when the node takes it; its status counts it anyway
-            own = self._own_verdicts(since_verdict)
+            own = self._own_verdicts(since_verdict, timed_out=topic)
             if own:
                 return 'verdict', own[0]
             found = self._status(status_name, since_status,
@@ -505,7 +510,8 @@ class SensorUnderTest:
             return CloudAnswer(False, found.get('last_rejection', ''), None)
         verdict = None
         if self._checked:       # taken with a state checked: its verdict is on the way
-            index = self.wait(lambda: (self._own_verdicts(since_verdict) or [None])[0],
+            index = self.wait(lambda: (self._own_verdicts(since_verdict, timed_out=topic)
+                                       or [None])[0],
                               timeout, f'no verdict on cloud {count} on {topic}')
             verdict = self._verdict_at(index)
         return CloudAnswer(True, '', verdict)

@@ -67,8 +67,8 @@ def test_echo_prints_the_verdicts_as_ros2_topic_echo(collision_sensor):
     status, text = run('echo', f'{sensor.namespace}/colliding_pairs', '--once')
     assert status == 0 and text.endswith('---\n')
     message = yaml.safe_load(text.split('---')[0])
-    assert [s['name'] for s in message['status']] == [f'{a}:{b}' for a, b
-                                                       in expected.colliding_pairs]
+    names = [f'{a}:{b}' for a, b in expected.colliding_pairs]
+    assert [s['name'] for s in message['status']] == names
     status, text = run('echo', f'{sensor.namespace}/contact', '--count', '1')
     assert (status, yaml.safe_load(text.split('---')[0])) == (0, {'data': True})
 

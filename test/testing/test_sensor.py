@@ -7,6 +7,7 @@ package's own (its pytest11 entry point).
 """
 import math
 import pathlib
+import time
 
 import numpy as np
 import pytest
@@ -50,9 +51,8 @@ def panda():
 def test_joint_states_sent_ahead_get_each_its_own_verdict(collision_sensor, panda):
     """40 random states (some through the table) published at once, their verdicts read
     last first."""
-    sensor = collision_sensor('panda', scene=TABLE, parameters={'overload_policy': 'every',
-                                                   'joint_states_qos': 'reliable',
-                                                   'check_motion': False})
+    sensor = collision_sensor('panda', scene=TABLE, parameters={
+        'overload_policy': 'every', 'joint_states_qos': 'reliable', 'check_motion': False})
     names = list(sensor.joint_names)
     rng = np.random.default_rng(7)
     lower = np.array([panda.joint_limits[n][0] for n in names])
@@ -160,6 +160,18 @@ def test_clouds_are_answered_taken_or_refused(collision_sensor):
     assert not refused.accepted and 'no_such_frame' in refused.reason
     with pytest.raises(ConfigError, match='point_cloud_topics'):
         sensor.send_cloud(points, topic='other/points')
+
+
+def test_a_cloud_after_its_camera_timed_out_gets_its_own_verdict(collision_sensor):
+    """The timeout's entry, published by the node's timer, is no answer to the next cloud."""
+    sensor = collision_sensor('panda', parameters={'point_cloud_topics': ['camera/points'],
+                                                   'point_cloud_timeout': 0.3,
+                                                   'stale_timeout': 0.0})
+    sensor.send_joint_state(READY)
+    time.sleep(0.6)
+    assert sensor.send_joint_state(READY).failure == 'point_cloud_timeout'
+    answer = sensor.send_cloud(cloud_near_hand(1.5, np.random.default_rng(1)))
+    assert answer.accepted and answer.verdict.failure == '' and not answer.verdict.contact
 
 
 def ball_near_the_hand():
