@@ -24,7 +24,6 @@ Scene arrays, clouds and parameter changes are sent one at a time (each call ret
 answer); joint states and trajectories can also be sent ahead (:meth:`publish_joint_state`,
 :meth:`publish_trajectory`) and their answers awaited later.
 """
-import itertools
 import os
 import tempfile
 import threading
@@ -121,10 +120,8 @@ class SensorUnderTest:
         self._sent_headers = set()
         self._statuses: List[Tuple[Tuple[int, int], str, Dict[str, str]]] = []
         self._waiting_trajectories: Dict[str, List[PendingTrajectory]] = {}
-        self._undecoded: List[DiagnosticArray] = []
         self._relays: Dict[str, int] = {}
         self._valid_answers: Dict[str, int] = {}
-        self._stamps = itertools.count(1)
         self._last_stamp = 0
         self._scenes_sent = self._scenes_applied = self._scene_verdicts = 0
         self._clouds_sent: Dict[str, int] = {}
@@ -178,12 +175,14 @@ class SensorUnderTest:
 
     def _connect(self) -> None:
         client = self.client
-        client.create_subscription(Bool, 'contact', self._on_contact, _KEEP_ALL_LATCHED)
-        client.create_subscription(DiagnosticArray, 'colliding_pairs', self._on_pairs,
-                                   _KEEP_ALL_LATCHED)
-        client.create_subscription(DiagnosticArray, 'trajectory_result', self._on_result,
-                                   _KEEP_ALL)
-        client.create_subscription(JointTrajectory, 'trajectory_out', self._on_relay, _KEEP_ALL)
+        self._subscriptions = [
+            client.create_subscription(Bool, 'contact', self._on_contact, _KEEP_ALL_LATCHED),
+            client.create_subscription(DiagnosticArray, 'colliding_pairs', self._on_pairs,
+                                       _KEEP_ALL_LATCHED),
+            client.create_subscription(DiagnosticArray, 'trajectory_result', self._on_result,
+                                       _KEEP_ALL),
+            client.create_subscription(JointTrajectory, 'trajectory_out', self._on_relay,
+                                       _KEEP_ALL)]
         client.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
                                    _KEEP_ALL)
         self._joint_states = client.create_publisher(JointState, 'joint_states', _KEEP_ALL)
@@ -192,12 +191,12 @@ class SensorUnderTest:
         self._status_prefix = f'{self.node.get_fully_qualified_name().lstrip("/")}: '
 
     def _matched(self) -> bool:
-        client, ns = self.client, self.namespace
+        """Every publisher matched by the node, every subscription by the node's publisher
+        (answers on trajectory_result and trajectory_out are volatile: none may go before)."""
         return (self._joint_states.get_subscription_count() > 0
                 and self._trajectories.get_subscription_count() > 0
                 and self._scene.get_subscription_count() > 0
-                and all(client.count_publishers(f'{ns}/{topic}') > 0 for topic in (
-                    'contact', 'colliding_pairs', 'trajectory_result', 'trajectory_out')))
+                and all(sub.get_publisher_count() > 0 for sub in self._subscriptions))
 
     def _spin(self) -> None:
         while not self._stop.is_set() and self.context.ok():
