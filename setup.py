@@ -134,6 +134,9 @@ setup(
             'collision_sensor_check = collision_sensor.tools.offline_check:main',
             'collision_sensor_acm = collision_sensor.tools.acm:main',
             'collision_sensor_demo = collision_sensor.ros.demo:main',
+            'collision_sensor_ctl = collision_sensor.ros.ctl:main',
         ],
+        # collision_sensor.testing's fixture for users' own tests (docs/testing.md)
+        'pytest11': ['collision_sensor = collision_sensor.testing.plugin'],
     },
 )

@@ -19,8 +19,8 @@ FENCE = re.compile(r'^(```|~~~).*?^\1[ \t]*$', re.M | re.S)
 LINK = re.compile(r'!?\[[^\]]*\]\(\s*<?([^)\s>]+)>?(?:\s+"[^"]*")?\s*\)')
 HEADING = re.compile(r'^(#{1,6})[ \t]+(.+?)[ \t]*#*[ \t]*$', re.M)
 #: Modules of collision_sensor/ros/ that are tools beside the node, not the node itself (the
-#: player's and the demo's; names starting so).
-NOT_THE_NODE = ('player.py', 'sequence_player.py', 'playback_', 'demo')
+#: player's, the demo's and collision_sensor_ctl's; names starting so).
+NOT_THE_NODE = ('player.py', 'sequence_player.py', 'playback_', 'demo', 'ctl.py')
 
 
 def read(path):
@@ -124,6 +124,46 @@ def test_the_readme_shows_how_to_run_the_node_on_your_own_robot():
         name = word.split(':=')[0]
         assert name in node_parameter_names(), f'{name} is no parameter of the node'
     assert 'config/collision_sensor.yaml' in readme and 'ros__parameters:' in readme
+
+
+#: ros2 commands a user runs against a running node (not ros2 run, which starts one).
+RUNTIME_ROS2 = re.compile(r'ros2 (param|topic|bag|service) \w+ (/|-)')
+
+
+def paragraphs(text):
+    """Paragraphs of prose, table rows and fenced blocks, each a piece of its own."""
+    pieces = []
+    for block in re.split(r'\n\s*\n', text):
+        pieces.extend(block.splitlines() if block.lstrip().startswith('|') else [block])
+    return pieces
+
+
+def test_every_runtime_ros2_command_shown_has_its_pip_equivalent_beside_it():
+    """A pip install has no ros2 command line: wherever the docs show one to run against the
+    node, collision_sensor_ctl's equivalent is in the same paragraph or table row."""
+    alone = []
+    for path in PAGES:
+        for piece in paragraphs(read(path)):
+            if RUNTIME_ROS2.search(piece) and 'collision_sensor_ctl' not in piece:
+                alone.append(f'{os.path.relpath(path, REPO)}: {" ".join(piece.split())[:120]}')
+    assert alone == []
+
+
+def test_every_collision_sensor_ctl_command_shown_parses():
+    from collision_sensor.ros.ctl import build_parser
+    shown = set()
+    for path in PAGES + [os.path.join(REPO, 'config', 'collision_sensor.yaml')]:
+        text = read(path).replace('\\\n', ' ').replace('\n', ' ')
+        shown.update(re.findall(r'collision_sensor_ctl ((?:param|echo|trajectory|scene|record)'
+                                r'[^`),]*)', text))
+    assert len(shown) >= 8, shown
+    for command in shown:
+        words = [w for w in shlex.split(command.split(' or ')[0]) if w != '...']
+        parser = build_parser()
+        try:
+            parser.parse_args(words)
+        except SystemExit:
+            pytest.fail(f'collision_sensor_ctl {command!r} does not parse')
 
 
 def node_parameter_names():

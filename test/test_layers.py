@@ -1,10 +1,11 @@
 """The package's layers, as docs/engine.md's architecture section draws them, by imports.
 
 model (files in, a model out) <- engine (the checker and the compiled engine) <- tools (the
-offline command-line tools) <- ros (everything on the ROS graph). A layer imports only from
-layers to its left and from the base modules (``errors``, ``untrusted_text``); rclpy and the
-message packages are imported only in ``ros``. The package never imports the benchmarks (a
-folder of the source tree, not installed) nor their peers (python-fcl, pinocchio, coal: test
+offline command-line tools) <- ros (everything on the ROS graph) <- testing (the sensor in
+users' own tests: the node and a client of it, through ros). A layer imports only from layers to
+its left and from the base modules (``errors``, ``untrusted_text``); rclpy and the message
+packages are imported only in ``ros`` and ``testing``. The package never imports the benchmarks
+(a folder of the source tree, not installed) nor their peers (python-fcl, pinocchio, coal: test
 extras); test_packaging.py checks the same on an installed wheel.
 """
 import ast
@@ -13,7 +14,9 @@ import pathlib
 import collision_sensor
 
 PACKAGE_DIR = pathlib.Path(collision_sensor.__file__).parent
-ORDER = ('model', 'engine', 'tools', 'ros')
+ORDER = ('model', 'engine', 'tools', 'ros', 'testing')
+#: The layers that talk to the ROS graph.
+ROS_LAYERS = ('ros', 'testing')
 #: Imported by the benchmarks and the tests only, never by the package.
 NOT_IN_THE_PACKAGE = ('benchmarks', 'scripts', 'fcl', 'pinocchio', 'coal', 'hppfcl')
 ROS_ONLY = ('rclpy', 'sensor_msgs', 'std_msgs', 'visualization_msgs', 'diagnostic_msgs',
@@ -63,9 +66,9 @@ def test_layers_import_only_layers_below_them():
     assert upward == []
 
 
-def test_only_the_ros_layer_imports_ros():
+def test_only_the_ros_layers_import_ros():
     outside = [f'{path.relative_to(PACKAGE_DIR)}:{line} imports {module}'
-               for path in sources() if layer_of(path) != 'ros'
+               for path in sources() if layer_of(path) not in ROS_LAYERS
                for line, module in imported_modules(path) if module.split('.')[0] in ROS_ONLY]
     assert outside == []
 

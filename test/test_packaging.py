@@ -29,11 +29,14 @@ PACKAGE = 'collision_sensor'
 SHIPPED = ('package.xml', 'setup.py', 'setup.cfg', 'pyproject.toml', 'MANIFEST.in', 'resource',
            'collision_sensor', 'cpp', 'config', 'meshes', 'LICENSE', 'README.md', 'docs')
 CONSOLE_SCRIPTS = ('collision_sensor_node', 'collision_sensor_play', 'collision_sensor_check',
-                   'collision_sensor_acm', 'collision_sensor_demo')
+                   'collision_sensor_acm', 'collision_sensor_demo', 'collision_sensor_ctl')
 ROS_FREE_MODULES = ('collision_sensor', 'collision_sensor.engine.checker',
                     'collision_sensor.model.sequences',
                     'collision_sensor.tools.acm', 'collision_sensor.tools.offline_check',
                     'collision_sensor.ros.demo',
+                    # pytest loads the plugin wherever the package is installed; the public
+                    # testing names import ROS only when a sensor is made.
+                    'collision_sensor.testing', 'collision_sensor.testing.plugin',
                     # The console script's module installs its signal handlers before it
                     # imports ROS or the engine (see its docstring): it must stay light.
                     'collision_sensor.ros.node')
@@ -199,6 +202,9 @@ def test_wheel_has_an_entry_point_for_every_console_script(wheel):
             defined = {node.name for node in ast.parse(source).body
                        if isinstance(node, ast.FunctionDef)}
             assert function in defined, f'{name} = {target}'
+        # The testing fixture, for users' own tests (docs/testing.md).
+        assert dict(entry_points['pytest11']) == {
+            'collision_sensor': 'collision_sensor.testing.plugin'}
 
 
 # --- 3. a real pip install -----------------------------------------------------------------

@@ -94,3 +94,62 @@ def pairs_near_everywhere(checker, distance: float, samples: int = NEAR_SAMPLES,
     return [NearPair(a, b, count, measured, largest[a, b])
             for (a, b), count in sorted(near.items())
             if measured and count >= fraction * measured]
+
+
+#: Configurations :func:`pairs_in_contact_by_design` samples (besides zero and home).
+CONTACT_SAMPLES = 64
+
+
+@dataclass(frozen=True)
+class ContactByDesign:
+    """The robot's own pairs in contact where it stands at rest or wherever it goes: what an
+    SRDF's ``disable_collisions`` (``collision_sensor_acm``'s Default and Always) leaves out.
+
+    :ivar at_zero: pairs in contact at the zero configuration (identity quaternions).
+    :ivar at_home: pairs in contact at home: zero moved into the joint limits (``()`` when zero
+        lies within them).
+    :ivar mostly: pairs in contact in at least ``fraction`` of the sampled configurations.
+    :ivar samples: configurations sampled.
+    :ivar fraction: the share of them a pair of ``mostly`` is in contact in.
+    """
+
+    at_zero: Tuple[Tuple[str, str], ...]
+    at_home: Tuple[Tuple[str, str], ...]
+    mostly: Tuple[Tuple[str, str], ...]
+    samples: int
+    fraction: float
+
+    @property
+    def pairs(self) -> List[Tuple[str, str]]:
+        """Every pair found, sorted."""
+        return sorted(set(self.at_zero) | set(self.at_home) | set(self.mostly))
+
+
+def pairs_in_contact_by_design(checker, samples: int = CONTACT_SAMPLES, seed: int = 0,
+                               fraction: float = NEAR_FRACTION) -> ContactByDesign:
+    """Return the checked pairs of ``checker``'s robot links (scene objects left out) in contact
+    at the zero configuration, at home (zero within the joint limits) or in at least
+    ``fraction`` of ``samples`` configurations uniform within the limits (seeded), as
+    ``collision_sensor_acm`` finds "Default" and "Always" pairs. A robot loaded without an SRDF
+    that disables them reports them in contact wherever it stands.
+
+    The configurations run through :meth:`CollisionChecker.check_batch`: the carried state is
+    left as it was.
+    """
+    zero = checker.kinematics.neutral()
+    lower, upper = sampling_bounds(checker)
+    home = np.clip(zero, lower, upper)
+    Q = np.vstack([zero[None, :], home[None, :], uniform_configurations(
+        lower, upper, samples, np.random.default_rng(seed))])
+    links = set(checker.link_names)
+    columns = [k for k, (a, b) in enumerate(checker.checked_pairs)
+               if a in links and b in links]
+    pairs = [checker.checked_pairs[k] for k in columns]
+    statuses = checker.check_batch(Q)[:, columns] if columns else np.zeros((len(Q), 0), bool)
+    share = statuses[2:].mean(axis=0) if samples else np.zeros(len(pairs))
+    return ContactByDesign(
+        at_zero=tuple(p for p, hit in zip(pairs, statuses[0]) if hit),
+        at_home=tuple(p for p, hit in zip(pairs, statuses[1]) if hit)
+        if not np.array_equal(home, zero) else (),
+        mostly=tuple(p for p, s in zip(pairs, share) if samples and s >= fraction),
+        samples=samples, fraction=fraction)

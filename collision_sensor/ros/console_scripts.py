@@ -31,6 +31,7 @@ MODULES = {
     'collision_sensor_check': 'collision_sensor.tools.offline_check',
     'collision_sensor_acm': 'collision_sensor.tools.acm',
     'collision_sensor_demo': 'collision_sensor.ros.demo',
+    'collision_sensor_ctl': 'collision_sensor.ros.ctl',
 }
 
 

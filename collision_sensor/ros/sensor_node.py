@@ -135,6 +135,7 @@ from collision_sensor.ros.verdicts import (  # noqa: F401
 from collision_sensor.ros.warning_zone import WarningZone
 from collision_sensor.ros.work_queue import (  # noqa: F401
     MAX_BACKLOG, MAX_INPUT_RATE, NewestFirstWorker as _NewestFirstWorker)
+from collision_sensor.tools.srdf_advice import srdf_advice
 from collision_sensor.untrusted_text import printable
 
 CheckerFactory = Callable[..., object]
@@ -253,6 +254,8 @@ class CollisionSensorNode(Node):
         """Make ``checker`` (of ``robot``, built with ``settings``) the one in use: the sources
         hand it their data, then it replaces the current one under the lock, between two
         checks; the newest parameters are applied at the same moment."""
+        advice = srdf_advice(checker, robot, settings.srdf_path, settings.package_paths,
+                             settings.xacro_args) if robot is not self._robot_input else None
         with contextlib.ExitStack() as stack:
             stack.enter_context(self.checker_changes)
             commits = prepare_all(self.sources, checker, stack)
@@ -277,6 +280,7 @@ class CollisionSensorNode(Node):
         summary = (f'{len(checker.joint_names)} joints, {len(checker.link_names)} links with '
                    f'geometry, {len(checker.checked_pairs)} pairs checked')
         notes[:0] = [('info', None, f'robot loaded from {printable(source, 300)}: {summary}')]
+        notes.extend([('warning', None, printable(advice, 3000))] if advice else [])
         notes.extend(loaded)
 
     def _build_and_install(self) -> None:

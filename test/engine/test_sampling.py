@@ -5,7 +5,8 @@ import pytest
 
 from collision_sensor import CollisionChecker
 from collision_sensor.engine.sampling import (
-    NEAR_FRACTION, pairs_near_everywhere, sampling_bounds, uniform_configurations)
+    CONTACT_SAMPLES, NEAR_FRACTION, pairs_in_contact_by_design, pairs_near_everywhere,
+    sampling_bounds, uniform_configurations)
 from engine_oracles import FclOracle
 
 
@@ -52,3 +53,43 @@ def test_the_ur5_wrist_pair_is_near_everywhere_and_the_checker_is_reset(ur5):
     assert found[0].largest == pytest.approx(0.0198, abs=1e-4)
     assert ur5.positions == dict(zip(ur5.joint_names, ur5.kinematics.neutral()))
     assert pairs_near_everywhere(ur5, 0.019) == []     # below the pair's distance
+
+
+def tiago(srdf=None):
+    from collision_sensor.model.example_robots import example_robot_files
+    robot = next(r for r in example_robot_files() if r.name == 'tiago_description/tiago')
+    return robot, CollisionChecker.from_urdf(robot.urdf, srdf=srdf,
+                                             package_paths=robot.package_paths)
+
+
+def test_tiago_without_its_srdf_has_51_pairs_in_contact_at_zero_as_fcl_says():
+    robot, checker = tiago()
+    before = checker.positions
+    found = pairs_in_contact_by_design(checker, samples=30, seed=2)
+    assert checker.positions == before      # only check_batch: the carried state stays
+    oracle = FclOracle(checker, robot.urdf)
+    zero = oracle.poses(checker.kinematics.neutral())
+    robot_pairs = [(a, b) for a, b in checker.checked_pairs]
+    at_zero = set(oracle.colliding_among(robot_pairs, zero))   # a solid holding a mesh too
+    assert set(found.at_zero) == at_zero and len(at_zero) == 51
+    assert found.at_home == ()          # TIAGo's zero lies within its limits
+    # "mostly": in contact in at least 95 % of the 30 configurations, by fcl.
+    lower, upper = sampling_bounds(checker)
+    Q = uniform_configurations(lower, upper, 30, np.random.default_rng(2))
+    counts = {pair: 0 for pair in robot_pairs}
+    for q in Q:
+        for pair in oracle.colliding_among(sorted(at_zero | set(found.mostly)),
+                                           oracle.poses(q)):
+            counts[pair] += 1
+    assert set(found.mostly) == {p for p, n in counts.items() if n >= NEAR_FRACTION * 30}
+    assert set(found.mostly) <= at_zero and len(found.mostly) >= 40
+
+
+def test_the_panda_with_its_srdf_has_none(panda_urdf, panda_srdf, erd_package_paths):
+    checker = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
+                                         package_paths=erd_package_paths)
+    found = pairs_in_contact_by_design(checker)
+    assert found.pairs == [] and found.samples == CONTACT_SAMPLES
+    # The Panda's zero is outside panda_joint4's limits: home is checked too.
+    assert not np.array_equal(np.clip(checker.kinematics.neutral(), *sampling_bounds(checker)),
+                              checker.kinematics.neutral())

@@ -18,17 +18,16 @@ from node_harness import (  # noqa: E402,F401 - the fixtures of the node's tests
     poses, ros, stamp_of, start_node)
 
 
-def test_require_all_joints_off_checks_partial_states(ros, panda, panda_urdf, panda_srdf,
-                                                      erd_share, poses):
-    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
-                                     require_all_joints=False, check_motion=False))
-    probe = Probe(ros)
+def test_require_all_joints_off_checks_partial_states(collision_sensor, panda, poses):
+    sensor = collision_sensor('panda', parameters={'require_all_joints': False,
+                                                   'check_motion': False})
     for pose in ('hit', 'free'):
         arm = {name: poses[pose][name] for name in ARM}
         # Joints never heard keep the checker's start value, 0 (the gripper closed).
         reference = panda.check(dict(arm, panda_finger_joint1=0.0))
-        assert probe.send(joint_state(arm)) == (reference.in_collision,
-                                                tuple(reference.colliding_pairs))
+        verdict = sensor.send_joint_state(arm)
+        assert (verdict.contact, verdict.pairs) == (reference.in_collision,
+                                                    tuple(reference.colliding_pairs))
 
 
 def test_waiting_for_joints_is_reported(ros, panda_urdf, panda_srdf, erd_share, poses):

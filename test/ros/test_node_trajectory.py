@@ -9,6 +9,7 @@ The case (test_motion_stream.py): the Panda's elbow move across a 2 mm plate; th
 """
 import hashlib
 import math
+import time
 
 import numpy as np
 import pytest
@@ -262,29 +263,25 @@ def rotation(quat):
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
-def test_no_start_or_a_stale_one_makes_a_trajectory_invalid(ros, crossing, panda_urdf,
-                                                            panda_srdf, erd_share):
+def test_no_start_or_a_stale_one_makes_a_trajectory_invalid(collision_sensor, crossing):
     """Fail safe: where the robot starts must be known."""
-    start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share, stale_timeout=0.5,
-                                     stale_policy='hold'))
-    probe = TrajectoryProbe(ros)
+    sensor = collision_sensor('panda', parameters={'stale_timeout': 0.5, 'stale_policy': 'hold'})
     msg = trajectory([(1.0, arm(crossing.q0))])
-    values = probe.check(msg)
-    assert (values['valid'], values['kind']) == ('false', 'no_start')
-    assert 'no joint state accepted yet' in values['reason']
-
-    def valid_after_a_fresh_state():
-        probe.send(joint_state(crossing.q_half, names=NAMES))
-        return probe.check(msg)['valid'] == 'true'
-    # (a loaded machine may take longer than stale_timeout between the two: then again)
-    assert any(valid_after_a_fresh_state() for _ in range(20))
-    ros.spin_for(0.8)       # longer than stale_timeout: the state is stale
-    values = probe.check(msg)
-    assert (values['valid'], values['kind']) == ('false', 'no_start')
-    assert 'stale' in values['reason'] and 'stale_timeout 0.5' in values['reason']
-    assert ros.spin_until(lambda: len(probe.relayed) >= 1)
-    ros.spin_for(0.2)       # and no other is relayed
-    assert len(probe.relayed) == 1
+    outcome = sensor.send_trajectory(msg)
+    assert (outcome.valid, outcome.kind, outcome.relayed) == (False, 'no_start', False)
+    assert 'no joint state accepted yet' in outcome.reason
+    for _ in range(20):     # a loaded machine may take longer than stale_timeout between two
+        sensor.send_joint_state(crossing.q_half, names=NAMES)
+        outcome = sensor.send_trajectory(msg)
+        if outcome.valid:
+            break
+    assert outcome.valid and outcome.relayed
+    time.sleep(0.8)
+    outcome = sensor.send_trajectory(msg)
+    assert (outcome.valid, outcome.kind, outcome.relayed) == (False, 'no_start', False)
+    assert 'stale' in outcome.reason and 'stale_timeout 0.5' in outcome.reason
+    time.sleep(0.2)
+    assert sensor.relays_of(outcome.digest) == 1   # the valid one only
 
 
 def test_oversized_trajectories_are_refused_before_decoding(ros, crossing, panda_urdf,
