@@ -145,7 +145,7 @@ struct StraightPath {
     }
 
     static void unit_quaternion(const double* v, double* u) {
-        double x, y, z, w, n2;
+        double x = 0.0, y = 0.0, z = 0.0, w = 1.0, n2 = 1.0;
         scaled_quaternion(v, &x, &y, &z, &w, &n2);  // usable: validated first
         const double s = 1.0 / std::sqrt(n2);
         u[0] = x * s;

@@ -17,4 +17,10 @@ constexpr double BOX_EPS_PARALLEL = 1e-3;
 constexpr double TRIANGLE_EPS_REL = 1e-12;
 constexpr double SPHERE_EPS_REL = 1e-9;
 
+// The rigid transforms the scene methods take (engine.hpp: is_rigid_transform): the position
+// within MAX_COORDINATE (m) of the origin on each axis, |R^T R - I| <= ROTATION_TOLERANCE
+// entrywise.
+constexpr double MAX_COORDINATE = 1e6;
+constexpr double ROTATION_TOLERANCE = 1e-6;
+
 }  // namespace collision_sensor
