@@ -22,6 +22,7 @@
 #include "engine.hpp"
 #include "kinematics.hpp"
 #include "ray_cast.hpp"
+#include "tolerances.hpp"
 #include "voxel_cloud.hpp"
 #include "workers.hpp"
 

@@ -2,6 +2,7 @@
 // (Kinematics), the box, triangle and tree tests (the test oracles and the benchmarks run them
 // alone), and the build-time kernels (bounding volumes, OBB trees, number tables).
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -11,6 +12,7 @@
 #include "bounding_volumes.hpp"
 #include "box_test.hpp"
 #include "kinematics.hpp"
+#include "motion.hpp"
 #include "number_table.hpp"
 #include "obb_tree.hpp"
 #include "traversal.hpp"
@@ -126,6 +128,56 @@ py::ssize_t expect_triangles(const Array<double>& P, const Array<double>& Q) {
 }  // namespace
 
 void bind_kinematics(py::module_& m) {
+    m.def(
+        "interpolate",
+        [](const Array<int64_t>& kinds, const Array<double>& q0, const Array<double>& q1,
+           const Array<double>& t) {
+            const py::ssize_t J = kinds.size();
+            expect_shape("kinds", kinds, {J});
+            expect_shape("q_from", q0, {J});
+            expect_shape("q_to", q1, {J});
+            expect_shape("t", t, {-1});
+            const int64_t* kind = kinds.data();
+            for (py::ssize_t j = 0; j < J; ++j) {
+                const bool rest = kind[j] == cs::MOTION_QUATERNION_REST;
+                const bool opens = kind[j] == cs::MOTION_QUATERNION;
+                bool fits = kind[j] == cs::MOTION_LINEAR || kind[j] == cs::MOTION_WRAP;
+                if (opens) {
+                    fits = j + 3 < J;
+                    for (py::ssize_t i = 1; i < 4 && fits; ++i)
+                        fits = kind[j + i] == cs::MOTION_QUATERNION_REST;
+                }
+                if (!fits && !rest)
+                    throw std::invalid_argument("kinds: variable " + std::to_string(j) +
+                                                " is no MOTION_* kind, or a quaternion's "
+                                                "rot_x without its three rest");
+                if (!opens) continue;
+                for (const auto* q : {q0.data(), q1.data()}) {
+                    double x, y, z, w, n2;
+                    if (!std::isfinite(q[j]) || !std::isfinite(q[j + 1]) ||
+                        !std::isfinite(q[j + 2]) || !std::isfinite(q[j + 3]) ||
+                        !cs::scaled_quaternion(q + j, &x, &y, &z, &w, &n2))
+                        raise_joint_state("quaternion at variable " + std::to_string(j) +
+                                              " is zero or not finite",
+                                          q == q0.data() ? 0 : 1, j);
+                }
+                j += 3;
+            }
+            const py::ssize_t n = t.shape(0);
+            Array<double> out({n, J});
+            std::vector<double> delta(J), var(J), quat0(J);
+            cs::StraightPath path{q0.data(), kind, int64_t(J), delta.data(), var.data(),
+                                  quat0.data()};
+            path.prepare(q1.data());
+            for (py::ssize_t i = 0; i < n; ++i) path.at(t.data()[i], out.mutable_data() + J * i);
+            return out;
+        },
+        py::arg("kinds"), py::arg("q_from"), py::arg("q_to"), py::arg("t"),
+        "The states (n, J) of the straight motion q_from -> q_to (J,) at fractions t (n,), each "
+        "variable as kinds (J,) MOTION_* says (cpp/motion.hpp: StraightPath, the motion "
+        "checks' own); JointStateError (row 0: q_from, 1: q_to; variable) for a quaternion "
+        "that is zero or not finite.");
+
     py::class_<PyKinematics>(m, "Kinematics",
                              "A kinematic tree's arrays (kinematics.py: KinematicTree), checked "
                              "once; forward(q) gives every link's pose.")

@@ -12,6 +12,7 @@
 #include "planning.hpp"
 #include "poses.hpp"
 #include "recheck.hpp"
+#include "tolerances.hpp"
 
 namespace collision_sensor {
 

@@ -20,6 +20,7 @@
 #include <cmath>
 #include <limits>
 
+#include "tolerances.hpp"
 #include "triangle_distance.hpp"
 
 namespace collision_sensor {
