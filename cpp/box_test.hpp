@@ -25,6 +25,7 @@
 
 #include <cmath>
 
+#include "inlining.hpp"
 #include "tolerances.hpp"
 
 namespace collision_sensor {

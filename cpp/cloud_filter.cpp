@@ -8,7 +8,9 @@
 #include <limits>
 
 #include "containment.hpp"
+#include "inlining.hpp"
 #include "motion.hpp"
+#include "tolerances.hpp"
 #include "traversal.hpp"
 #include "triangle_box.hpp"
 #include "workers.hpp"
@@ -284,8 +286,9 @@ void CloudBuilder::element_candidates(const Model& m, const double* T_links, dou
                 e += std::fabs(axis) * box[BOX_HALF + k];
             }
             out[i] = c;
-            out[3 + i] = e * (1.0 + 1e-9) + 1e-9 * std::fabs(c);  // rounding: err wide
-            out[15 + i] = (box[BOX_HALF + i] + r) * (1.0 + 1e-9) + 1e-9 * std::fabs(c);
+            const double rounding = BOUND_ROUNDING_REL * std::fabs(c);  // err wide
+            out[3 + i] = e * (1.0 + BOUND_ROUNDING_REL) + rounding;
+            out[15 + i] = (box[BOX_HALF + i] + r) * (1.0 + BOUND_ROUNDING_REL) + rounding;
         }
         return out;
     };
@@ -300,13 +303,15 @@ void CloudBuilder::element_candidates(const Model& m, const double* T_links, dou
         if (!(std::fabs(d[0]) <= A[3] + h[0] && std::fabs(d[1]) <= A[4] + h[1] &&
               std::fabs(d[2]) <= A[5] + h[2]))
             return false;
-        const double slack = 1e-9 * (std::fabs(B[0]) + std::fabs(B[1]) + std::fabs(B[2]));
+        const double slack =
+            BOUND_ROUNDING_REL * (std::fabs(B[0]) + std::fabs(B[1]) + std::fabs(B[2]));
         for (int k = 0; k < 3; ++k) {
             const double* w = A + 6 + 3 * k;
             const double along = w[0] * d[0] + w[1] * d[1] + w[2] * d[2];
             const double reach =
                 std::fabs(w[0]) * h[0] + std::fabs(w[1]) * h[1] + std::fabs(w[2]) * h[2];
-            if (std::fabs(along) > A[15 + k] + reach * (1.0 + 1e-9) + slack) return false;
+            if (std::fabs(along) > A[15 + k] + reach * (1.0 + BOUND_ROUNDING_REL) + slack)
+                return false;
         }
         return true;
     };
@@ -525,7 +530,7 @@ CloudStats CloudBuilder::build(const Model& m, const double* T_links, const Clou
                                     T[4 * i + 2] * box[BOX_AXES + 6 + k];
                 e += std::fabs(axis) * box[BOX_HALF + k];
             }
-            e += 1e-9 * (std::fabs(c) + e);  // rounding: err toward near
+            e += BOUND_ROUNDING_REL * (std::fabs(c) + e);  // rounding: err toward near
             region_lo[i] = std::min(region_lo[i], c - e);
             region_hi[i] = std::max(region_hi[i], c + e);
         }

@@ -7,7 +7,9 @@
 
 #include "containment.hpp"
 #include "distance.hpp"
+#include "inlining.hpp"
 #include "poses.hpp"
+#include "tolerances.hpp"
 #include "traversal.hpp"
 #include "triangle_box.hpp"
 

@@ -25,9 +25,6 @@
 
 namespace collision_sensor {
 
-// A pair of a body and a cloud keeps at most this clearance (m): an empty cloud is infinitely
-// far, and its pairs are forced when its next cloud arrives.
-constexpr double MAX_CLOUD_CLEARANCE = 1e6;
 
 struct CloudPairResult {
     bool hit;

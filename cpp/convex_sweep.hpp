@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "inlining.hpp"
 #include "tolerances.hpp"
 
 namespace collision_sensor {

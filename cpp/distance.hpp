@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <cstring>
 
+#include "inlining.hpp"
 #include "traversal.hpp"
 #include "triangle_distance.hpp"
 

@@ -12,6 +12,7 @@
 #include "planning.hpp"
 #include "poses.hpp"
 #include "recheck.hpp"
+#include "tolerances.hpp"
 
 namespace collision_sensor {
 
@@ -41,10 +42,11 @@ Options resolved(const Options& o) {
     return out;
 }
 
-// Bring the context's statuses up to date with q (usable): Engine::query's answer. With
-// moving_only (a full check of a batch's row), only the model's moving pairs are re-checked:
-// the static pairs' statuses must already be those of a full check in this scene.
-int64_t run_query(CheckContext& c, const double* q, bool full, bool moving_only = false) {
+// Bring the context's statuses up to date with q (usable): Engine::query's answer (its
+// status_version left to the engine). With moving_only (a full check of a batch's row), only
+// the model's moving pairs are re-checked: the static pairs' statuses must already be those
+// of a full check in this scene.
+QueryResult run_query(CheckContext& c, const double* q, bool full, bool moving_only = false) {
     const Model& m = c.model;
     State& s = c.state;
     full = full || s.flags[QUERY_CHECKED_ONCE] == 0;
@@ -55,7 +57,8 @@ int64_t run_query(CheckContext& c, const double* q, bool full, bool moving_only 
         if (std::fabs(q[j] - s.q_ref[j]) > tolerance) any_moved = true;
     }
     const bool forced = s.forced_mode != FORCED_NONE;
-    if (!any_moved && !forced) return 0;
+    QueryResult answer;
+    if (!any_moved && !forced) return answer;
     s.flags[QUERY_CHECKED_ONCE] = 1;
     int64_t n;
     const int64_t* full_list = nullptr;
@@ -70,11 +73,10 @@ int64_t run_query(CheckContext& c, const double* q, bool full, bool moving_only 
     } else {
         n = any_moved ? plan_update(c, s.q_last) : 0;
         if (forced) n = add_forced(c, n);
-        if (n == 0) return 0;
+        if (n == 0) return answer;
     }
-    bool changed = false;
-    const int64_t rechecked = recheck_pairs(c, n, full, &changed, full_list);
-    return 2 * rechecked + (changed ? 1 : 0);
+    answer.rechecked = recheck_pairs(c, n, full, &answer.changed, full_list);
+    return answer;
 }
 
 using Clock = std::chrono::steady_clock;
@@ -83,28 +85,31 @@ double seconds_since(Clock::time_point start) {
     return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-// Rows [begin, end) of a batch in context c, statuses and codes out; the first row a full
-// check when first_full. Full rows re-check only the moving pairs (the static ones hold the
+// Rows [begin, end) of a batch in context c, their answers out; the first row a full check
+// when first_full. Full rows re-check only the moving pairs (the static ones hold the
 // batch's answer for them: static_statuses).
 void run_rows(CheckContext& c, const double* Q, int64_t begin, int64_t end, bool full,
-              bool first_full, uint8_t* statuses, int64_t* codes) {
+              bool first_full, const BatchRows& rows) {
     const int64_t J = c.model.n_joints, P = c.model.n_pairs;
     for (int64_t i = begin; i < end; ++i) {
-        codes[i] = run_query(c, Q + J * i, full || (first_full && i == begin), full);
-        for (int64_t p = 0; p < P; ++p) statuses[P * i + p] = uint8_t(c.state.status[p]);
+        const QueryResult answer =
+            run_query(c, Q + J * i, full || (first_full && i == begin), full);
+        rows.rechecked[i] = answer.rechecked;
+        rows.changed[i] = uint8_t(answer.changed);
+        for (int64_t p = 0; p < P; ++p) rows.statuses[P * i + p] = uint8_t(c.state.status[p]);
     }
 }
 
-// Row i's changed bit (i >= 1) as one thread sets it: against the row before (its block or
+// Row i's changed flag (i >= 1) as one thread sets it: against the row before (its block or
 // chunk started from another state).
-void restate_changed_at(int64_t i, int64_t P, const uint8_t* statuses, int64_t* codes) {
-    const bool changed = std::memcmp(statuses + P * i, statuses + P * (i - 1), P) != 0;
-    codes[i] = (codes[i] & ~int64_t(1)) | (changed ? 1 : 0);
+void restate_changed_at(int64_t i, int64_t P, const BatchRows& rows) {
+    rows.changed[i] =
+        uint8_t(std::memcmp(rows.statuses + P * i, rows.statuses + P * (i - 1), P) != 0);
 }
 
-// The changed bit of the first row of chunks 1 .. k - 1 as one thread sets it.
-void restate_changed(int64_t n, int64_t k, int64_t P, const uint8_t* statuses, int64_t* codes) {
-    for (int64_t c = 1; c < k; ++c) restate_changed_at(chunk_of(c, k, n).begin, P, statuses, codes);
+// The changed flag of the first row of chunks 1 .. k - 1 as one thread sets it.
+void restate_changed(int64_t n, int64_t k, int64_t P, const BatchRows& rows) {
+    for (int64_t c = 1; c < k; ++c) restate_changed_at(chunk_of(c, k, n).begin, P, rows);
 }
 
 // A full batch's rows go to the threads in blocks of about n / (threads x
@@ -151,32 +156,32 @@ void Engine::force(int64_t p) {
     if (state_.forced_mode == FORCED_NONE) state_.forced_mode = FORCED_LISTED;
 }
 
-int64_t Engine::move_world_body(int64_t b, const double* T) {
+bool Engine::move_world_body(int64_t b, const double* T) {
     if (!model_.is_world_object(b) || b >= model_.n_bodies || !is_rigid_transform(T))
-        return MOVE_REFUSED;
+        return false;
     std::memcpy(state_.poses.T_world_body + 16 * b, T, 16 * sizeof(double));
     for (int64_t k = model_.body_pairs_start[b]; k < model_.body_pairs_start[b + 1]; ++k)
         force(model_.body_pairs[k]);
-    return 0;
+    return true;
 }
 
-int64_t Engine::place_attached_body(int64_t b, const double* T, const int64_t* pairs,
+bool Engine::place_attached_body(int64_t b, const double* T, const int64_t* pairs,
                                     int64_t n, const double* reach_rows,
                                     const double* reach_ext_rows) {
     const Model& m = model_;
     if (b < 1 || b >= m.n_links || m.kin.joint_type[b] != JOINT_FIXED || !is_rigid_transform(T))
-        return MOVE_REFUSED;
+        return false;
     for (int64_t i = b + 1; i < m.n_links; ++i)   // a leaf: no pose below it to refresh
-        if (m.kin.parent[i] == b) return MOVE_REFUSED;
+        if (m.kin.parent[i] == b) return false;
     const int64_t J = m.n_joints;
     for (int64_t k = 0; k < n; ++k) {
         const int64_t p = pairs[k];
         if (p < 0 || p >= m.n_pairs || (m.pair_a[p] != b && m.pair_b[p] != b))
-            return MOVE_REFUSED;
+            return false;
         for (int64_t j = 0; j < J; ++j)
             if (!(reach_rows[J * k + j] >= 0.0 && std::isfinite(reach_rows[J * k + j]) &&
                   reach_ext_rows[J * k + j] >= 0.0 && std::isfinite(reach_ext_rows[J * k + j])))
-                return MOVE_REFUSED;
+                return false;
     }
     std::memcpy(layout_.f[slot::T_parent_joint] + 16 * b, T, 16 * sizeof(double));
     state_.poses.stale[b] = 1;
@@ -187,7 +192,7 @@ int64_t Engine::place_attached_body(int64_t b, const double* T, const int64_t* p
                   layout_.f[slot::reach_ext] + J * p);
         force(p);
     }
-    return 0;
+    return true;
 }
 
 // Body b shows its cloud's current grid: Model::clouds, its body box (culling reads it), its
@@ -211,34 +216,56 @@ void Engine::show_cloud(int64_t b) {
     }
 }
 
-int64_t Engine::attach_cloud(int64_t b, std::shared_ptr<VoxelCloud> cloud) {
+bool Engine::attach_cloud(int64_t b, std::shared_ptr<VoxelCloud> cloud) {
     if (!cloud || !model_.is_world_object(b) || b >= model_.n_bodies || model_.elements(b) != 0)
-        return MOVE_REFUSED;
+        return false;
     const double* T = state_.poses.T_world_body + 16 * b;
     for (int k = 0; k < 16; ++k)
-        if (T[k] != (k % 5 == 0 ? 1.0 : 0.0)) return MOVE_REFUSED;  // the world's own frame
+        if (T[k] != (k % 5 == 0 ? 1.0 : 0.0)) return false;  // the world's own frame
     if (clouds_.empty()) clouds_.resize(model_.n_bodies);
     clouds_[b] = std::move(cloud);
     show_cloud(b);
-    return 0;
+    return true;
 }
 
-int64_t Engine::commit_cloud(int64_t b, int64_t ticket) {
+bool Engine::commit_cloud(int64_t b, int64_t ticket) {
     if (b < 0 || b >= int64_t(clouds_.size()) || !clouds_[b] || !clouds_[b]->swap(ticket))
-        return MOVE_REFUSED;
+        return false;
     show_cloud(b);
-    return 0;
+    return true;
 }
 
-int64_t Engine::query(const double* q, bool full) {
+void Engine::name_pairs(std::vector<PairName> names) {
+    if (int64_t(names.size()) != model_.n_pairs)
+        throw std::invalid_argument("names: " + std::to_string(names.size()) + " for " +
+                                    std::to_string(model_.n_pairs) + " checked pairs");
+    pair_names_ = std::move(names);
+}
+
+QueryResult Engine::query(const double* q, bool full) {
     const int64_t bad = unusable_variable(model_.kin, q, model_.n_joints);
-    if (bad >= 0) return -1 - bad;
+    if (bad >= 0) {
+        QueryResult refused;
+        refused.bad_variable = bad;
+        refused.status_version = status_version_;
+        return refused;
+    }
     return run(q, full);
 }
 
-int64_t Engine::run(const double* q, bool full, MotionRecord* record) {
+QueryResult Engine::run(const double* q, bool full, MotionRecord* record) {
     CheckContext c = {model_, state_, scratch_, options_, record, true};
-    return run_query(c, q, full);
+    QueryResult answer = run_query(c, q, full);
+    status_version_ += answer.changed;
+    answer.status_version = status_version_;
+    return answer;
+}
+
+QueryResult Engine::proximity(const double* q, const ProximityRequest& request,
+                              const ProximityResult& result) {
+    return read_at(q, [&](const EngineView& view, Scratch& scratch) {
+        measure_proximity(view, request, scratch, result);
+    });
 }
 
 bool Engine::static_statuses(const double* q) {
@@ -275,14 +302,30 @@ void Engine::gather_counters(int64_t k) {
     }
 }
 
-int64_t Engine::batch(const double* Q, int64_t n, bool full, uint8_t* statuses,
-                      int64_t* codes) {
-    const int64_t J = model_.n_joints, P = model_.n_pairs;
-    for (int64_t i = 0; i < n; ++i) {  // all rows first: a bad row changes nothing at all
-        const int64_t bad = unusable_variable(model_.kin, Q + J * i, J);
-        if (bad >= 0) return -1 - (J * i + bad);
+namespace {
+
+// The first row of Q (n, J) with a value that is not usable, and that value; none: bad.row -1.
+BadValue first_bad_row(const KinematicTree& kin, const double* Q, int64_t n, int64_t J) {
+    BadValue bad;
+    for (int64_t i = 0; i < n; ++i) {
+        const int64_t j = unusable_variable(kin, Q + J * i, J);
+        if (j >= 0) {
+            bad.row = i;
+            bad.variable = j;
+            break;
+        }
     }
-    if (n == 0) return 0;
+    return bad;
+}
+
+}  // namespace
+
+BatchResult Engine::batch(const double* Q, int64_t n, bool full, const BatchRows& rows) {
+    const int64_t J = model_.n_joints, P = model_.n_pairs;
+    BatchResult result;
+    result.bad = first_bad_row(model_.kin, Q, n, J);  // all rows first: a bad row changes nothing
+    if (result.refused() || n == 0) return result;
+    result.rows = n;
     if (full) {
         // Each row a full check, whose answer is its own: in the workers' copies of the
         // carried state (a full check reads of it only the scene's poses). The static pairs
@@ -306,38 +349,44 @@ int64_t Engine::batch(const double* Q, int64_t n, bool full, uint8_t* statuses,
             State& s = worker.state.state();
             for (const int64_t p : model_.static_pairs) s.status[p] = static_status_[p];
             CheckContext c = {model_, s, worker.scratch, options_, nullptr};
-            int64_t rows = 0;
+            int64_t done = 0;
             for (int64_t b = next.fetch_add(1); b < n_blocks; b = next.fetch_add(1)) {
                 const int64_t begin = b * block, end = std::min(n, begin + block);
-                run_rows(c, Q, begin, end, true, false, statuses, codes);
-                rows += end - begin;
+                run_rows(c, Q, begin, end, true, false, rows);
+                done += end - begin;
             }
-            if (w == 0) first_seconds = seconds_since(start), first_rows = rows;
+            if (w == 0) first_seconds = seconds_since(start), first_rows = done;
         });
         // Row 0 was the first of whichever thread took it, against the carried statuses (the
         // static ones apart); every other block's first row is set against the row before.
-        if (static_changed) codes[0] |= 1;
-        for (int64_t b = 1; b < n_blocks; ++b) restate_changed_at(b * block, P, statuses, codes);
+        if (static_changed) rows.changed[0] = 1;
+        for (int64_t b = 1; b < n_blocks; ++b) restate_changed_at(b * block, P, rows);
         if (first_rows > 0) planner_.learn(BATCH_FULL, first_rows, first_seconds);
         gather_counters(k);
-        return n;
+        return result;
     }
     const int64_t k = options_.motion_tolerance > 0.0 ? 1 : chunks(BATCH_UPDATE, n);
     if (k <= 1) {
         const Clock::time_point start = Clock::now();
         CheckContext c = {model_, state_, scratch_, options_, nullptr};
-        run_rows(c, Q, 0, n, false, false, statuses, codes);
+        run_rows(c, Q, 0, n, false, false, rows);
         planner_.learn(BATCH_UPDATE, n, seconds_since(start));
-        return n;
+    } else {
+        update_batch(Q, n, k, rows);
     }
-    update_batch(Q, n, k, statuses, codes);
-    return n;
+    // The carried statuses are the last row's: changed when any row changed them.
+    for (int64_t i = 0; i < n; ++i) {
+        if (rows.changed[i]) {
+            ++status_version_;
+            break;
+        }
+    }
+    return result;
 }
 
 // With motion_tolerance 0 a row's statuses are those of a full check at the row (the
 // incremental check's contract), whatever state it starts from: chunks can start afresh.
-void Engine::update_batch(const double* Q, int64_t n, int64_t k, uint8_t* statuses,
-                          int64_t* codes) {
+void Engine::update_batch(const double* Q, int64_t n, int64_t k, const BatchRows& rows) {
     const int64_t P = model_.n_pairs;
     ready_workers(k - 1);
     // Copied before any chunk runs: the last one runs in the engine's own state.
@@ -345,37 +394,50 @@ void Engine::update_batch(const double* Q, int64_t n, int64_t k, uint8_t* status
     double first_seconds = 0.0;
     run_chunks(k, [&](int64_t w) {
         const Clock::time_point start = Clock::now();
-        const Chunk rows = chunk_of(w, k, n);
+        const Chunk chunk = chunk_of(w, k, n);
         if (w == k - 1) {
             CheckContext c = {model_, state_, scratch_, options_, nullptr};
-            run_rows(c, Q, rows.begin, rows.end, false, true, statuses, codes);
+            run_rows(c, Q, chunk.begin, chunk.end, false, true, rows);
             return;
         }
         Worker& worker = *workers_[w];
         CheckContext c = {model_, worker.state.state(), worker.scratch, options_, nullptr};
-        run_rows(c, Q, rows.begin, rows.end, false, w > 0, statuses, codes);
+        run_rows(c, Q, chunk.begin, chunk.end, false, w > 0, rows);
         if (w == 0) first_seconds = seconds_since(start);
     });
     planner_.learn(BATCH_UPDATE, chunk_of(0, k, n).end, first_seconds);
     gather_counters(k - 1);
-    restate_changed(n, k, P, statuses, codes);
+    restate_changed(n, k, P, rows);
 }
 
 void Engine::refresh_all_poses() {
     collision_sensor::refresh_all_poses(model_, state_.q_ref, state_.poses);
 }
 
-int64_t Engine::motion(const double* q0, const double* q1, double* t, uint8_t* pairs) {
-    const int64_t J = model_.n_joints;
-    const int64_t bad0 = unusable_variable(model_.kin, q0, J);
-    if (bad0 >= 0) return -1 - bad0;
-    const int64_t bad1 = unusable_variable(model_.kin, q1, J);
-    if (bad1 >= 0) return -1 - (J + bad1);
-    MotionContext c = motion_context();
-    return check_straight_motion(c, q0, q1, nullptr, model_.n_pairs, t, pairs);
+void Engine::clear(MotionResult& result) const {
+    result.contact = false;
+    result.t = 0.0;
+    result.segment = -1;
+    result.bad = BadValue();
+    result.pairs.assign(model_.n_pairs, 0);
 }
 
-// The motion from the last state q0 to q, on the incremental query (issue 25):
+void Engine::motion(const double* q0, const double* q1, MotionResult& result) {
+    const int64_t J = model_.n_joints;
+    clear(result);
+    const int64_t bad0 = unusable_variable(model_.kin, q0, J);
+    const int64_t bad1 = bad0 >= 0 ? -1 : unusable_variable(model_.kin, q1, J);
+    if (bad0 >= 0 || bad1 >= 0) {
+        result.bad.row = bad0 >= 0 ? 0 : 1;
+        result.bad.variable = bad0 >= 0 ? bad0 : bad1;
+        return;
+    }
+    MotionContext c = motion_context();
+    result.contact = check_straight_motion(c, q0, q1, nullptr, model_.n_pairs, &result.t,
+                                           result.pairs.data()) != 0;
+}
+
+// The motion from the last state q0 to q, on the incremental query:
 //   - a pair in contact at q0: the motion starts in contact (t = 0);
 //   - a pair the query does not re-check is apart along the whole straight motion: no joint on
 //     its path moved (its pose is the same all along), or its travel bound is below its
@@ -387,11 +449,19 @@ int64_t Engine::motion(const double* q0, const double* q1, double* t, uint8_t* p
 //     (the distance at t is at least max(c0 - t r, c1 - (1 - t) r)), or when c0 and its
 //     distance at q, measured (MOTION_MEASURE_AHEAD), do; that distance becomes its clearance;
 //   - every other pair marches along the step (check_step_motion).
-int64_t Engine::update_motion(const double* q, double* t, uint8_t* pairs,
-                              int64_t* query_code) {
+void Engine::update_motion(const double* q, StepResult& result) {
     const Model& m = model_;
+    MotionResult& motion = result.motion;
+    clear(motion);
     const int64_t bad = unusable_variable(m.kin, q, m.n_joints);
-    if (bad >= 0) return -1 - bad;
+    if (bad >= 0) {
+        motion.bad.row = 0;
+        motion.bad.variable = bad;
+        result.query = QueryResult();
+        result.query.bad_variable = bad;
+        result.query.status_version = status_version_;
+        return;
+    }
     if (state_.flags[QUERY_CHECKED_ONCE] && state_.forced_mode != FORCED_NONE) {
         // A scene change since the last state forced pairs whose statuses are the old scene's:
         // the last state is checked again first (only the forced pairs are re-checked), so
@@ -403,30 +473,32 @@ int64_t Engine::update_motion(const double* q, double* t, uint8_t* pairs,
     }
     bool contact = false;
     for (int64_t p = 0; p < m.n_pairs && !contact; ++p) contact = state_.status[p] != 0;
+    uint8_t* pairs = motion.pairs.data();
     if (!state_.flags[QUERY_CHECKED_ONCE] || contact) {
         // In contact at the start (t = 0: the start's pairs), or no state before (the motion
         // is the instant q: its pairs).
         if (contact)
             for (int64_t p = 0; p < m.n_pairs; ++p) pairs[p] = uint8_t(state_.status[p]);
-        *query_code = run(q, false);
+        result.query = run(q, false);
         if (!contact) {
             for (int64_t p = 0; p < m.n_pairs; ++p) {
                 pairs[p] = uint8_t(state_.status[p]);
                 contact |= state_.status[p] != 0;
             }
         }
-        *t = 0.0;
-        return contact ? 1 : 0;
+        motion.contact = contact;
+        return;
     }
     motion_work_.size_for(m);
     std::vector<double>& q0 = motion_work_.q_prev;
     std::copy(state_.q_last, state_.q_last + m.n_joints, q0.begin());
     const double extension_before = state_.extension[0];
     MotionRecord record = motion_work_.record();
-    *query_code = run(q, false, &record);
+    result.query = run(q, false, &record);
     MotionContext c = motion_context();
-    const int64_t hit = check_step_motion(c, q0.data(), q, scratch_.todo.data(),
-                                          *query_code >> 1, extension_before, t, pairs);
+    motion.contact = check_step_motion(c, q0.data(), q, scratch_.todo.data(),
+                                       result.query.rechecked, extension_before, &motion.t,
+                                       pairs) != 0;
     // The distances it measured at q are clearances there, where each pair's travel now
     // starts from (the query re-checked it at q: planning.cpp, account_travel).
     for (size_t k = 0; k < motion_work_.measured.size(); ++k) {
@@ -436,61 +508,61 @@ int64_t Engine::update_motion(const double* q, double* t, uint8_t* pairs,
             state_.travel[2 * p] = state_.travel[2 * p + 1] = 0.0;
         }
     }
-    return hit;
 }
 
-int64_t Engine::path(const double* Q, int64_t n, int64_t* segment, double* t,
-                     uint8_t* pairs) {
+void Engine::path(const double* Q, int64_t n, MotionResult& result) {
     const int64_t J = model_.n_joints;
-    for (int64_t i = 0; i < n; ++i) {  // all rows first: a bad row answers before any work
-        const int64_t bad = unusable_variable(model_.kin, Q + J * i, J);
-        if (bad >= 0) return -1 - (J * i + bad);
-    }
-    *segment = -1;
-    if (n == 1) {  // one waypoint: its instant
-        MotionContext c = motion_context();
-        if (!check_straight_motion(c, Q, Q, nullptr, model_.n_pairs, t, pairs)) return 0;
-        *segment = 0;
-        return 1;
-    }
+    clear(result);
+    result.bad = first_bad_row(model_.kin, Q, n, J);  // all rows first: answered before any work
+    if (result.refused() || n < 1) return;
     MotionContext c = motion_context();
+    if (n == 1) {  // one waypoint: its instant
+        result.contact = check_straight_motion(c, Q, Q, nullptr, model_.n_pairs, &result.t,
+                                               result.pairs.data()) != 0;
+        if (result.contact) result.segment = 0;
+        return;
+    }
     double along;  // in [0, n - 1]: segment k at [k, k + 1]
-    if (!check_polyline_motion(c, Q, n, &along, pairs)) return 0;
+    if (!check_polyline_motion(c, Q, n, &along, result.pairs.data())) return;
     const int64_t k = along > 0.0 ? std::min(int64_t(std::ceil(along)) - 1, n - 2) : 0;
-    *segment = k;
-    *t = std::min(std::max(along - double(k), 0.0), 1.0);
-    return 1;
+    result.contact = true;
+    result.segment = k;
+    result.t = std::min(std::max(along - double(k), 0.0), 1.0);
 }
 
-int64_t Engine::spline(const double* coef, int64_t n, int64_t* segment, double* t,
-                       uint8_t* pairs) {
+void Engine::spline(const double* coef, int64_t n, MotionResult& result) {
     const Model& m = model_;
     const int64_t J = m.n_joints;
+    clear(result);
     motion_work_.size_for(m);
     std::vector<double>& q = motion_work_.q_prev;
     for (int64_t i = 0; i < n; ++i) {  // every segment first: a bad one answers before any work
         const double* c = coef + 6 * J * i;
-        for (int64_t k = 0; k < 6 * J; ++k)
-            if (!std::isfinite(c[k])) return -1 - i;
+        bool usable = true;
+        for (int64_t k = 0; k < 6 * J && usable; ++k) usable = std::isfinite(c[k]);
         const SplinePath path{c, J};
-        for (int64_t l = 0; l < m.n_links; ++l) {
+        for (int64_t l = 0; l < m.n_links && usable; ++l) {
             const int64_t kind = m.kin.joint_type[l];
             if (kind != JOINT_PLANAR && kind != JOINT_FLOATING) continue;
             for (int64_t v = 0; v < joint_variable_count(kind); ++v)
-                if (path.moves(m.kin.q_index[l] + v)) return -1 - i;
+                usable = usable && !path.moves(m.kin.q_index[l] + v);
         }
         for (double end : {0.0, 1.0}) {
+            if (!usable) break;
             path.at(end, q.data());
-            if (unusable_variable(m.kin, q.data(), J) >= 0) return -1 - i;
+            usable = unusable_variable(m.kin, q.data(), J) < 0;
+        }
+        if (!usable) {
+            result.bad.row = i;
+            return;
         }
     }
-    *segment = -1;
-    return first_contact(
+    first_contact(
         n,
         [coef, J](MotionContext& c, int64_t i, double* t, uint8_t* pairs) {
             return check_spline_motion(c, coef + 6 * J * i, t, pairs);
         },
-        segment, t, pairs);
+        result);
 }
 
 // On one chunk: the segments in turn in the engine's own context, until one is not free.
@@ -498,21 +570,21 @@ int64_t Engine::spline(const double* coef, int64_t n, int64_t* segment, double* 
 // earlier chunk found one (its own answer could then only be later); the answer is the
 // earliest chunk's first, which is the first segment not free, as on one thread (every chunk
 // before it ran to its end).
-int64_t Engine::first_contact(int64_t n, const SegmentCheck& check, int64_t* segment,
-                              double* t, uint8_t* pairs) {
+void Engine::first_contact(int64_t n, const SegmentCheck& check, MotionResult& result) {
     const int64_t k = chunks(BATCH_SEGMENTS, n);
     const Clock::time_point start = Clock::now();
     if (k <= 1) {
         MotionContext c = motion_context();
         for (int64_t i = 0; i < n; ++i) {
-            if (check(c, i, t, pairs)) {
+            if (check(c, i, &result.t, result.pairs.data())) {
                 planner_.learn(BATCH_SEGMENTS, i + 1, seconds_since(start));
-                *segment = i;
-                return 1;
+                result.contact = true;
+                result.segment = i;
+                return;
             }
         }
         planner_.learn(BATCH_SEGMENTS, n, seconds_since(start));
-        return 0;
+        return;
     }
     ready_workers(k);
     for (int64_t w = 0; w < k; ++w) workers_[w]->motion.size_for(model_);
@@ -542,12 +614,12 @@ int64_t Engine::first_contact(int64_t n, const SegmentCheck& check, int64_t* seg
     planner_.learn(BATCH_SEGMENTS, first_done, first_seconds);
     gather_counters(k);
     const int64_t w = first.load();
-    if (w >= k) return 0;
+    if (w >= k) return;
     const Worker& worker = *workers_[w];
-    *segment = worker.segment;
-    *t = worker.t;
-    std::copy(worker.pairs.begin(), worker.pairs.end(), pairs);
-    return 1;
+    result.contact = true;
+    result.segment = worker.segment;
+    result.t = worker.t;
+    std::copy(worker.pairs.begin(), worker.pairs.end(), result.pairs.begin());
 }
 
 }  // namespace collision_sensor

@@ -20,6 +20,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "inlining.hpp"
 #include "tolerances.hpp"
 
 namespace collision_sensor {
@@ -38,19 +39,7 @@ constexpr int64_t MOTION_QUATERNION_REST = 3;  // (kind 3) slerp along the short
 constexpr int64_t JOINT_VARIABLES[5] = {0, 1, 1, 3, 7};
 inline int64_t joint_variable_count(int64_t kind) { return JOINT_VARIABLES[kind]; }
 
-// The largest |value| of a prismatic joint (m) the engine takes. Every coordinate, box and
-// gap it computes then stays far from overflow (their squares included), so its answers keep
-// their meaning; beyond it a link would sit 1000 km away. A revolute joint takes any finite
-// value (it enters through cos and sin only). The translation variables of planar and floating
-// joints are held to the same bound.
-constexpr double PRISMATIC_VALUE_MAX = 1e6;
-
-// The smallest norm of a floating joint's quaternion the engine takes (below it, its direction
-// is rounding noise). It also keeps the checker's bound on how far a quaternion component moves
-// a point (pair_reach.py: QUATERNION_REACH, 1e300 per unit) valid: changing the quaternion by dq
-// turns the rotation by at most about pi |dq| / |quaternion| <= pi 1e100 |dq|, which times any
-// lever arm under 1e199 m stays below it.
-constexpr double QUATERNION_NORM_MIN = 1e-100;
+// A joint's values the engine takes: PRISMATIC_VALUE_MAX, QUATERNION_NORM_MIN (tolerances.hpp).
 
 // Quaternion (x, y, z, w) scaled by 1 / its largest |component| (no overflow in the squares);
 // false if it is zero or its norm is below QUATERNION_NORM_MIN. q must be finite.

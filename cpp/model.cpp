@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "convex_sweep.hpp"
+#include "tolerances.hpp"
 
 namespace collision_sensor {
 
@@ -178,9 +179,6 @@ namespace {
 // A closed mesh is taken for a hull after a test of every face plane against every vertex:
 // up to this many triangles (primitives are convex by construction and not tested).
 constexpr int64_t HULL_TEST_MAX_TRIANGLES = 2048;
-// Vertices within this fraction of the mesh's extent of a face plane's far side count as on
-// it (rounding of coplanar vertices).
-constexpr double HULL_FLAT_REL = 1e-9;
 
 // Is every vertex of the closed mesh on one side of each of its triangles' planes?
 bool closed_mesh_convex(const Model& m, int64_t lo, int64_t hi,

@@ -11,6 +11,7 @@
 #include "convex_sweep.hpp"
 #include "planning.hpp"
 #include "poses.hpp"
+#include "tolerances.hpp"
 
 namespace collision_sensor {
 

@@ -32,15 +32,13 @@
 
 #include "context.hpp"
 #include "distance.hpp"
+#include "inlining.hpp"
 #include "kinematics.hpp"
+#include "tolerances.hpp"
 #include "traversal.hpp"
 
 namespace collision_sensor {
 
-// A reported first contact's state is in contact, or its padded distance is at most this (m).
-constexpr double MOTION_TOUCH_TOLERANCE = 1e-6;
-// Every bound of the motion is widened by this fraction (the reach bounds' own rounding).
-constexpr double MOTION_BOUND_REL = 1e-9;
 // A pair's march (motion.cpp: march_step) sizes its next interval from the half-width over which
 // it was last proven apart, times a factor that grows by MARCH_GROW after each interval
 // proven (up to MARCH_FACTOR_MAX) and shrinks by MARCH_SHRINK after each that was not (down
@@ -60,9 +58,8 @@ constexpr int64_t MOTION_FRONT_MAX = 1024;
 // A pair whose bodies only translate relative to each other along a straight motion, both
 // made of convex elements (a primitive, or a convex closed mesh), is swept by ray casts
 // (convex_sweep.hpp) instead of marched, up to this many element pairs; the cast stops within
-// SWEEP_EPS (m) of contact, a tenth of the touching tolerance.
+// SWEEP_EPS (tolerances.hpp) of contact.
 constexpr int64_t SWEEP_MAX_ELEMENT_PAIRS = 16;
-constexpr double SWEEP_EPS = 0.1 * MOTION_TOUCH_TOLERANCE;
 // update_motion: a pair apart at both ends of a step whose gaps there do not exceed the step's
 // bound has its distance at q1 measured before it marches (check_step_motion): the
 // incremental query's clearance is where its descent stopped, often a tenth of a millimetre
@@ -145,7 +142,7 @@ struct StraightPath {
     }
 
     static void unit_quaternion(const double* v, double* u) {
-        double x, y, z, w, n2;
+        double x = 0.0, y = 0.0, z = 0.0, w = 1.0, n2 = 1.0;
         scaled_quaternion(v, &x, &y, &z, &w, &n2);  // usable: validated first
         const double s = 1.0 / std::sqrt(n2);
         u[0] = x * s;
@@ -157,7 +154,7 @@ struct StraightPath {
     // Unit quaternions a, b with a . b = cos(half) >= 0: the one a fraction t of the way.
     static void slerp(const double* a, const double* b, double half, double t, double* out) {
         double ka = 1.0 - t, kb = t;
-        if (half > 1e-6) {  // below, the chord is the arc to rounding (kinematics normalises)
+        if (half > SLERP_HALF_ANGLE_MIN) {  // below, the chord (tolerances.hpp)
             const double s = std::sin(half);
             ka = std::sin((1.0 - t) * half) / s;
             kb = std::sin(t * half) / s;

@@ -4,7 +4,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "inlining.hpp"
 #include "poses.hpp"
+#include "tolerances.hpp"
 
 namespace collision_sensor {
 
@@ -74,7 +76,7 @@ CS_ALWAYS_INLINE void record_gap(const State& s, MotionRecord& r, int64_t p, dou
     } else if (s.clearance[p] > 0.0) {
         // The running sums' rounding is a few ulps of the clearance (see above).
         const double travel = r.prev_sums[2 * p] + extension * r.prev_sums[2 * p + 1];
-        gap = std::max(s.clearance[p] - travel - 1e-9 * s.clearance[p], 0.0);
+        gap = std::max(s.clearance[p] - travel - BOUND_ROUNDING_REL * s.clearance[p], 0.0);
     }
     r.prev_gap[p] = gap;
 }

@@ -42,10 +42,9 @@
 
 namespace collision_sensor {
 
-// A skipped pair's running travel sum is replaced by the exact sum once it reaches this
-// fraction of the pair's clearance ...
-constexpr double TRAVEL_GUARD = 1.0 - 1e-6;
-// ... and every tracked pair's, at least once in this many incremental calls.
+// A skipped pair's running travel sum is replaced by the exact sum once it reaches
+// TRAVEL_GUARD of the pair's clearance (tolerances.hpp), and every tracked pair's at least
+// once in this many incremental calls.
 constexpr int64_t TRAVEL_RESYNC_CALLS = int64_t(1) << 24;
 
 // Start a full check: take all of q into q_ref, recompute every link pose and E.

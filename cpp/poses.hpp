@@ -10,8 +10,10 @@
 #include <cstdint>
 
 #include "context.hpp"
+#include "inlining.hpp"
 #include "kinematics.hpp"
 #include "model.hpp"
+#include "tolerances.hpp"
 
 namespace collision_sensor {
 
@@ -51,10 +53,6 @@ CS_ALWAYS_INLINE void write_pair_pose(const double* T_world_body, int64_t a, int
     }
 }
 
-// A pair's clearance is rounded down by this fraction of the pair's coordinate scale (its
-// body boxes' reach plus their distance): it covers the triangle test's contact tolerance,
-// boxes that hold their triangles only up to rounding, and the rounding of the gaps and FK.
-constexpr double CLEARANCE_EPS_REL = 1e-9;
 
 // CLEARANCE_EPS_REL times a bound of every coordinate pair (a, b)'s tests see at pose.
 CS_ALWAYS_INLINE double clearance_margin(const Model& m, int64_t a, int64_t b,

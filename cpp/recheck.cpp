@@ -8,12 +8,11 @@
 #include "culling.hpp"
 #include "planning.hpp"
 #include "poses.hpp"
+#include "tolerances.hpp"
 #include "traversal.hpp"
 
 namespace collision_sensor {
 
-// A pair keeps a front only while its clearance is at most this fraction of its size.
-constexpr double FRONT_GAP_REL = 1e-3;
 
 namespace {
 

@@ -27,6 +27,7 @@
 #include <limits>
 
 #include "box_test.hpp"
+#include "inlining.hpp"
 #include "obb_tree.hpp"
 #include "tolerances.hpp"
 #include "triangle_distance.hpp"
@@ -48,9 +49,6 @@ constexpr int COUNT_BOX_TESTS = 0, COUNT_TRIANGLE_TESTS = 1, COUNT_SPHERE_SKIPS 
 constexpr int64_t FRONT_LEAF = -1;    // a leaf pair tested triangle by triangle (apart then)
 constexpr int64_t FRONT_SPHERE = -2;  // the spheres around the two boxes were apart
 constexpr int64_t FRONT_BOX = -3;     // the paper's box test separated them (names no axis)
-// A front's node pair is kept untested while its until exceeds the pair's travel by more than
-// this fraction of itself: the travel is a running sum, and this covers its rounding.
-constexpr double FRONT_GUARD_REL = 1e-9;
 
 constexpr double INF = std::numeric_limits<double>::infinity();
 

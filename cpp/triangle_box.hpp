@@ -20,6 +20,7 @@
 #include <cmath>
 #include <limits>
 
+#include "tolerances.hpp"
 #include "triangle_distance.hpp"
 
 namespace collision_sensor {
@@ -50,7 +51,7 @@ inline double closest_on_triangle(const double* p, const Triangle& T, double* x)
     const double nn = n0 * n0 + n1 * n1 + n2 * n2;
     if (!(nn > TRIANGLE_EPS_REL * TRIANGLE_EPS_REL * dot(ab, ab) * dot(ac, ac))) {
         // No area: the nearest of its three edges.
-        double best = std::numeric_limits<double>::infinity(), u[3];
+        double best = std::numeric_limits<double>::infinity(), u[3] = {0.0, 0.0, 0.0};
         for (int k = 0; k < 3; ++k) {
             const double* s = T[k];
             const double* e = T[(k + 1) % 3];

@@ -18,6 +18,7 @@
 #include <cstring>
 #include <limits>
 
+#include "tolerances.hpp"
 #include "triangle_test.hpp"
 
 namespace collision_sensor {

@@ -22,6 +22,7 @@
 #include <cmath>
 #include <limits>
 
+#include "inlining.hpp"
 #include "tolerances.hpp"
 
 namespace collision_sensor {

@@ -25,9 +25,6 @@
 
 namespace collision_sensor {
 
-// The most threads a setting may ask for (a bound on the workers' memory, far beyond any
-// machine this runs on).
-constexpr int64_t MAX_THREADS = 256;
 
 // The threads a setting asks for: 0 -> the machine's hardware threads
 // (std::thread::hardware_concurrency, 1 when it is not known), else the setting itself.

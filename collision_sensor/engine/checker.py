@@ -42,10 +42,8 @@ from collision_sensor.model.srdf import Srdf, load_srdf_for_model
 from collision_sensor.untrusted_text import quoted
 
 Pair = Tuple[str, str]
-_NOT_AN_ARRAY = engine.NOT_AN_ARRAY
-#: A NamedTuple's fields in order, without its Python-level __new__ (0.4 us of every motion
-#: answer with a contact).
-_new_tuple = tuple.__new__
+#: CollisionChecker._answer before any: no answer of the engine is this object.
+_NO_ANSWER = object()
 #: numpy's float64 (one object: an identity test is cheaper than ``==``, which converts).
 _FLOAT64 = np.dtype(np.float64)
 #: Distinct colliding-pair sets whose answer tuples are kept for reuse (a robot in use meets
@@ -147,6 +145,12 @@ class CollisionChecker:
         self._scene_version = 0
         self._result = CheckResult(False, (), 0)
         self._results: Dict[bytes, CheckResult] = {}
+        # The engine's status_version when _result was made: _result holds while it is the
+        # same, whoever ran queries on the engine in between. _answer: the engine's answer
+        # object _result was last settled from (the engine gives the same object again for an
+        # answer with the same fields).
+        self._version = 0
+        self._answer = _NO_ANSWER
         # Point clouds: {object name: the engine's VoxelCloud}, and each one's last stats.
         self._clouds: Dict[str, object] = {}
         self._cloud_stats: Dict[str, PointCloudStats] = {}
@@ -302,7 +306,7 @@ class CollisionChecker:
                 T = np.array(pose, dtype=np.float64)
             except (TypeError, ValueError):
                 pass
-            if T is None or T.shape != (4, 4) or self._engine.move_world_body(
+            if T is None or T.shape != (4, 4) or not self._engine.move_world_body(
                     self._scene.body_index[name], T):
                 T = None
             else:
@@ -431,7 +435,7 @@ class CollisionChecker:
                                   'source was cleared since; prepare it again')
         if name not in self._scene.objects:
             self.apply_scene_changes([AddCloud(name)])
-        if self._engine.commit_cloud(self._scene.body_index[name], prepared.ticket):
+        if not self._engine.commit_cloud(self._scene.body_index[name], prepared.ticket):
             raise PointCloudError(f'{name}: a newer cloud of this source was prepared since this '
                                   'one; commit that one')
         self._cloud_stats[name] = prepared.stats
@@ -508,13 +512,13 @@ class CollisionChecker:
         """Give an object its new pose in the engine, which forces its pairs."""
         b = self._scene.body_index[placed.name]
         if placed.attach_to is None:
-            code = self._engine.move_world_body(b, np.ascontiguousarray(placed.pose))
+            moved = self._engine.move_world_body(b, np.ascontiguousarray(placed.pose))
         else:
             # The fixed joint's origin, and the reach bounds whose lever arms run through it.
             pairs, reach, reach_ext = self._scene.attached_reach(placed.name, placed.pose,
                                                                  len(self.joint_names))
-            code = self._engine.place_attached_body(b, placed.pose, pairs, reach, reach_ext)
-        if code:   # checked_pose and the engine check a pose with the same arithmetic
+            moved = self._engine.place_attached_body(b, placed.pose, pairs, reach, reach_ext)
+        if not moved:   # checked_pose and the engine check a pose with the same arithmetic
             raise SceneError(f'object "{placed.name}": the engine refused its pose; '
                              'report this as a bug')
 
@@ -542,7 +546,8 @@ class CollisionChecker:
         removed = [name for name in self._clouds
                    if old is not None and name in old.objects and name not in layout.objects]
         for name, cloud in list(self._clouds.items()):
-            if name in layout.objects and new_engine.attach_cloud(layout.body_index[name], cloud):
+            if name in layout.objects and not new_engine.attach_cloud(layout.body_index[name],
+                                                                      cloud):
                 raise PointCloudError(f'{name}: the engine refused the point cloud\'s body; '
                                       'report this as a bug')
 
@@ -553,19 +558,10 @@ class CollisionChecker:
         views = self._views = packed.views
         self._robot = layout.take_views(self._robot, views)
         self._scene = layout
+        # The engine's calls of every joint state, bound once.
         self._engine, self._query = new_engine, new_engine.query
-        self._query_motion = new_engine.update_motion
-        # check_motion answered in one compiled call (no Python frame) by a caller aimed at
-        # the current engine; the method below is its path for anything else. A subclass's
-        # own check_motion stands.
-        if type(self).check_motion is CollisionChecker.check_motion:
-            caller = self.__dict__.get('check_motion')
-            if caller is None:
-                self.check_motion = new_engine.motion_caller(
-                    CollisionChecker.check_motion.__get__(self))
-            else:
-                new_engine.aim(caller)
-        # The forest is only a view of the engine's tables: nothing is held twice (scenario 4).
+        self._query_motion, self._motion = new_engine.update_motion, new_engine.motion
+        # The forest is only a view of the engine's tables: nothing is held twice.
         self.forest = forest_view(views['boxes'], views['nodes'], views['volume'],
                                   views['gain'], views['tris'], views['roots'], layout.depths)
         self._T_world_body = views['T_world_body']
@@ -577,6 +573,8 @@ class CollisionChecker:
         self.excluded_pairs: Dict[Pair, str] = layout.excluded_pairs
         self.scene_object_names: Tuple[str, ...] = tuple(layout.objects)
         self._results = {}
+        self._version = new_engine.status_version
+        self._answer = _NO_ANSWER
         self._result = self._result_from_status(0)
 
     # ------------------------------------------------------------------ queries
@@ -626,38 +624,42 @@ class CollisionChecker:
                 f'({", ".join(self.joint_names)}), got shape {values.shape}')
         return np.ascontiguousarray(values)
 
-    def _run(self, positions: Positions, full: bool) -> CheckResult:
-        # A float64 C-contiguous array of the right length goes to the engine as it is (it
-        # copies the values before keeping them); the engine tells anything else apart. This
-        # is every joint-state message's path: a Python call costs here about what the
-        # engine's own check of a Panda costs, so it stays flat (check and update take the
-        # commonest answer, nothing changed, without even this call).
-        return self._settle(self._query(positions, full), positions, full)
+    def _run(self, q: np.ndarray, full: bool) -> CheckResult:
+        """Run the query on ``q`` (an array the engine reads as it is: :meth:`_merged`)."""
+        try:
+            answer = self._query(q, full)
+        except JointStateError as error:
+            raise self._refused(error, q) from None
+        return self._settle(answer, q, full)
 
-    def _settle(self, code: int, positions: Positions, full: bool) -> CheckResult:
-        """Return the answer for the engine's ``code`` (``cpp/engine.hpp``: Engine::query)."""
-        if code > 0:
-            if code & 1:
-                # The engine reports whether any status changed, so the answer is looked up
-                # (by the statuses' bytes) or made only then.
-                result = self._results.get(self._status.tobytes())
-                if result is None or result.rechecked_pairs != code >> 1:
-                    result = self._result_from_status(code >> 1)
-                self._result = result
-                return result
-            if code >> 1 != self._result.rechecked_pairs:
-                result = self._result
-                self._result = CheckResult(result.in_collision, result.colliding_pairs,
-                                           code >> 1)
-            return self._result
-        if code == 0:
-            if self._result.rechecked_pairs:
-                result = self._result
-                self._result = CheckResult(result.in_collision, result.colliding_pairs, 0)
-            return self._result  # nothing moved: the same answer
-        if code == _NOT_AN_ARRAY:
+    def _settle(self, answer, positions: Positions, full: bool) -> CheckResult:
+        """Return the answer for the engine's ``answer`` (``cpp/engine.hpp``: QueryResult;
+        None: ``positions`` is no array the engine reads as it is, converted here first).
+
+        The answer is looked up (by the statuses' bytes) or made only when the statuses are
+        not those ``_result`` was made from: the engine's status_version moved on (a status
+        changed, in this query or in one another caller ran on the engine in between).
+        """
+        if answer is None:
             return self._run(self._merged(positions), full)
-        raise JointStateError(self._unusable_message(-1 - code, positions))
+        self._answer = answer
+        if answer.status_version != self._version:
+            self._version = answer.status_version
+            result = self._results.get(self._status.tobytes())
+            if result is None or result.rechecked_pairs != answer.rechecked:
+                result = self._result_from_status(answer.rechecked)
+            self._result = result
+            return result
+        if answer.rechecked != self._result.rechecked_pairs:
+            result = self._result
+            self._result = CheckResult(result.in_collision, result.colliding_pairs,
+                                       answer.rechecked)
+        return self._result
+
+    def _refused(self, error: JointStateError, q: np.ndarray,
+                 row: Optional[int] = None) -> JointStateError:
+        """The error naming the joint for a value the engine refused (``error.variable``)."""
+        return JointStateError(self._unusable_message(error.variable, q, row))
 
     def _unusable_message(self, j: int, q: np.ndarray, row: Optional[int] = None) -> str:
         """The message for variable j of ``q``, which the engine refused (not finite, or
@@ -689,10 +691,13 @@ class CollisionChecker:
             in the order of :attr:`joint_names`.
         :raises JointStateError: on unknown names or non-finite values; nothing changes then.
         """
-        code = self._query(positions, True)
-        if code >= 0 and not code & 1 and code >> 1 == self._result.rechecked_pairs:
-            return self._result  # no status changed: the last answer (see _settle)
-        return self._settle(code, positions, True)
+        try:
+            answer = self._query(positions, True)
+        except JointStateError as error:
+            raise self._refused(error, positions) from None
+        if answer is self._answer:
+            return self._result  # the last answer's fields: its statuses (see _settle)
+        return self._settle(answer, positions, True)
 
     def update(self, positions: Positions) -> CheckResult:
         """Check incrementally: re-check only pairs whose relative pose can have changed.
@@ -705,10 +710,13 @@ class CollisionChecker:
         ``cpp/planning.hpp``).
         Same arguments and errors as :meth:`check`.
         """
-        code = self._query(positions, False)
-        if code >= 0 and not code & 1 and code >> 1 == self._result.rechecked_pairs:
-            return self._result  # no status changed: the last answer (see _settle)
-        return self._settle(code, positions, False)
+        try:
+            answer = self._query(positions, False)
+        except JointStateError as error:
+            raise self._refused(error, positions) from None
+        if answer is self._answer:
+            return self._result  # the last answer's fields: its statuses (see _settle)
+        return self._settle(answer, positions, False)
 
     def check_batch(self, configurations: np.ndarray) -> np.ndarray:
         """Check many configurations from scratch, in one compiled call; return (n, P) bool
@@ -724,8 +732,7 @@ class CollisionChecker:
             row and joint); nothing changes then.
         :raises EngineWorkerError: a worker thread failed (memory); nothing changes then.
         """
-        statuses, _ = self._batch(configurations, full=True)
-        return statuses
+        return self._batch(configurations, full=True)[0]
 
     def update_batch(self, configurations: np.ndarray) -> np.ndarray:
         """Run :meth:`update` on each row in turn, in one compiled call: a recorded path
@@ -747,9 +754,11 @@ class CollisionChecker:
         :raises EngineWorkerError: a worker thread failed (memory); the state is then at some
             row of the batch (``check`` sets it anew).
         """
-        statuses, codes = self._batch(configurations, full=False)
-        if len(codes):
-            self._result = self._result_from_status(int(codes[-1]) >> 1)
+        statuses, rechecked, _ = self._batch(configurations, full=False)
+        if len(rechecked):
+            self._version = self._engine.status_version
+            self._answer = _NO_ANSWER
+            self._result = self._result_from_status(int(rechecked[-1]))
         return statuses
 
     @property
@@ -759,19 +768,22 @@ class CollisionChecker:
         hardware threads)."""
         return self._engine.threads
 
-    def _batch(self, configurations, full: bool) -> Tuple[np.ndarray, np.ndarray]:
-        """Run the rows through the engine; return (n, P) bool statuses and (n,) codes."""
+    def _batch(self, configurations,
+               full: bool) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Run the rows through the engine; return each row's answer: (n, P) bool statuses,
+        (n,) pairs re-checked and (n,) bool changed (against the row before)."""
         Q = np.ascontiguousarray(configurations, dtype=np.float64)
         if Q.ndim != 2 or Q.shape[1] != len(self.joint_names):
             raise JointStateError(f'expected configurations of shape (n, {len(self.joint_names)})'
                                   f' in the order of joint_names, got {Q.shape}')
         statuses = np.zeros((len(Q), len(self.checked_pairs)), dtype=np.uint8)
-        codes = np.zeros(len(Q), dtype=np.int64)
-        done = self._engine.batch(Q, full, statuses, codes)
-        if done < 0:  # the engine validates every row before it runs any
-            row, j = divmod(-1 - done, len(self.joint_names))
-            raise JointStateError(self._unusable_message(j, Q[row], row))
-        return statuses.view(bool), codes
+        rechecked = np.zeros(len(Q), dtype=np.int64)
+        changed = np.zeros(len(Q), dtype=np.uint8)
+        try:  # the engine validates every row before it runs any
+            self._engine.batch(Q, full, statuses, rechecked, changed)
+        except JointStateError as error:
+            raise self._refused(error, Q[error.row], error.row) from None
+        return statuses.view(bool), rechecked, changed.view(bool)
 
     def proximity(self, positions: Positions,
                   max_distance: float = 0.1) -> List[ProximityRecord]:
@@ -799,10 +811,11 @@ class CollisionChecker:
         n_pairs = len(self.checked_pairs)
         distance = np.empty(n_pairs)
         points = np.empty((n_pairs, 6))
-        code = self._engine.proximity(q, max_distance, distance, points)
-        if code < 0:
-            raise JointStateError(self._unusable_message(-1 - code, q))
-        self._result = self._result_from_status(code >> 1)
+        try:
+            answer = self._engine.proximity(q, max_distance, distance, points)
+        except JointStateError as error:
+            raise self._refused(error, q) from None
+        self._settle(answer, q, False)
         return self._proximity_records(distance, points)
 
     # ------------------------------------------------------------------ motion
@@ -812,7 +825,7 @@ class CollisionChecker:
         (``engine.MOTION_*``; see :func:`collision_sensor.engine.motion.interpolate`)."""
         return self._joints.motion_kind
 
-    def check_motion(self, q_from: Positions, q_to: Positions) -> MotionResult:
+    def _check_motion(self, q_from: Positions, q_to: Positions) -> MotionResult:
         """Check the straight motion from ``q_from`` to ``q_to``: certified, never sampled.
 
         Revolute and prismatic joints move linearly, continuous joints (and a planar joint's
@@ -829,25 +842,32 @@ class CollisionChecker:
         :param q_to: the end, the same way.
         :raises JointStateError: as :meth:`check`, naming the end at fault; nothing changes.
         """
-        # Each checker's own check_motion is its engine's compiled caller (set with the
-        # engine), which answers arrays the engine takes as they are and comes here for the
-        # rest: other sequences, mappings, unusable values.
-        q0, q1 = q_from, q_to
-        code = self._engine.motion(q0, q1)
-        if code == _NOT_AN_ARRAY:
-            ends = []
-            for end, positions in (('q_from', q_from), ('q_to', q_to)):
-                try:
-                    ends.append(self._merged(positions))
-                except JointStateError as error:
-                    raise JointStateError(f'{end}: {error}') from None
-            q0, q1 = ends
-            code = self._engine.motion(q0, q1)
-        if code < 0:
-            j = -1 - code
-            end, q = ('q_from', q0) if j < len(q0) else ('q_to', q1)
-            raise JointStateError(f'{end}: ' + self._unusable_message(j % len(q0), q))
-        return self._motion_result(code)
+        # check_motion (below the class) answers arrays the engine reads as they are in one
+        # compiled call; it comes here for anything else (other sequences, mappings) and for
+        # the values the engine refuses, which are named here.
+        try:
+            answer = self._motion(q_from, q_to)
+        except JointStateError as error:
+            raise self._refused_end(error, q_from, q_to) from None
+        if answer is not None:
+            return answer
+        ends = []
+        for end, positions in (('q_from', q_from), ('q_to', q_to)):
+            try:
+                ends.append(self._merged(positions))
+            except JointStateError as error:
+                raise JointStateError(f'{end}: {error}') from None
+        try:
+            return self._motion(*ends)
+        except JointStateError as error:
+            raise self._refused_end(error, *ends) from None
+
+    def _refused_end(self, error: JointStateError, q_from: np.ndarray,
+                     q_to: np.ndarray) -> JointStateError:
+        """The error naming the end and joint of a motion the engine refused (``error.row``
+        0: ``q_from``, 1: ``q_to``; ``error.variable``)."""
+        end, q = ('q_from', q_from) if error.row == 0 else ('q_to', q_to)
+        return JointStateError(f'{end}: ' + self._unusable_message(error.variable, q))
 
     def update_motion(self, positions: Positions) -> MotionResult:
         """Check the motion from the current state to ``positions`` (as :meth:`check_motion`),
@@ -858,16 +878,18 @@ class CollisionChecker:
 
         :raises JointStateError: as :meth:`check`; nothing changes then.
         """
-        code = self._query_motion(positions)
-        if code < 0:
-            if code == _NOT_AN_ARRAY:
+        try:
+            step = self._query_motion(positions)
+        except JointStateError as error:
+            raise self._refused(error, positions) from None
+        if step is not self._answer:   # else the same answer as last time (see _settle)
+            if step is None:
                 return self.update_motion(self._merged(positions))
-            raise JointStateError(self._unusable_message(-1 - code, positions))
-        # code: 2 * the query's code + the motion's. The query's answer as update settles it
-        # (the commonest: no status changed, as many pairs re-checked as last time).
-        if code & 2 or code >> 2 != self._result.rechecked_pairs:
-            self._settle(code >> 1, positions, False)
-        return self._motion_result(1) if code & 1 else FREE
+            if (step.status_version != self._version
+                    or step.rechecked != self._result.rechecked_pairs):
+                self._settle(step, positions, False)
+            self._answer = step
+        return step.motion
 
     def check_path(self, configurations: np.ndarray) -> PathResult:
         """Check the straight motions between consecutive waypoints, in one compiled call,
@@ -883,13 +905,11 @@ class CollisionChecker:
         if Q.ndim != 2 or Q.shape[1] != len(self.joint_names) or not len(Q):
             raise JointStateError(f'expected waypoints of shape (n, {len(self.joint_names)}), '
                                   f'n >= 1, in the order of joint_names, got {Q.shape}')
-        code, segment = self._engine.path(Q)
-        if code < 0:
-            row, j = divmod(-1 - code, len(self.joint_names))
-            raise JointStateError(self._unusable_message(j, Q[row], row))
-        if code == 0:
-            return PathResult(None, FREE)
-        return PathResult(int(segment), self._motion_result(code))
+        try:
+            answer = self._engine.path(Q)
+        except JointStateError as error:
+            raise self._refused(error, Q[error.row], error.row) from None
+        return PathResult(answer.segment if answer.segment >= 0 else None, answer.motion)
 
     def check_spline(self, coefficients: np.ndarray) -> PathResult:
         """Check polynomial path segments in turn, in one compiled call, until one is not free:
@@ -906,15 +926,14 @@ class CollisionChecker:
         if coef.ndim != 3 or coef.shape[1:] != (len(self.joint_names), 6):
             raise JointStateError(f'expected coefficients of shape (S, {len(self.joint_names)},'
                                   f' 6), got {coef.shape}')
-        code, segment = self._engine.spline(coef)
-        if code < 0:
+        try:
+            answer = self._engine.spline(coef)
+        except JointStateError as error:
             raise JointStateError(
-                f'segment {-1 - code}: a coefficient is not finite, a planar or floating joint '
+                f'segment {error.row}: a coefficient is not finite, a planar or floating joint '
                 'moves, or an end is beyond the engine\'s range; give finite polynomials of '
-                'the 1-DOF joints')
-        if code == 0:
-            return PathResult(None, FREE)
-        return PathResult(int(segment), self._motion_result(code))
+                'the 1-DOF joints') from None
+        return PathResult(answer.segment if answer.segment >= 0 else None, answer.motion)
 
     def check_trajectory(self, joint_names, points, start=None,
                          limit_tolerance: float = 0.0) -> TrajectoryResult:
@@ -923,12 +942,6 @@ class CollisionChecker:
         (default: the current positions): see :mod:`collision_sensor.engine.trajectory`.
         A malformed trajectory is invalid with its reason; nothing changes in the checker."""
         return check_trajectory(self, joint_names, points, start, limit_tolerance)
-
-    def _motion_result(self, code: int) -> MotionResult:
-        if code == 0:
-            return FREE
-        t, pairs = self._engine.last_motion()    # their names, sorted as checked_pairs
-        return _new_tuple(MotionResult, (True, t, pairs))
 
     def _proximity_records(self, distance: np.ndarray,
                            points: np.ndarray) -> List[ProximityRecord]:
@@ -1011,3 +1024,11 @@ class CollisionChecker:
                 T_body_box[:3, 3] = f.center[node]
                 boxes.append((name, T_world_body[b] @ T_body_box, f.half[node].copy()))
         return boxes
+
+
+#: CollisionChecker.check_motion: a method of the class in the compiled engine's fast calling
+#: convention (bind_engine.cpp: checker_check_motion), which answers from the checker's engine
+#: in one call and leaves everything else to _check_motion (whose docstring it carries).
+CollisionChecker.check_motion = engine.checker_motion_method(
+    CollisionChecker, 'check_motion($self, q_from, q_to)\n--\n\n' +
+    CollisionChecker._check_motion.__doc__)

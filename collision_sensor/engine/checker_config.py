@@ -65,12 +65,13 @@ from typing import Any, Mapping, Optional, Tuple
 from collision_sensor.engine.bounding_volumes import (
     OBB_HULL_PCA, OBB_MIN_VOLUME, OBB_PCA, OBB_REFINED)
 from collision_sensor.engine.box_test import BOX_TEST_PAPER, BOX_TEST_SAT
+from collision_sensor.engine.compiled import engine
 from collision_sensor.engine.traversal import EXPANSION_RULES
 from collision_sensor.errors import ConfigError
 
 BOX_TESTS = {'paper': BOX_TEST_PAPER, 'sat': BOX_TEST_SAT}
-#: The most threads the setting ``threads`` may ask for (cpp/workers.hpp: MAX_THREADS).
-MAX_THREADS = 256
+#: The most threads the setting ``threads`` may ask for (cpp/tolerances.hpp: MAX_THREADS).
+MAX_THREADS = engine.MAX_THREADS
 OBB_FITS = {'pca': OBB_PCA, 'refined': OBB_REFINED, 'hull_pca': OBB_HULL_PCA,
             'min_volume': OBB_MIN_VOLUME}
 

@@ -21,7 +21,7 @@ from collision_sensor.model import sequences
 __all__ = ['ENGINE_API', 'EngineBuildError', 'engine', 'load_engine', 'source_digest']
 
 #: The binding's interface version this Python code expects (cpp/bindings.cpp: ENGINE_API).
-ENGINE_API = 9
+ENGINE_API = 10
 _REBUILD = ('rebuild it: "make" (or "pip install -e ." in the source tree, '
             '"colcon build --packages-select collision_sensor" in a workspace)')
 

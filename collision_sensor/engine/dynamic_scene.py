@@ -52,11 +52,13 @@ from collision_sensor.model.scene import SceneObject
 CLOUD_PREFIX = 'cloud/'
 
 #: Largest |coordinate| (m) of an object's vertices and of its position: as the engine's bound
-#: on joint translations (cpp/kinematics.hpp: PRISMATIC_VALUE_MAX), every coordinate, box and
-#: gap computed from them then stays far from overflow (the engine's, cpp/engine.hpp).
+#: on joint translations (PRISMATIC_VALUE_MAX), every coordinate, box and gap computed from
+#: them then stays far from overflow (cpp/tolerances.hpp).
 MAX_COORDINATE = engine.MAX_COORDINATE
 #: A pose's rotation must be orthonormal to within this (max |R^T R - I|), with det +1.
 ROTATION_TOLERANCE = engine.ROTATION_TOLERANCE
+#: A pose's quaternion of a smaller norm is zero (cpp/tolerances.hpp).
+QUATERNION_NORM_MIN = engine.QUATERNION_NORM_MIN
 #: The engine's code of each solid kind of the model (cpp/layout.hpp: elem_solid).
 SOLID_CODES = {mesh_loading.SOLID_BOX: engine.SOLID_BOX,
                mesh_loading.SOLID_SPHERE: engine.SOLID_SPHERE,
@@ -343,17 +345,23 @@ def transform_from_xyz_quaternion(xyz, quaternion, owner: str = 'pose') -> np.nd
 
     The quaternion is normalised (as RViz does); one that is zero or not finite is refused.
 
-    :raises SceneError: a value that is not finite, or a quaternion of norm below 1e-6.
+    :raises SceneError: a value that is not finite, or a quaternion of norm below
+        :data:`QUATERNION_NORM_MIN` (the engine's rule for a floating joint's quaternion).
     """
     x, y, z, w = (float(v) for v in quaternion)
     position = [float(v) for v in xyz]
-    norm = math.sqrt(x * x + y * y + z * z + w * w)
-    if not (math.isfinite(norm) and all(map(math.isfinite, position))):
+    if not all(map(math.isfinite, [x, y, z, w] + position)):
         raise SceneError(f'{owner}: position {position} or orientation {[x, y, z, w]} is not '
                          'finite; send finite numbers')
-    if norm < 1e-6:
-        raise SceneError(f'{owner}: orientation quaternion {[x, y, z, w]} is zero; send a unit '
-                         'quaternion, (0, 0, 0, 1) for no rotation')
+    # Scaled by the largest component first, as the engine does (kinematics.hpp:
+    # scaled_quaternion): no square underflows or overflows.
+    scale = max(abs(x), abs(y), abs(z), abs(w))
+    if scale > 0.0:
+        x, y, z, w = x / scale, y / scale, z / scale, w / scale
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    if not scale * norm >= QUATERNION_NORM_MIN:
+        raise SceneError(f'{owner}: orientation quaternion {list(map(float, quaternion))} is '
+                         'zero; send a unit quaternion, (0, 0, 0, 1) for no rotation')
     x, y, z, w = x / norm, y / norm, z / norm, w / norm
     T = np.eye(4)
     T[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],

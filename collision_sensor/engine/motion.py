@@ -13,7 +13,6 @@ variables move linearly; continuous joints and a planar joint's ``theta`` the sh
 round; a planar joint's ``x``, ``y`` and a floating joint's translation linearly; a floating
 joint's quaternion along the shorter arc (slerp). Mimic joints follow their source.
 """
-import math
 from typing import NamedTuple, Optional, Tuple
 
 import numpy as np
@@ -89,33 +88,15 @@ def motion_kinds(model: RobotModel, joint_names) -> np.ndarray:
 def interpolate(kinds: np.ndarray, q_from: np.ndarray, q_to: np.ndarray,
                 t: np.ndarray) -> np.ndarray:
     """Return the states of the straight motion ``q_from -> q_to`` at fractions ``t``, by the
-    rules in :func:`motion_kinds` (the engine's own interpolation, restated for tests and
-    tools that sample a motion).
+    rules in :func:`motion_kinds`: the engine's own interpolation (``cpp/motion.hpp``:
+    StraightPath), for tests and tools that sample a motion.
 
     :param kinds: ``(J,) int64`` from :func:`motion_kinds`.
     :param t: ``(n,) float`` fractions in [0, 1].
     :return: ``(n, J) float64``.
+    :raises JointStateError: a floating joint's quaternion at an end is zero or not finite.
     """
-    q_from = np.asarray(q_from, dtype=np.float64)
-    q_to = np.asarray(q_to, dtype=np.float64)
-    t = np.asarray(t, dtype=np.float64).reshape(-1, 1)
-    delta = q_to - q_from
-    wrap = kinds == engine.MOTION_WRAP
-    # As C's remainder (the engine's): the quotient rounded half to even, so a move of exactly
-    # pi goes the same way round in both.
-    delta[wrap] -= 2.0 * math.pi * np.round(delta[wrap] / (2.0 * math.pi))
-    Q = q_from + t * delta
-    for j in np.flatnonzero(kinds == engine.MOTION_QUATERNION):
-        a = q_from[j:j + 4] / np.linalg.norm(q_from[j:j + 4])
-        b = q_to[j:j + 4] / np.linalg.norm(q_to[j:j + 4])
-        dot = float(a @ b)
-        if dot < 0.0:
-            b, dot = -b, -dot
-        half = math.acos(min(dot, 1.0))
-        if half > 1e-6:
-            ka = np.sin((1.0 - t) * half) / math.sin(half)
-            kb = np.sin(t * half) / math.sin(half)
-        else:
-            ka, kb = 1.0 - t, t
-        Q[:, j:j + 4] = ka * a + kb * b
-    return Q
+    return engine.interpolate(np.ascontiguousarray(kinds, dtype=np.int64),
+                              np.ascontiguousarray(q_from, dtype=np.float64),
+                              np.ascontiguousarray(q_to, dtype=np.float64),
+                              np.ascontiguousarray(t, dtype=np.float64).reshape(-1))

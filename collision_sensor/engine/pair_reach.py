@@ -18,7 +18,7 @@ from collision_sensor.engine.kinematics import (JOINT_FLOATING, JOINT_PLANAR, JO
 #: How far a point can move per unit of a floating joint's quaternion component, for the
 #: incremental bounds (:func:`pair_rows`): huge, so that any move beyond motion_tolerance forces
 #: a re-check (the true bound grows as 1 / |quaternion|; the engine refuses quaternions with a
-#: norm below QUATERNION_NORM_MIN = 1e-100, which keeps it below this, see cpp/kinematics.hpp).
+#: norm below QUATERNION_NORM_MIN, which keeps it below this: see cpp/tolerances.hpp).
 #: Finite on purpose: inf * 0 would be NaN.
 QUATERNION_REACH = 1e300
 

@@ -1,7 +1,8 @@
 """Every numerical tolerance of the geometric kernels, explained in one place.
 
-The engine's tolerances are its own (``cpp/tolerances.hpp``): their values are read from the
-extension here, and stated and explained below. Each constant is dimensionless and multiplies a
+The engine's tolerances and limits are its own (``cpp/tolerances.hpp``, which explains each):
+their values are read from the extension here, and the geometric ones stated and explained
+below. Each constant is dimensionless and multiplies a
 length scale named next to it, so every test reads the same whether a robot is measured in metres
 or millimetres. All of them make the sensor err toward "contact": a tolerance only ever turns a
 near miss into a reported contact, never a contact into a miss.
@@ -48,3 +49,40 @@ RANK_EPS_REL = 1e-12
 #: more than ``SPHERE_EPS_REL`` of the sum of their radii. The spheres contain the boxes, so this
 #: only ever skips pairs the box test would also separate.
 SPHERE_EPS_REL = engine.SPHERE_EPS_REL
+
+#: Closed meshes taken for hulls (``cpp/model.cpp``): no vertex beyond a face plane by more
+#: than this fraction of the mesh's extent.
+HULL_FLAT_REL = engine.HULL_FLAT_REL
+
+#: A bound computed in a few float64 operations is widened by this fraction of its terms.
+BOUND_ROUNDING_REL = engine.BOUND_ROUNDING_REL
+
+#: The incremental query (``cpp/planning.hpp``): a pair's clearance is rounded down by this
+#: fraction of its coordinate scale; its running travel sum is recomputed once it reaches
+#: ``TRAVEL_GUARD`` of the clearance; a front's node pair stays untested while its margin
+#: exceeds ``FRONT_GUARD_REL`` of itself; a pair keeps a front while its clearance is at most
+#: ``FRONT_GAP_REL`` of its size.
+CLEARANCE_EPS_REL = engine.CLEARANCE_EPS_REL
+TRAVEL_GUARD = engine.TRAVEL_GUARD
+FRONT_GUARD_REL = engine.FRONT_GUARD_REL
+FRONT_GAP_REL = engine.FRONT_GAP_REL
+
+#: Motion checks (``cpp/motion.hpp``; :mod:`collision_sensor.engine.motion`): a first contact is
+#: within ``MOTION_TOUCH_TOLERANCE`` (m) of contact; every bound is widened by
+#: ``MOTION_BOUND_REL``; a ray-cast sweep stops within ``SWEEP_EPS`` (m); slerp between
+#: quaternions less than ``SLERP_HALF_ANGLE_MIN`` (rad, half the angle) apart is their chord.
+MOTION_TOUCH_TOLERANCE = engine.MOTION_TOUCH_TOLERANCE
+MOTION_BOUND_REL = engine.MOTION_BOUND_REL
+SWEEP_EPS = engine.SWEEP_EPS
+SLERP_HALF_ANGLE_MIN = engine.SLERP_HALF_ANGLE_MIN
+
+#: The values the engine takes: joint translations within ``PRISMATIC_VALUE_MAX`` (m), a
+#: quaternion (a floating joint's, a scene pose's) of norm at least ``QUATERNION_NORM_MIN``,
+#: scene poses within ``MAX_COORDINATE`` (m) orthonormal to ``ROTATION_TOLERANCE``, a cloud
+#: pair's clearance at most ``MAX_CLOUD_CLEARANCE`` (m), at most ``MAX_THREADS`` threads.
+PRISMATIC_VALUE_MAX = engine.PRISMATIC_VALUE_MAX
+QUATERNION_NORM_MIN = engine.QUATERNION_NORM_MIN
+MAX_COORDINATE = engine.MAX_COORDINATE
+ROTATION_TOLERANCE = engine.ROTATION_TOLERANCE
+MAX_CLOUD_CLEARANCE = engine.MAX_CLOUD_CLEARANCE
+MAX_THREADS = engine.MAX_THREADS

@@ -463,9 +463,13 @@ def test_poses_are_checked_and_quaternions_normalised():
     T = transform_from_xyz_quaternion([1, 2, 3], [0, 0, 2, 0])   # 180 deg about z, scaled
     np.testing.assert_allclose(T[:3, :3], np.diag([-1.0, -1.0, 1.0]), atol=1e-15)
     assert checked_pose(T, 'o').flags.writeable is False
-    for bad in ([0, 0, 0, 0], [np.nan, 0, 0, 1]):
+    for bad in ([0, 0, 0, 0], [np.nan, 0, 0, 1], [0, 0, 0, 1e-101]):
         with pytest.raises(SceneError, match='quaternion|finite'):
             transform_from_xyz_quaternion([0, 0, 0], bad)
+    # Zero is the engine's rule for a floating joint's quaternion (QUATERNION_NORM_MIN, the
+    # norm taken scaled): a tiny one has a direction, and no square of it underflows.
+    tiny = transform_from_xyz_quaternion([0, 0, 0], [0, 0, 2e-100, 0])
+    np.testing.assert_allclose(tiny, np.diag([-1.0, -1.0, 1.0, 1.0]), atol=1e-15)
     with pytest.raises(SceneError, match='finite'):
         transform_from_xyz_quaternion([np.inf, 0, 0], [0, 0, 0, 1])
     mirror = np.diag([1.0, 1.0, -1.0, 1.0])

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from collision_sensor import CollisionChecker
+from collision_sensor.engine.compiled import engine
 from collision_sensor.engine.dynamic_scene import AddObject
 from collision_sensor.engine.motion import FREE, TOUCH_TOLERANCE, interpolate
 from collision_sensor.engine.sampling import random_configurations
@@ -392,6 +393,58 @@ def test_check_motion_is_a_compiled_call_that_follows_its_checker():
     del checker, kept
     gc.collect()
     assert gone() is None
+
+
+def _moveit_interpolate(kinds, q_from, q_to, t):
+    """MoveIt's JointModel::interpolate, restated (the oracle of the engine's own): linear;
+    continuous and planar theta the shorter way round (remainder: a move of exactly pi as C's,
+    half to even); a floating joint's unit quaternions along the shorter arc (slerp)."""
+    q_from, q_to = np.asarray(q_from, float), np.asarray(q_to, float)
+    t = np.asarray(t, float).reshape(-1, 1)
+    delta = q_to - q_from
+    wrap = kinds == engine.MOTION_WRAP
+    delta[wrap] -= 2.0 * math.pi * np.round(delta[wrap] / (2.0 * math.pi))
+    Q = q_from + t * delta
+    for j in np.flatnonzero(kinds == engine.MOTION_QUATERNION):
+        a = q_from[j:j + 4] / np.linalg.norm(q_from[j:j + 4])
+        b = q_to[j:j + 4] / np.linalg.norm(q_to[j:j + 4])
+        dot = float(a @ b)
+        if dot < 0.0:
+            b, dot = -b, -dot
+        half = math.acos(min(dot, 1.0))
+        if half > engine.SLERP_HALF_ANGLE_MIN:
+            ka, kb = np.sin((1.0 - t) * half) / math.sin(half), np.sin(t * half) / math.sin(half)
+        else:
+            ka, kb = 1.0 - t, t
+        Q[:, j:j + 4] = ka * a + kb * b
+    return Q
+
+
+def test_interpolate_is_moveits_and_refuses_a_zero_quaternion():
+    """The engine's interpolation (the motion checks' own, bound as interpolate) against
+    MoveIt's rules restated, on random motions of every kind of variable: quaternions far
+    apart, opposite in sign, nearly equal (below the slerp threshold), and turns of exactly pi;
+    a zero quaternion at either end is refused, naming the end and the variable."""
+    kinds = np.array([engine.MOTION_LINEAR, engine.MOTION_WRAP, engine.MOTION_QUATERNION,
+                      engine.MOTION_QUATERNION_REST, engine.MOTION_QUATERNION_REST,
+                      engine.MOTION_QUATERNION_REST, engine.MOTION_LINEAR])
+    rng = np.random.default_rng(41)
+    t = np.linspace(0.0, 1.0, 11)
+    for k in range(300):
+        q0, q1 = rng.normal(size=7) * 3, rng.normal(size=7) * 3
+        if k % 4 == 1:
+            q1[2:6] = -q0[2:6] * 2.0                       # the same rotation, sign flipped
+        elif k % 4 == 2:
+            q1[2:6] = q0[2:6] + 1e-9 * rng.normal(size=4)  # nearly the same: the chord
+        elif k % 4 == 3:
+            q1[1] = q0[1] + math.pi                        # exactly half a turn
+        np.testing.assert_allclose(interpolate(kinds, q0, q1, t),
+                                   _moveit_interpolate(kinds, q0, q1, t), rtol=0, atol=1e-12)
+    zero = np.zeros(7)
+    for row, ends in ((0, (zero, q1)), (1, (q0, zero))):
+        with pytest.raises(JointStateError) as error:
+            interpolate(kinds, *ends, t)
+        assert (error.value.row, error.value.variable) == (row, 2)
 
 
 @pytest.mark.parametrize('cell', ['panda_cell', 'ur5_cell'])

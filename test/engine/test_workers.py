@@ -77,19 +77,21 @@ def _counters(checker):
 
 
 def test_check_batch_is_one_threads_bit_for_bit(robot):
-    """Statuses, codes (the changed bit of each row against the row before) and the work done
-    (counters) are one thread's, for every thread count; the one-thread rows are single
-    checks'; rows in contact and rows apart both occur."""
+    """Statuses, pairs re-checked, changed flags (each row's against the row before) and the
+    work done (counters) are one thread's, for every thread count; the one-thread rows are
+    single checks'; rows in contact and rows apart both occur."""
     name, checkers = robot
     Q = _configurations(checkers[1], 600, seed=1)
-    statuses, codes, work = {}, {}, {}
+    statuses, rechecked, changed, work = {}, {}, {}, {}
     for t, checker in checkers.items():
         before = _counters(checker)
-        statuses[t], codes[t] = checker._batch(Q, full=True)
+        statuses[t], rechecked[t], changed[t] = checker._batch(Q, full=True)
         work[t] = _counters(checker) - before
+    assert changed[1][1:].any() and not changed[1][1:].all()
     for t in THREADS:
         assert np.array_equal(statuses[t], statuses[1]), (name, t)
-        assert np.array_equal(codes[t], codes[1]), (name, t)
+        assert np.array_equal(rechecked[t], rechecked[1]), (name, t)
+        assert np.array_equal(changed[t], changed[1]), (name, t)
         assert np.array_equal(work[t], work[1]), (name, t)
     hits = statuses[1].any(axis=1)
     assert 10 < hits.sum() < len(Q) - 10, name  # both answers occur
@@ -198,10 +200,10 @@ def test_update_batch_is_one_threads_and_stands_at_the_last_row(robot):
         # Chunks are what the threads ran: each later chunk's first row re-checked every pair.
         # (The engine's batch itself: the checker's answer is not settled after it.)
         checker.check(path[0])
-        _, codes = checker._batch(path, full=False)
+        _, rechecked, _ = checker._batch(path, full=False)
         starts = [len(path) * c // t for c in range(1, t)]  # 900 rows: chunks of equal size
-        assert all(codes[i] >> 1 == len(checker.checked_pairs) for i in starts), (name, t)
-        assert (codes[1:] >> 1 < len(checker.checked_pairs)).sum() > len(path) // 2
+        assert all(rechecked[i] == len(checker.checked_pairs) for i in starts), (name, t)
+        assert (rechecked[1:] < len(checker.checked_pairs)).sum() > len(path) // 2
         checker.check(path[0])
 
 
@@ -342,12 +344,12 @@ def test_static_pairs_answer_every_row_of_a_batch(erd_share):
         wanted = [reference.check(q).colliding_pairs for q in Q]
         for t, checker in checkers.items():
             carried = checker._result.colliding_pairs if checker._result else ()
-            statuses, codes = checker._batch(Q, full=True)
+            statuses, _, changed = checker._batch(Q, full=True)
             got = [tuple(names[p] for p in np.flatnonzero(row)) for row in statuses]
             assert got == wanted, (t, expected)
             assert all((static in pairs) == expected for pairs in got), t
             if (static in carried) != expected:
-                assert codes[0] & 1, t
+                assert changed[0], t
     # one row repeated: the static pairs' work is done once, not at every row
     repeated = np.repeat(Q[:1], 40, axis=0)
     single = _counters(checkers[1])
@@ -393,14 +395,14 @@ def test_short_batches_run_on_fewer_threads(erd_share):
     walk[:, 5] += np.linspace(0.0, 0.5, 3000)  # one wrist joint turns: few pairs re-checked
     pairs = len(checker.checked_pairs)
     checker.check(walk[0])
-    _, codes = checker._batch(walk, full=False)  # nothing known yet: two chunks
-    assert codes[1500] >> 1 == pairs
+    _, rechecked, _ = checker._batch(walk, full=False)  # nothing known yet: two chunks
+    assert rechecked[1500] == pairs
     for n in (20, 3000):
         checker.check(walk[0])
         reference.check(walk[0])
-        statuses, codes = checker._batch(walk[:n], full=False)
+        statuses, rechecked, _ = checker._batch(walk[:n], full=False)
         assert np.array_equal(statuses, reference.update_batch(walk[:n]))
-        middle = codes[n // 2] >> 1 == pairs
+        middle = rechecked[n // 2] == pairs
         assert middle == (n == 3000), n
     checker.check(walk[0])
     with pytest.raises(ConfigError, match='setting min_chunk_us'):
