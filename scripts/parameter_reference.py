@@ -56,7 +56,8 @@ file: `unknown parameter(s): "warning_distnace" (did you mean warning_distance?)
 such as `use_sim_time`, pass, and a params file's section for another node is not read). File
 paths come only from these parameters.
 
-Those settable at run time (`ros2 param set /collision_sensor warning_distance 0.05`) are
+Those settable at run time (`collision_sensor_ctl param set /collision_sensor warning_distance
+0.05`, or `ros2 param set` in a ROS install) are
 validated as at start-up; a refused request names the reason and changes nothing, and every
 change applied is answered by a verdict at the current state (header: now, root frame).
 `padding`, `link_padding` and `allowed_collisions` build a new checker on a thread of its own
