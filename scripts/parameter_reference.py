@@ -34,7 +34,8 @@ YAML_HEADER = '''\
 #   collision_sensor_node --ros-args --params-file collision_sensor.yaml -r __ns:=/robot
 #
 # Parameters are read at start-up; those marked "settable at run time" can also be changed while
-# the node runs (ros2 param set /collision_sensor warning_distance 0.05), validated as here, and
+# the node runs (collision_sensor_ctl param set /collision_sensor warning_distance 0.05, or
+# ros2 param set with the same arguments), validated as here, and
 # the change is answered by a verdict; restart the node to change the others. A bad value, or a
 # name the node does not have (a typo), stops the node at start-up with a message naming it
 # (exit status 1). Types matter: write 1.0, not 1, for a double.
