@@ -60,8 +60,9 @@ if os.environ.get('PYTEST_XDIST_WORKER'):
     os.environ['ROS_DOMAIN_ID'] = str(worker_domain(int(os.environ['ROS_DOMAIN_ID']),
                                                     os.environ['PYTEST_XDIST_WORKER']))
 # The collision_sensor fixture's sensors too (collision_sensor.testing picks a domain of its
-# own otherwise).
-os.environ.setdefault('COLLISION_SENSOR_TEST_DOMAIN', os.environ['ROS_DOMAIN_ID'])
+# own otherwise): set, not defaulted, since an xdist worker inherits the controller's value
+# and must follow its own domain.
+os.environ['COLLISION_SENSOR_TEST_DOMAIN'] = os.environ['ROS_DOMAIN_ID']
 
 
 @pytest.fixture(scope='session')
