@@ -4,7 +4,7 @@
 // overlap, one of them is expanded (its two children are tested against the other box); when
 // both are leaves, their triangles are tested exactly. Which side is expanded is the paper's
 // "node expansion consideration"; five rules are offered (the answer never depends on the
-// rule, only the work done; collision_sensor_bench measures which is fastest):
+// rule, only the work done; the benchmarks, python -m benchmarks, measure which is fastest):
 //   EXPAND_SAME       always expand the first tree until it reaches a leaf, then the second;
 //   EXPAND_ALTERNATE  alternate sides with the depth of the descent;
 //   EXPAND_LARGER     expand the node with the larger box volume;
