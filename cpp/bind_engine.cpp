@@ -130,38 +130,6 @@ struct KeptAnswer {
                       bad.row, bad.variable);
 }
 
-// A result area an engine keeps between calls (its pairs allocated once), lent to one call
-// at a time: a call reads its answer there after the engine's lock is let go and the
-// interpreter taken back, when another thread may have run a check of its own. The lending
-// happens with the interpreter lock held, so a flag says whether the area is out; a call that
-// finds it out (another thread is between its check and its answer) gets an area of its own.
-template <class Result>
-struct KeptArea {
-    Result result;
-    bool lent = false;
-};
-
-template <class Result>
-class AreaLoan {
-   public:
-    explicit AreaLoan(KeptArea<Result>& area) : area_(area.lent ? nullptr : &area) {
-        if (area_)
-            area_->lent = true;
-        else
-            own_ = std::make_unique<Result>();
-    }
-    ~AreaLoan() {
-        if (area_) area_->lent = false;
-    }
-    AreaLoan(const AreaLoan&) = delete;
-    AreaLoan& operator=(const AreaLoan&) = delete;
-    Result& operator*() { return area_ ? area_->result : *own_; }
-
-   private:
-    KeptArea<Result>* area_;
-    std::unique_ptr<Result> own_;
-};
-
 // The checker's engine: the C++ Engine over the two packed buffers, which it keeps alive.
 struct PyEngine {
     Array<double> F;
@@ -362,32 +330,9 @@ PyObject* checker_check_motion(PyObject* checker, PyObject* const* args, Py_ssiz
     Py_DECREF(fallback);
     return answer;
 }
-
-// One source's point cloud (voxel_cloud.hpp), shared by the engines that show it: the
-// checker's, and the next one a scene change lays out.
-struct PyVoxelCloud {
-    std::shared_ptr<cs::VoxelCloud> cloud = std::make_shared<cs::VoxelCloud>();
-
-    // The current grid's voxel centres (V, 3) and their seen stamps (V,), world frame.
-    py::tuple voxels() const {
-        std::lock_guard<std::mutex> hold(cloud->building);
-        const cs::VoxelGrid& g = cloud->current();
-        Array<double> centres({py::ssize_t(g.count), py::ssize_t(3)});
-        Array<double> seen(py::ssize_t(g.count));
-        for (int64_t v = 0; v < g.count; ++v) {
-            g.centre(v, centres.mutable_data() + 3 * v);
-            seen.mutable_data()[v] = g.seen[v];
-        }
-        return py::make_tuple(centres, seen, g.size);
-    }
-};
-
-// (points, capped, invalid, out_of_range, self_filtered, kept_points, voxels, persisted).
-py::tuple stats_tuple(const cs::CloudStats& s) {
-    return py::make_tuple(s.points, s.capped, s.invalid, s.out_of_range, s.self_filtered,
-                          s.kept_points, s.voxels, s.persisted);
-}
 }  // namespace
+
+cs::Engine& engine_of(py::handle engine) { return *engine.cast<PyEngine&>().engine; }
 
 void bind_engine(py::module_& m) {
     const ResultTypes& types = result_types();
@@ -548,9 +493,10 @@ void bind_engine(py::module_& m) {
             "variable -1) for a segment the engine refuses.")
         .def(
             "attach_cloud",
-            [](PyEngine& self, int64_t b, const PyVoxelCloud& cloud) {
+            [](PyEngine& self, int64_t b, py::handle cloud) {
+                std::shared_ptr<cs::VoxelCloud> shown = cloud_of(cloud);
                 std::lock_guard<std::mutex> hold(self.engine->lock());
-                return self.engine->attach_cloud(b, cloud.cloud);
+                return self.engine->attach_cloud(b, std::move(shown));
             },
             py::arg("b"), py::arg("cloud"),
             "Make world object b (a body without trees, at the identity) show cloud's current "
@@ -634,74 +580,6 @@ void bind_engine(py::module_& m) {
         py::arg("cls"), py::arg("doc"),
         "check_motion(q_from, q_to) as a method of class cls (CollisionChecker), with "
         "docstring doc: its _engine's motion when it answers, else its _check_motion.");
-
-    py::class_<PyVoxelCloud>(m, "VoxelCloud",
-                             "One source's point cloud obstacle (cpp/voxel_cloud.hpp): its "
-                             "current voxels, and the next cloud built off every lock.")
-        .def(py::init<>())
-        .def("voxels", &PyVoxelCloud::voxels,
-             "(centres (V, 3), seen (V,), voxel size) of the current grid, world frame.")
-        .def("prepare",
-             [](PyVoxelCloud& self, PyEngine& owner, const py::array& points, int64_t frame,
-                const Array<double>& q, double voxel_size, double filter_padding,
-                double max_range, int64_t max_points, double stamp, double persistence,
-                bool keep_points, int64_t threads) {
-                 const cs::Model& model = owner.engine->model();
-                 const bool f32 = py::isinstance<py::array_t<float>>(points);
-                 if (!(f32 || py::isinstance<py::array_t<double>>(points)) || points.ndim() != 2 ||
-                     points.shape(1) != 3)
-                     throw std::invalid_argument(
-                         "points: expected an (n, 3) float32 or float64 array");
-                 expect_shape("q", q, {model.n_joints});
-                 if (frame < -1 || frame >= model.n_links)
-                     throw std::invalid_argument("frame: not a link of the engine");
-                 if (!(voxel_size > 0.0 && std::isfinite(voxel_size) && filter_padding >= 0.0 &&
-                       std::isfinite(filter_padding) && max_range > 0.0 && max_points > 0 &&
-                       std::isfinite(stamp) && persistence >= 0.0 && std::isfinite(persistence) &&
-                       threads >= 0 && threads <= cs::MAX_THREADS))
-                     throw std::invalid_argument(
-                         "voxel_size, filter_padding, max_range, max_points, stamp, "
-                         "persistence, threads: out of range");
-                 const int64_t bad = cs::unusable_variable(model.kin, q.data(), model.n_joints);
-                 if (bad >= 0) raise_joint_state("joint value not usable", 0, bad);
-                 cs::CloudPoints cloud = {static_cast<const char*>(points.data()),
-                                          int64_t(points.shape(0)), int64_t(points.strides(0)),
-                                          int64_t(points.strides(1)), f32};
-                 const cs::CloudSettings settings = {voxel_size, filter_padding, max_range,
-                                                     max_points,  stamp,          persistence,
-                                                     frame,       keep_points,
-                                                     cs::resolve_threads(threads)};
-                 std::vector<double> T(16 * model.n_links);
-                 {   // the link poses at q, with the engine's joint origins as they are now
-                     std::lock_guard<std::mutex> hold(owner.engine->lock());
-                     cs::forward_kinematics(model.kin, q.data(), T.data());
-                 }
-                 std::vector<float> kept;
-                 int64_t ticket;
-                 {
-                     py::gil_scoped_release release;
-                     ticket = self.cloud->build(model, T.data(), cloud, settings,
-                                                keep_points ? &kept : nullptr);
-                 }
-                 py::object out = py::none();
-                 if (keep_points) {
-                     Array<float> array({py::ssize_t(kept.size() / 3), py::ssize_t(3)});
-                     std::copy(kept.begin(), kept.end(), array.mutable_data());
-                     out = std::move(array);
-                 }
-                 return py::make_tuple(ticket, stats_tuple(self.cloud->stats), out);
-             },
-             py::arg("engine"), py::arg("points"), py::arg("frame"), py::arg("q"),
-             py::arg("voxel_size"), py::arg("filter_padding"), py::arg("max_range"),
-             py::arg("max_points"), py::arg("stamp"), py::arg("persistence"),
-             py::arg("keep_points"), py::arg("threads"),
-             "Build the next grid from points (n, 3) float32/float64 in link `frame` (-1: the "
-             "world), self-filtered at the joint values q against engine's robot "
-             "(cpp/cloud_filter.hpp), on up to `threads` threads (0: every hardware thread; the "
-             "same grid on any number); return (ticket, stats (points, capped, invalid, "
-             "out_of_range, self_filtered, kept_points, voxels, persisted), the points kept "
-             "(m, 3) float32 world frame or None). Runs without the interpreter lock.");
-
 }
 
 }  // namespace binding

@@ -1,6 +1,7 @@
-// What the binding files share (bindings.cpp, bind_engine.cpp, bind_kernels.cpp): the array
-// type they take, the one shape check, the package's exceptions, and each concern's binding
-// function, which the module definition (bindings.cpp) calls in turn.
+// What the binding files share (bindings.cpp, bind_engine.cpp, bind_clouds.cpp,
+// bind_kernels.cpp): the array type they take, the one shape check, the package's exceptions,
+// and each concern's binding function, which the module definition (bindings.cpp) calls in
+// turn.
 //
 // Everything else under cpp/ is plain C++17 over contiguous arrays. Arrays cross here as
 // numpy arrays of the exact dtype and layout the engine reads: inputs are converted by
@@ -18,11 +19,16 @@
 
 #include <cstdint>
 #include <exception>
+#include <memory>
 #include <initializer_list>
 #include <stdexcept>
 #include <string>
 
 namespace collision_sensor {
+
+class Engine;
+class VoxelCloud;
+
 namespace binding {
 
 namespace py = pybind11;
@@ -64,10 +70,48 @@ T* writable(const char* name, Array<T>& a) {
 // which costs less than converting.
 const double* exact_doubles(py::handle h, std::initializer_list<py::ssize_t> dims);
 
+// The engine of a binding's Engine object, and the cloud of its VoxelCloud object (either
+// object of another type: a cast error).
+Engine& engine_of(py::handle engine);                  // bind_engine.cpp
+std::shared_ptr<VoxelCloud> cloud_of(py::handle cloud);  // bind_clouds.cpp
+
+// A result area a binding keeps between calls (its arrays allocated once), lent to one call
+// at a time: a call reads its answer there after the engine's lock is let go and the
+// interpreter taken back, when another thread may have run a check of its own. The lending
+// happens with the interpreter lock held, so a flag says whether the area is out; a call that
+// finds it out (another thread is between its check and its answer) gets an area of its own.
+template <class Result>
+struct KeptArea {
+    Result result;
+    bool lent = false;
+};
+
+template <class Result>
+class AreaLoan {
+   public:
+    explicit AreaLoan(KeptArea<Result>& area) : area_(area.lent ? nullptr : &area) {
+        if (area_)
+            area_->lent = true;
+        else
+            own_ = std::make_unique<Result>();
+    }
+    ~AreaLoan() {
+        if (area_) area_->lent = false;
+    }
+    AreaLoan(const AreaLoan&) = delete;
+    AreaLoan& operator=(const AreaLoan&) = delete;
+    Result& operator*() { return area_ ? area_->result : *own_; }
+
+   private:
+    KeptArea<Result>* area_;
+    std::unique_ptr<Result> own_;
+};
+
 // Each concern's bindings, registered by the module definition (bindings.cpp) in turn. A new
 // concern adds its function here and its call there, in a file of its own.
 void export_constants(py::module_& m);     // bindings.cpp: constants and the packed layout
-void bind_engine(py::module_& m);          // bind_engine.cpp: Engine, VoxelCloud
+void bind_engine(py::module_& m);          // bind_engine.cpp: Engine, its result types
+void bind_clouds(py::module_& m);          // bind_clouds.cpp: VoxelCloud
 void bind_kinematics(py::module_& m);      // bind_kernels.cpp: Kinematics
 void bind_query_kernels(py::module_& m);   // bind_kernels.cpp: box, triangle, tree kernels
 void bind_build_kernels(py::module_& m);   // bind_kernels.cpp: fits, trees, number tables

@@ -217,6 +217,7 @@ PYBIND11_MODULE(_engine, m) {
     // Each concern's bindings (binding.hpp), one function each.
     export_constants(m);
     bind_engine(m);
+    bind_clouds(m);
     bind_kinematics(m);
     bind_query_kernels(m);
     bind_build_kernels(m);

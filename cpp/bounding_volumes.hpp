@@ -57,6 +57,11 @@ void frame_from_eigenvectors(const double* V, const int64_t* order, double* axes
 //: correct). A C with a zero diagonal (one point, or all points equal) gives the identity.
 void principal_frame(const double* C, double* axes);
 
+// The box on axes (3, 3) whose projections, about the point o (3,), span [lo[k], hi[k]] along
+// axis k: its center (3,) and half extents (3,).
+void box_from_projections(const double* o, const double* axes, const double* lo,
+                          const double* hi, double* center, double* half);
+
 //: Write center (3,) and half (3,) of the smallest box with the given axes (3, 3) containing
 //: points (n, 3), n >= 1.
 void box_on_axes(const double* points, int64_t n, const double* axes, double* center,

@@ -1,4 +1,4 @@
-// A point cloud made an obstacle (issue 29): points in, the robot's own points filtered out,
+// A point cloud made an obstacle: points in, the robot's own points filtered out,
 // the rest grouped into voxels (voxel_grid.hpp).
 //
 // Contract, for the points p (rows of the cloud, in the frame of link `frame` or the world)
@@ -31,10 +31,26 @@
 #include <cstdint>
 #include <vector>
 
+#include "inlining.hpp"
 #include "model.hpp"
 #include "voxel_grid.hpp"
 
 namespace collision_sensor {
+
+// What cloud_filter.cpp (the passes over the rows) and cloud_self_filter.cpp (the robot's
+// candidates near each voxel) share.
+namespace cloud_detail {
+
+// A voxel's class: its points kept untested, removed untested, or tested one by one.
+constexpr uint8_t KEEP = 0, DROP = 1, MIXED = 2;
+
+// x in the frame of pose (12 numbers: R row-major, t): R x + t.
+CS_ALWAYS_INLINE void apply(const double* P, const double* x, double* y) {
+    for (int i = 0; i < 3; ++i)
+        y[i] = P[3 * i] * x[0] + P[3 * i + 1] * x[1] + P[3 * i + 2] * x[2] + P[9 + i];
+}
+
+}  // namespace cloud_detail
 
 // The rows of a cloud as read: x, y and z of row r at data + r row_stride + {0, 1, 2}
 // column_stride bytes, float32 or float64.

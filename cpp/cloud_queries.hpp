@@ -1,4 +1,4 @@
-// The queries on a pair of a body and a point cloud's voxels (issue 29): what recheck.hpp,
+// The queries on a pair of a body and a point cloud's voxels: what recheck.hpp,
 // proximity.hpp and motion.hpp do for two trees, for a body's trees against a VoxelGrid
 // (voxel_grid.hpp), whose world-aligned cubes are solid.
 //
@@ -19,7 +19,7 @@
 #include <cstdint>
 
 #include "context.hpp"
-#include "motion.hpp"
+#include "motion_bounds.hpp"
 #include "proximity.hpp"
 #include "voxel_grid.hpp"
 

@@ -8,25 +8,61 @@
 // when a ray from it crosses the mesh's triangles an odd number of times.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
+#include <limits>
 
 #include "model.hpp"
 
 namespace collision_sensor {
 
-// True iff an element of one body lies in a solid element of the other (pair a, b; body b at
-// pose in a's frame), called once their triangles are known apart: then one vertex, the
-// element's test vertex (layout.hpp: SOLID_PROBE), decides for the whole element (it cannot be partly inside without its surface meeting the solid's).
-// Element pairs whose spheres are apart cannot contain one another and are skipped.
 // True iff point x (in element e's body frame) lies in element e's solid: the true box, sphere
 // or cylinder, or a closed mesh by ray parity (the boundary counts). False for no solid.
 bool inside_solid(const Model& model, int64_t e, const double* x);
 
+// True iff an element of one body lies in a solid element of the other (pair a, b; body b at
+// pose in a's frame), called once their triangles are known apart: then one vertex, the
+// element's test vertex (layout.hpp: SOLID_PROBE), decides for the whole element (it cannot
+// be partly inside without its surface meeting the solid's). Element pairs whose spheres are
+// apart cannot contain one another and are skipped.
 bool contained(const Model& model, int64_t a, int64_t b, const double* pose);
 
 // Like contained(), for a pair known to collide without meeting triangles: a vertex x (in body
 // a's frame) of an element of one body that lies in a solid element of the other, a point of
 // both bodies. False if there is none.
 bool contained_vertex(const Model& model, int64_t a, int64_t b, const double* pose, double* x);
+
+// The distance from point x (in element e's body frame) to the solid of element e, 0 inside:
+// the true box, sphere or cylinder (elem_solid row s: kind, size, R, t). INF for a closed mesh
+// or none: a body cannot enter a closed mesh without its surface meeting the mesh's, which the
+// triangles see; a primitive's tessellation is inscribed, so a vertex can enter the true solid
+// (which check() counts) without any triangle meeting.
+inline double solid_distance(const double* s, const double* x) {
+    const int kind = int(s[0]);
+    const double* R = s + 4;
+    const double* t = s + 13;
+    const double d0 = x[0] - t[0], d1 = x[1] - t[1], d2 = x[2] - t[2];
+    const double p0 = R[0] * d0 + R[3] * d1 + R[6] * d2;
+    const double p1 = R[1] * d0 + R[4] * d1 + R[7] * d2;
+    const double p2 = R[2] * d0 + R[5] * d1 + R[8] * d2;
+    switch (kind) {
+        case 1: {  // SOLID_BOX: half extents
+            const double e0 = std::max(std::fabs(p0) - s[1], 0.0);
+            const double e1 = std::max(std::fabs(p1) - s[2], 0.0);
+            const double e2 = std::max(std::fabs(p2) - s[3], 0.0);
+            return std::sqrt(e0 * e0 + e1 * e1 + e2 * e2);
+        }
+        case 2:  // SOLID_SPHERE: radius
+            return std::max(std::sqrt(p0 * p0 + p1 * p1 + p2 * p2) - s[1], 0.0);
+        case 3: {  // SOLID_CYLINDER along z: radius, half length
+            const double er = std::max(std::sqrt(p0 * p0 + p1 * p1) - s[1], 0.0);
+            const double ez = std::max(std::fabs(p2) - s[2], 0.0);
+            return std::sqrt(er * er + ez * ez);
+        }
+        default:
+            return std::numeric_limits<double>::infinity();
+    }
+}
 
 }  // namespace collision_sensor

@@ -1,4 +1,4 @@
-// Distances with nearest points between two OBB trees (issue 15), for the proximity query.
+// Distances with nearest points between two OBB trees, for the proximity query.
 //
 // trees_distance: the smallest triangle distance between two OBB trees (traversal.hpp's
 // layout), found by descending both with a lower bound per node pair and pruning every node
@@ -42,9 +42,8 @@ struct NearestPoints {
 // box_in_frame). The boxes' gap along a unit axis bounds their distance whatever the axis;
 // this one aims at the nearest points by alternating projection (x, the point of A nearest
 // B's centre; y, the point of B nearest x; x again, the point of A nearest y; u = y - x:
-// more rounds converge to a nearest pair, but pruned no more node pairs on the Panda and
-// UR5). The gap along u is (min over B of u.p) - (max over A of u.p), with each box's support
-// |u . axis_k| h_k. (The face axes' gap, tried on top of it, pruned almost nothing more.)
+// more rounds converge to a nearest pair, but prune no more node pairs). The gap along u is (min over B of u.p) - (max over A of u.p), with each box's support
+// |u . axis_k| h_k. (The face axes' gap would add almost nothing on top of it.)
 // Boxes whose projection meets (overlapping, or nearly) get face_gap. With dir, u / |u| (A's
 // box frame) is written there, or 0 for face_gap's answer.
 CS_ALWAYS_INLINE double projected_gap(const double* A, const double* B, const double* T,
@@ -91,7 +90,7 @@ constexpr int PLACED_WIDTH = 12;
 // bound (projected_gap, which costs as much as the rest of the node pair) once it comes within
 // this fraction of the best distance: the pair is then near the best along the direction of
 // the nearest points, where a direction of its own rarely proves more. Only the work depends
-// on it, never the answer (measured on the Panda and the UR5, collision_sensor_bench S8).
+// on it, never the answer.
 constexpr double SLAB_TRUST_REL = 0.05;
 
 // Work rows of the proximity traversal, one per node of the forest (proximity.cpp sizes them

@@ -250,6 +250,10 @@ class Engine {
     void first_contact(int64_t n, const SegmentCheck& check, MotionResult& result);
     // result cleared for a check: no contact, pairs (P,) zero.
     void clear(MotionResult& result) const;
+    // The first row of Q (n, J) with a value that is not usable, and that value (bad.row -1:
+    // none).
+    static BadValue first_bad_row(const KinematicTree& kin, const double* Q, int64_t n,
+                                  int64_t J);
     void show_cloud(int64_t b);
 
     std::mutex lock_;

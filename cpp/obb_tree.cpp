@@ -157,7 +157,7 @@ TreeSize build_obb_tree(const double* tris, int64_t m, int64_t leaf_size, const 
         double* a = axes + 9 * p.node;
         // Refined at the top of the tree only (nodes holding more than 1/64 of its
         // triangles): those are tested on every descent, and refining every node would make
-        // a large mesh's build several times as long (a 100,000-triangle scene object).
+        // a large mesh's build several times as long.
         if (refine && 64 * n > m)
             fit_obb_refined(points.data(), 3 * n, center + 3 * p.node, a, half + 3 * p.node);
         else
@@ -174,8 +174,7 @@ TreeSize build_obb_tree(const double* tris, int64_t m, int64_t leaf_size, const 
         // along this box's axes).
         // The longest-variance axis alone (sec. 3) can cut a mesh into two long, overlapping
         // halves; trying all three keeps the children apart and small, which is what prunes a
-        // descent (scenario 13's two meshes near but apart: 356 box tests a check with the
-        // first axis alone, 110 with the best of three). An axis leaving a side empty (all
+        // descent of two meshes near but apart. An axis leaving a side empty (all
         // centroids on one side of the mean: only when they coincide along it) is skipped.
         int64_t cut = p.start + n / 2;  // all centroids coincide along every axis: halves
         double split = 0.0;

@@ -1,4 +1,4 @@
-// The proximity query (issue 15): every checked pair's padded distance and nearest points.
+// The proximity query: every checked pair's padded distance and nearest points.
 //
 // A query of its own over an engine's model and carried state, read through an EngineView
 // (context.hpp), working in a Scratch: the engine brings the statuses and poses up to date

@@ -1,4 +1,4 @@
-// Rays against the engine's OBB trees (issue 29): what a simulated depth camera sees, for the
+// Rays against the engine's OBB trees: what a simulated depth camera sees, for the
 // demo cell, the benchmarks and the tests of point clouds (collision_sensor/tools/depth_camera.py).
 //
 // Contract, for each ray o + t d (|d| = 1), t in (0, max_range]:

@@ -1,4 +1,4 @@
-// A triangle against a solid axis-aligned box (issue 29): the leaf kernel of a point cloud's
+// A triangle against a solid axis-aligned box: the leaf kernel of a point cloud's
 // voxels (voxel_grid.hpp) against a body's triangles.
 //
 // Contract (test/engine_kernels.py states it in plain Python):

@@ -1,4 +1,4 @@
-// Distance between two triangles, with nearest points (issue 15): the leaf kernel of both
+// Distance between two triangles, with nearest points: the leaf kernel of both
 // the proximity traversal (distance.hpp) and the padded contact test (traversal.hpp).
 //
 // Contract (test/engine_kernels.py states it in plain Python):

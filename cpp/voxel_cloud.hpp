@@ -1,4 +1,4 @@
-// One source's point cloud obstacle (issue 29): the side structure the engine keeps for a
+// One source's point cloud obstacle: the side structure the engine keeps for a
 // world object named cloud/<source>, a body without trees whose geometry is a VoxelGrid
 // (voxel_grid.hpp).
 //

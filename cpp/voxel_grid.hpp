@@ -1,4 +1,4 @@
-// A point cloud's obstacle (issue 29): the occupied voxels of a world-aligned grid, solid
+// A point cloud's obstacle: the occupied voxels of a world-aligned grid, solid
 // cubes, with a hierarchy of boxes over them.
 //
 // Voxel (i, j, k) is the cube [i s, (i + 1) s] x [j s, (j + 1) s] x [k s, (k + 1) s] of the

@@ -1,4 +1,4 @@
-// A batch's rows on several threads (issue 27): worker contexts and the chunked run.
+// A batch's rows on several threads: worker contexts and the chunked run.
 //
 // A query writes only its context: the carried state (context.hpp: State) and the work areas
 // (Scratch; MotionWork for the motion checks). The model, the options and, for a motion check

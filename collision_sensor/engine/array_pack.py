@@ -43,8 +43,8 @@ SLOTS: Tuple[Slot, ...] = tuple(
 DIMS: Tuple[str, ...] = tuple(engine.DIMS)
 
 #: Every packed array starts on a cache line of its own: the traversal reads table rows
-#: (16 floats a box, 4 ints a node) that must not straddle two lines. Without it, adding one
-#: small array before the node table once made every UR5 check 1.5 times slower.
+#: (16 floats a box, 4 ints a node) that must not straddle two lines: a row split over two
+#: lines costs two loads at every node pair of every descent.
 CACHE_LINE_BYTES = 64
 
 

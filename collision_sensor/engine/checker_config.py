@@ -15,12 +15,11 @@ box_test              'sat'      box-box test: 'sat' (15 separating axes) or 'pa
                                  as measured by ``python -m benchmarks``
 expansion             'wider'    node expansion rule (sec. 4.1): 'same', 'alternate',
                                  'larger' (volume), 'promising', 'wider' (half diagonal);
-                                 answers equal; 'wider' measured fastest on 10 of the 11
-                                 robots and scenes of scenarios 1, 3, 6 and 7 (tiago_pro
-                                 -20%, heavy contact -5%; so101 +9%)
+                                 answers equal; 'wider' is the fastest on most robots and
+                                 scenes the benchmarks measure
 obb_fit               'refined'  box fit: 'refined' (the principal-axes box tightened by
-                                 the smallest rectangle around each axis; scenario 13:
-                                 about 30 % fewer box tests a check than 'pca'), 'pca'
+                                 the smallest rectangle around each axis: fewer box tests a
+                                 check than 'pca'), 'pca'
                                  (vertex covariance, the paper's Wu method), 'hull_pca'
                                  (area-weighted convex hull), 'min_volume' (both slow)
 leaf_size             1          most triangles per tree leaf (1: a leaf box is as

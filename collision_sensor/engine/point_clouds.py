@@ -1,5 +1,5 @@
 """Obstacles from depth sensors: point clouds in, the robot's own points filtered out, the rest
-checked like any world object (issue 29).
+checked like any world object.
 
 A *source* (a camera, a lidar: any name) gives clouds one after another through
 :meth:`CollisionChecker.set_points`; each becomes the world object ``cloud/<source>``, checked

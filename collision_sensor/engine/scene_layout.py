@@ -235,7 +235,7 @@ class SceneLayout:
     def take_views(self, robot: RobotBlock, views: Mapping[str, np.ndarray]) -> RobotBlock:
         """Keep the packed views as this layout's arrays, and point the robot's block and every
         object's block at their rows of the engine's buffers in place of their own arrays:
-        nothing is held twice (scenario 4). Node tables of objects stay their own (the buffer
+        nothing is held twice. Node tables of objects stay their own (the buffer
         holds them shifted); the next scene change reads the trees from these views, which
         keep the buffers alive until then. Return the robot's block so pointed."""
         self.arrays = views
