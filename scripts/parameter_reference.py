@@ -34,7 +34,8 @@ YAML_HEADER = '''\
 #   collision_sensor_node --ros-args --params-file collision_sensor.yaml -r __ns:=/robot
 #
 # Parameters are read at start-up; those marked "settable at run time" can also be changed while
-# the node runs (ros2 param set /collision_sensor warning_distance 0.05), validated as here, and
+# the node runs (collision_sensor_ctl param set /collision_sensor warning_distance 0.05, or
+# ros2 param set with the same arguments), validated as here, and
 # the change is answered by a verdict; restart the node to change the others. A bad value, or a
 # name the node does not have (a typo), stops the node at start-up with a message naming it
 # (exit status 1). Types matter: write 1.0, not 1, for a double.
@@ -56,8 +57,9 @@ file: `unknown parameter(s): "warning_distnace" (did you mean warning_distance?)
 such as `use_sim_time`, pass, and a params file's section for another node is not read). File
 paths come only from these parameters.
 
-Those settable at run time (`ros2 param set /collision_sensor warning_distance 0.05`) are
-validated as at start-up; a refused request names the reason and changes nothing, and every
+Those settable at run time (`collision_sensor_ctl param set /collision_sensor warning_distance
+0.05`, or `ros2 param set /collision_sensor warning_distance 0.05` where ROS 2 comes from apt)
+are validated as at start-up; a refused request names the reason and changes nothing, and every
 change applied is answered by a verdict at the current state (header: now, root frame).
 `padding`, `link_padding` and `allowed_collisions` build a new checker on a thread of its own
 while the current one answers (`parameters_pending` on `/diagnostics` until it replaces it,
