@@ -11,7 +11,7 @@ reported so, never left out silently.
 
 Every scenario measures our checker and the peers on the same meshes and configurations in
 the same process, so the ratios hold on this machine whatever its speed. The markdown
-(printed, and written with ``--markdown``) is what docs/measurements.md shows;
+(printed, and written with ``--markdown``) is what docs/performance.md shows;
 ``--plot`` draws query time against triangle count (scenario 4) and the per-configuration
 times of scenario 1. Peers are optional: a missing one is reported as missing.
 

@@ -795,7 +795,7 @@ def main(argv=None) -> int:
         return 0
     from collision_sensor.ros.node_parameters import default_values
     # Random configurations are jumps, no motion of a robot: by default they are checked as
-    # instants (docs/measurements.md's instant runs); a walk with the node's default.
+    # instants; a walk with the node's default.
     motion = (args.check_motion == 'true' if args.check_motion is not None
               else args.walk is not None and default_values()['check_motion'])
     print(f'{what}, {colliding} colliding; check_motion {str(motion).lower()}', flush=True)

@@ -58,8 +58,8 @@ such as `use_sim_time`, pass, and a params file's section for another node is no
 paths come only from these parameters.
 
 Those settable at run time (`collision_sensor_ctl param set /collision_sensor warning_distance
-0.05`, or `ros2 param set` in a ROS install) are
-validated as at start-up; a refused request names the reason and changes nothing, and every
+0.05`, or `ros2 param set /collision_sensor warning_distance 0.05` where ROS 2 comes from apt)
+are validated as at start-up; a refused request names the reason and changes nothing, and every
 change applied is answered by a verdict at the current state (header: now, root frame).
 `padding`, `link_padding` and `allowed_collisions` build a new checker on a thread of its own
 while the current one answers (`parameters_pending` on `/diagnostics` until it replaces it,

@@ -59,6 +59,8 @@ def worker_domain(base: int, worker: str) -> int:
 if os.environ.get('PYTEST_XDIST_WORKER'):
     os.environ['ROS_DOMAIN_ID'] = str(worker_domain(int(os.environ['ROS_DOMAIN_ID']),
                                                     os.environ['PYTEST_XDIST_WORKER']))
+    # (the controller's value, inherited, is the first worker's domain, not this one's)
+    os.environ['COLLISION_SENSOR_TEST_DOMAIN'] = os.environ['ROS_DOMAIN_ID']
 # The collision_sensor fixture's sensors too (collision_sensor.testing picks a domain of its
 # own otherwise): set, not defaulted, since an xdist worker inherits the controller's value
 # and must follow its own domain.

@@ -94,6 +94,24 @@ def test_every_relative_link_and_anchor_resolves(page):
     assert not broken, '\n'.join(broken)
 
 
+#: What user docs do not hold: a date, a time in UTC, a commit hash (history is the commits').
+DATED = re.compile(r'\b20\d\d-\d\d-\d\d\b|\bUTC\b'
+                   r'|\b(?=[0-9a-f]*[a-f])(?=[0-9a-f]*\d)[0-9a-f]{7,40}\b')
+
+
+@pytest.mark.parametrize('page', [os.path.relpath(path, REPO) for path in PAGES])
+def test_no_page_holds_a_date_or_a_commit(page):
+    found = [line for line in read(os.path.join(REPO, page)).splitlines() if DATED.search(line)]
+    assert found == []
+
+
+def test_the_date_check_sees_dates_and_hashes():
+    for text in ('on 2026-11-25', '01:51 UTC', 'commit 1399db0', 'at a339679'):
+        assert DATED.search(text), text
+    for text in ('10000000 triangles', 'deadbeef', 'panda_link0'):
+        assert not DATED.search(text), text
+
+
 def ci_test_command():
     """The command ``.ci/run`` runs: its last line that is not set-up (set, cd, export, echo)."""
     commands = [line.strip() for line in read(os.path.join(REPO, '.ci', 'run')).splitlines()

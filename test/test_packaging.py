@@ -46,7 +46,9 @@ PY = f'python{sys.version_info.major}.{sys.version_info.minor}'
 WHERE = ('import collision_sensor, collision_sensor.model.share as s\n'
          'print(collision_sensor.__file__)\n'
          'print(s.share_directory())\n')
-TIMEOUT = 240
+#: s: the limit of one install step (a wheel build compiles the engine); it only catches a hang,
+#: far above what a build takes on a loaded machine.
+TIMEOUT = 1800
 
 
 def clean_env(**extra):

@@ -121,7 +121,7 @@ def fit_obb_refined(points):
     with a side along one of its edges; 4 to 48 points: the principal box. Tree builds use it
     for the top of each tree (nodes over 1/64 of the mesh), which keeps their time near the
     vertex fit's and gets most of :func:`fit_obb_min_volume`'s
-    tightness (``docs/measurements.md``, "Bounding-volume fits").
+    tightness (``docs/performance.md``, scenario 5: bounding-volume fits).
 
     :param points: (n, 3) float64, n >= 1, finite.
     :return: (center (3,), axes (3, 3), half (3,)) in the module's convention.

@@ -21,6 +21,11 @@ STOP_TIMEOUT = 10.0     # s for the node to exit on SIGINT before it is killed
 _POLL = 0.05            # s between checks while waiting
 
 
+#: Held while a whole line is written to the demo's output: the node's echoed lines (a thread
+#: of their own) and the demo's never share a line.
+OUTPUT_LOCK = threading.Lock()
+
+
 class DemoError(CollisionSensorError):
     """The demo could not run: the node did not come up, died, or gave no verdict."""
 
@@ -95,7 +100,8 @@ class NodeProcess:
             if READY_MARK in line:
                 self.ready.set()
             if self._echo is not None:
-                print(f'  node | {line}', file=self._echo, flush=True)
+                with OUTPUT_LOCK:
+                    print(f'  node | {line}', file=self._echo, flush=True)
 
     def exited(self) -> Optional[int]:
         """Return the exit status if the process has ended, else None."""

@@ -11,7 +11,7 @@ from typing import Dict, Optional, Tuple
 
 from collision_sensor.ros.demo_camera_feed import CLOUD_VERDICT_TIMEOUT, CameraFeed
 from collision_sensor.ros.demo_node_process import (
-    START_TIMEOUT, DemoError, NodeProcess, demo_cell_parameters, wait_until_ready)
+    OUTPUT_LOCK, START_TIMEOUT, DemoError, NodeProcess, demo_cell_parameters, wait_until_ready)
 from collision_sensor.ros.demo_verdicts import (
     Pair, Verdicts, change_lines, motion_line, motion_summary_lines, scene_lines,
     stamp_nanoseconds,
@@ -48,7 +48,8 @@ def run_demo(seq, namespace: str = NAMESPACE, rate: Optional[float] = None, fast
     from collision_sensor.ros.sequence_player import SequencePlayer
 
     def say(text=''):
-        print(text, file=out, flush=True)
+        with OUTPUT_LOCK:
+            print(text, file=out, flush=True)
 
     n = len(seq)
     t0 = float(seq.times[0]) if n else 0.0

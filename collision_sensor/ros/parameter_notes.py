@@ -83,7 +83,7 @@ DETAILS = {
         'Certified, not sampled (docs/motion.md). An engine error or a new robot also starts a '
         'new motion (/diagnostics: motion, new_motions_*). A stream of jumps (random '
         "configurations) costs much more per verdict than a driver's stream of small steps "
-        '(docs/measurements.md): turn it off there.',
+        '(docs/performance.md): turn it off there.',
     'on_rejected_input':
         'Each of on_rejected_input, on_engine_error and stale_policy is "contact" (contact true '
         'with a colliding_pairs entry naming the reason: the node does not know the robot is '

@@ -611,8 +611,7 @@ def make_executor(context, kind: Optional[str] = None) -> Executor:
 
     ``events`` (default): rclpy's ``EventsExecutor`` (``rclpy.experimental``, in rclpy 7.1 and
     later), which takes each message as the middleware signals it, without rebuilding a wait
-    set per turn; chosen by measurement (``benchmarks.node_latency``,
-    docs/measurements.md).
+    set per turn; chosen by measurement (``python -m benchmarks.node_latency --executor``).
     Where it is missing, ``single`` (``SingleThreadedExecutor``) is used. ``multi`` is a
     two-thread ``MultiThreadedExecutor``.
 

@@ -42,6 +42,7 @@ def test_quick_run_writes_every_scenario_and_a_png(tmp_path, capsys):
     assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
 
 
+@pytest.mark.slow
 def test_missing_peers_are_reported_not_faked(tmp_path, monkeypatch):
     pytest.importorskip('fcl')
     for module in ('fcl', 'pinocchio', 'coal'):
@@ -78,6 +79,7 @@ def test_runs_are_merged_figure_by_figure_with_their_range():
     assert merge_reports(['a 1\n', 'a 2\n', 'a 3\n']).startswith('**3 runs**')
 
 
+@pytest.mark.slow
 def test_several_runs_make_one_report(tmp_path):
     table = tmp_path / 'bench.md'
     assert bench.main(['--quick', '--scenario', '3', '--runs', '2', '--markdown', str(table)]) == 0
@@ -85,6 +87,7 @@ def test_several_runs_make_one_report(tmp_path):
     assert '**2 runs**' in text and text.count(HEADERS[2]) == 1
 
 
+@pytest.mark.slow
 def test_scenario_selection_runs_only_those(tmp_path):
     table = tmp_path / 'bench.md'
     bench.main(['--quick', '--scenario', '5', '--markdown', str(table)])
@@ -110,6 +113,7 @@ def test_growth_fits_tell_log_from_linear():
     assert linear['k'] == pytest.approx(1.0) and linear['last'] > linear['first']
 
 
+@pytest.mark.slow
 def test_proximity_scenario_measures_both_robots_against_fcl():
     from benchmarks import scenario_proximity
     from benchmarks.scenario_settings import Settings
@@ -122,6 +126,7 @@ def test_proximity_scenario_measures_both_robots_against_fcl():
     assert len(section.verdicts) == 4 and all(v.passed is not None for v in section.verdicts)
 
 
+@pytest.mark.slow
 def test_the_warning_zone_walk_stays_within_the_limits_in_small_steps():
     from collision_sensor.engine.sampling import sampling_bounds
     from benchmarks.scenario_cells import robot_cell
@@ -141,6 +146,7 @@ def test_the_warning_zone_walk_stays_within_the_limits_in_small_steps():
     assert np.array_equal(walk, coherent_walk(panda_checker, 500, seed=4))
 
 
+@pytest.mark.slow
 def test_dynamic_scene_scenario_judges_both_targets():
     pytest.importorskip('fcl')
     from benchmarks import scenario_dynamic
@@ -153,6 +159,7 @@ def test_dynamic_scene_scenario_judges_both_targets():
     assert any('`update` and `check` agreed at every step' in line for line in section.lines)
 
 
+@pytest.mark.slow
 def test_every_robot_scenario_has_a_row_per_robot_and_agrees_with_its_peers(tmp_path):
     """Scenario 13 in its quick form on a few robots: a row per robot with a mesh (one without
     a checked pair says so), a row for the URDF neither loader reads, the robot without a
@@ -207,6 +214,7 @@ def test_every_robot_scenario_enumerates_every_urdf_of_the_package():
         every_robot_cells(['no/such'])
 
 
+@pytest.mark.slow
 def test_motion_scenario_judges_every_target_and_its_oracle_finds_no_miss(tmp_path):
     """Scenario 10 in its quick form: every target judged; the correctness ones (nothing
     missed or false against sampling and python-fcl, check_path as its segments one by one,
@@ -285,6 +293,7 @@ def test_node_latency_drives_the_console_script_from_another_process(args, line,
     assert re.search(r'wrong\s+0\b', run.stdout) and not re.search(r'wrong\s+[1-9]', run.stdout)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('robot', ['tiago_pro', 'kinova'])
 def test_the_pinocchio_peer_places_the_links_where_our_kinematics_does(robot):
     """The peer's configurations must put every link where ours do, continuous joints (held by
@@ -372,6 +381,7 @@ REGEX = r'python -m benchmarks: error: '
     (['--urdf', 'TYPO', '--package-path', 'ERD'], 'did you mean "package://example-robot-data/robots/ur_description/'
                          'meshes/ur5/collision/forearm.stl"'),
 ])
+@pytest.mark.slow
 def test_urdf_errors_are_one_line_naming_the_fix(erd_share, tmp_path, args, words):
     import os
     source = os.path.join(erd_share, 'robots', 'ur_description', 'urdf', 'ur5_robot.urdf')
@@ -387,6 +397,7 @@ def test_urdf_errors_are_one_line_naming_the_fix(erd_share, tmp_path, args, word
     assert words in lines[0], lines[0]
 
 
+@pytest.mark.slow
 def test_motion_parts_run_only_the_parts_asked(tmp_path):
     """--motion-parts D: scenario 10 runs its streams part alone, on the arms' cells."""
     import dataclasses

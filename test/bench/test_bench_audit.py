@@ -1,8 +1,11 @@
 """Smoke test of ``python -m benchmarks audit``: it runs small, prints its table and targets,
 and every run gives the same report lines; no timing checks (timing is the benchmark's)."""
+import pytest
+
 from benchmarks import main as bench
 
 
+@pytest.mark.slow
 def test_small_audit_benchmark_prints_runs_rates_and_targets(tmp_path, capsys):
     table = tmp_path / 'audit.md'
     assert bench.main(['audit', '--recordings', '6', '--frames', '40', '--runs', '2',

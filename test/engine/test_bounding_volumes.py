@@ -56,6 +56,7 @@ def check_box(points, box, rel=1e-9):
     return local
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('method', METHODS)
 def test_fits_contain_every_point_and_follow_the_convention(method):
     for points in random_clouds(3, 60):
@@ -81,6 +82,7 @@ def test_pca_axes_are_the_covariance_eigenvectors():
         assert abs(axes[:, k] @ V[:, 2 - k]) == pytest.approx(1.0, abs=1e-9)
 
 
+@pytest.mark.slow
 def test_pca_box_is_never_smaller_than_the_min_volume_box():
     for points in random_clouds(11, 40):
         v_pca = obb_volume(fit_obb_pca(points)[2])
@@ -100,6 +102,7 @@ def test_refined_box_is_never_larger_than_the_pca_box_and_often_smaller():
     assert smaller >= len(clouds) // 4, smaller
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('n', [300, 20_000])  # all points choose the angle; a sample of them
 def test_refined_box_of_a_square_prism_is_the_prism(n):
     # A square section has no principal axes in its plane (any two are eigenvectors), so the

@@ -111,6 +111,7 @@ def _count_disagreements(n, seed, n_cases=20, chunk=1_000_000):
     return stats, cases
 
 
+@pytest.mark.slow
 def test_paper_test_agrees_with_sat_on_ten_million_seeded_pairs():
     n = 10_000_000
     stats, cases = _count_disagreements(n, 20240601)
@@ -156,6 +157,7 @@ def _lp_pairs(n, seed):
     return np.stack([ha, hb], axis=1), RR, TT
 
 
+@pytest.mark.slow
 def test_both_tests_agree_with_lp_oracle_when_the_gap_is_clear():
     n = 4000
     H, RR, TT = _lp_pairs(n, 7)
@@ -299,6 +301,7 @@ def _fcl_distance(ha, hb, R, t):
     return fcl.distance(a, b, fcl.DistanceRequest(), fcl.DistanceResult())
 
 
+@pytest.mark.slow
 def test_one_axis_alone_agrees_with_the_whole_test_and_its_gap_is_a_lower_bound():
     """axis_gap(k) is what a front re-check tries: the axis the 15-axis test found last
     time. For every axis it never separates boxes the whole test (and the LP oracle) calls

@@ -48,12 +48,14 @@ def _agree_with_fcl(checker, urdf, seed):
     return colliding
 
 
+@pytest.mark.slow
 def test_panda_matches_fcl_on_random_configurations(panda, panda_urdf):
     colliding = _agree_with_fcl(panda, panda_urdf, seed=1)
     # The comparison means something only if both answers occur often.
     assert 200 < colliding < N_FCL_CONFIGURATIONS - 200
 
 
+@pytest.mark.slow
 def test_ur5_matches_fcl_on_random_configurations(ur5, ur5_urdf):
     colliding = _agree_with_fcl(ur5, ur5_urdf, seed=2)
     assert 200 < colliding < N_FCL_CONFIGURATIONS - 200
@@ -150,6 +152,7 @@ def _brute_force_pairs(checker):
                  or contained(*pair) or contained(pair[1], pair[0]))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('leaf_size', [1, 3])
 def test_small_robot_and_scene_match_brute_force(leaf_size):
     checker = CollisionChecker.from_urdf(
@@ -612,6 +615,7 @@ def test_small_motions_skip_pairs_that_stay_apart(panda):
     assert rechecked < 0.25 * pairs
 
 
+@pytest.mark.slow
 def test_subtree_volumes_cull_scene_objects_without_changing_answers(
         panda_urdf, panda_srdf, erd_package_paths):
     """Volumes spanning several links (each link's subtree) cull scene objects before any pair
@@ -632,6 +636,7 @@ def test_subtree_volumes_cull_scene_objects_without_changing_answers(
     assert below_root_only > 100
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('box_test', ['sat', 'paper'])
 def test_update_from_fronts_equals_check_in_near_contact(tmp_path, box_test):
     """Pairs hovering in near contact are re-checked from their fronts (the node pairs where

@@ -165,14 +165,17 @@ def _agree_with_fcl(checker, oracle, seed, max_distance=math.inf):
     return worst
 
 
+@pytest.mark.slow
 def test_panda_distances_agree_with_fcl(panda):
     _agree_with_fcl(*panda, seed=1)
 
 
+@pytest.mark.slow
 def test_ur5_distances_agree_with_fcl(ur5):
     _agree_with_fcl(*ur5, seed=2)
 
 
+@pytest.mark.slow
 def test_scene_distances_agree_with_fcl(panda_scene):
     _agree_with_fcl(*panda_scene, seed=3)
 

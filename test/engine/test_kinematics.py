@@ -47,6 +47,7 @@ def real_robot(request):
     return urdf, model, build_kinematic_tree(model)
 
 
+@pytest.mark.slow
 def test_fk_matches_yourdfpy_on_real_robots(real_robot):
     urdf, _, tree = real_robot
     robot = load_yourdfpy(urdf)

@@ -77,6 +77,7 @@ def test_degenerate_meshes_build():
     assert forest.depth[1] <= 6  # nine identical triangles: halves, not a chain
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('fit', [OBB_HULL_PCA, OBB_MIN_VOLUME])
 def test_slower_fits_keep_containment(fit):
     mesh = trimesh.creation.capsule(height=0.5, radius=0.1, count=[8, 8])

@@ -104,10 +104,12 @@ def _assert_padded_points(checker, r, padding):
         assert to_a <= pad_a + 1e-9 and to_b <= pad_b + 1e-9, r
 
 
+@pytest.mark.slow
 def test_panda_padded_contact_and_distances_agree_with_fcl(panda):
     _agree_with_fcl(*panda, seed=21)
 
 
+@pytest.mark.slow
 def test_ur5_padded_contact_and_distances_agree_with_fcl(ur5):
     _agree_with_fcl(*ur5, seed=22)
 

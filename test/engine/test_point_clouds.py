@@ -140,6 +140,7 @@ def test_own_surface_points_are_removed_and_never_in_contact(erd_share, erd_pack
         assert not _cloud_pairs(checker.check(q).colliding_pairs)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('padding', [0.0, 0.01, 0.02, 0.05])
 def test_self_filter_equals_brute_force(erd_share, erd_package_paths, padding):
     checker, _ = _checker(erd_share, erd_package_paths, 'panda', self_filter_padding=padding)
@@ -241,6 +242,7 @@ def test_proximity_equals_fcl_distance_to_the_voxel_boxes(erd_share, erd_package
             assert on_surface <= 1e-9
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('aligned', [True, False])
 def test_object_cloud_near_the_hand_measures_min_distance_within_a_voxel(panda, aligned):
     """A plate 5 cm beyond the hand: ``min_distance`` to the cloud is never more than the
@@ -381,6 +383,7 @@ def test_incremental_equals_fresh_full_check(erd_share, erd_package_paths):
         assert incremental.colliding_pairs == checker.check(q).colliding_pairs, step
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('threads', [2, 3, 7])
 def test_threads_give_the_cloud_of_one_thread(erd_share, erd_package_paths, threads):
     """The rows' first pass split over threads (chunks merged in order) gives what one thread

@@ -48,6 +48,7 @@ def all_orders(P, Q):
         yield Q[list(b)], P[list(a)]
 
 
+@pytest.mark.slow
 def test_random_pairs_agree_with_lp_oracle():
     rng = np.random.default_rng(42)
     counts = {True: 0, False: 0}

@@ -54,6 +54,7 @@ def test_every_urdf_is_found():
     assert len(ROBOTS) == 69 and sum(robot.srdf is not None for robot in ROBOTS) == 43
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('robot', list(_params()))
 def test_robot_loads_and_agrees_with_fcl(robot):
     from engine_oracles import FclOracle

@@ -14,6 +14,7 @@ def _corners(vertices, faces):
     return np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]
 
 
+@pytest.mark.slow
 def test_every_example_robot_stl_reads_as_trimesh_reads_it():
     files = sorted(glob.glob(os.path.join(example_robot_data_dir(), 'robots', '**', '*.stl'),
                              recursive=True))

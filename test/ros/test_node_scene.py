@@ -265,6 +265,7 @@ def test_a_late_joining_node_gets_the_scene_published_before(ros, robot_file):
     assert ('early', 'tool') in verdict and verdict == probe.expected()
 
 
+@pytest.mark.slow
 def test_joint_states_are_all_answered_while_a_large_mesh_is_added(ros, robot_file):
     """200,000 triangles arrive while joint states stream in: every joint state gets its
     verdict (overload_policy every), several of them while the tree is being built."""

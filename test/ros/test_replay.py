@@ -58,6 +58,7 @@ def pairs_of(msg: DiagnosticArray):
     return [status.name.split(':', 1) for status in msg.status]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('name', offline_check.BUNDLED_SEQUENCES)
 def test_node_verdicts_equal_the_offline_check(ros, tmp_path, capsys, name):
     expected = offline_frames(name, tmp_path, capsys)

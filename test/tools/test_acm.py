@@ -287,6 +287,7 @@ def test_same_seed_same_matrix(slider_base):
 
 # --- robots without an SRDF get a usable list --------------------------------------------------
 
+@pytest.mark.slow
 @pytest.mark.parametrize('robot', ['ur5', 'demo_arm'])
 def test_generated_list_clears_the_zero_pose(capsys, tmp_path, robot, ur5_urdf,
                                              erd_package_paths):
@@ -323,6 +324,7 @@ def test_generated_list_clears_the_zero_pose(capsys, tmp_path, robot, ur5_urdf,
 
 # --- the warning zone of a real robot, from the command line -----------------------------------
 
+@pytest.mark.slow
 def test_ur5_warning_ignore_from_the_command_line_against_python_fcl(ur5_urdf, ur5_srdf,
                                                                      erd_share, tmp_path):
     """The issue's UR5: ee_link and wrist_2_link are 0.0198 m apart wherever the arm goes. The

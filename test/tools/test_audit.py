@@ -90,6 +90,7 @@ def test_units_come_from_directories_globs_and_datasets_once_each(fleet):
             find_units(inputs)
 
 
+@pytest.mark.slow
 def test_every_report_line_matches_python_fcl(fleet, serial_records, expected):
     lines = audit_fleet.by_source(serial_records.records)
     for source, keys in expected.items():
@@ -302,6 +303,7 @@ def check_kills(make_runner, fleet, spec, options, serial_records, tmp_path):
     return failed['error']
 
 
+@pytest.mark.slow
 def test_a_killed_worker_costs_only_its_unit(fleet, spec, options, serial_records, tmp_path):
     error = check_kills(lambda: LocalPool(spec, options, 2), fleet, spec, options,
                         serial_records.records, tmp_path)
@@ -400,6 +402,7 @@ def test_forked_workers_share_the_so101_model_the_tool_built(erd_share, tmp_path
     assert any(line['frames_in_collision'] for line in serial.records)
 
 
+@pytest.mark.slow
 def test_worker_memory_does_not_grow_with_units(fleet, spec, options):
     path = os.path.join(fleet[0], 'a', 'paper_experiment.csv')
     units = [Unit(f'{path}?{k}', 'csv', path) for k in range(400)]
@@ -467,6 +470,7 @@ def _sigint_as_in_a_terminal():
         signal.signal(signal.SIGINT, previous)
 
 
+@pytest.mark.slow
 def test_ctrl_c_keeps_a_valid_report_that_resume_completes(fleet, serial_records, tmp_path):
     """Ctrl-C mid-run: exit 130, the report valid JSON lines of finished units, and --resume
     completes it with the lines of an uninterrupted run. The run is frozen (SIGSTOP, its whole

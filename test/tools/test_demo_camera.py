@@ -127,6 +127,7 @@ def test_the_self_filter_removes_the_rendered_arm_and_only_what_is_near_it(oracl
     assert prepared.stats.self_filtered == len(valid) - len(kept)
 
 
+@pytest.mark.slow
 def test_the_person_is_in_no_scene_file_and_the_sequence_reaches_it_only_mid_way(oracle, cell):
     with open(os.path.join(CONFIG, 'demo_scene.yaml')) as stream:
         assert demo_cell.PERSON_NAME not in stream.read()

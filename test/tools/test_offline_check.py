@@ -56,6 +56,7 @@ def test_checked_pairs_match_the_oracles(checker, oracle):
     assert set(checker.checked_pairs) == set(oracle.pairs)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('name', BUNDLED)
 def test_incremental_answers_match_python_fcl_on_every_frame(checker, oracle_answers, name):
     seq = read_sequence(os.path.join(SEQUENCES, name + '.csv'), joint_names=checker.joint_names)
@@ -128,6 +129,7 @@ def _fcl_min_distance(oracle, q):
                for a, b in oracle.pairs for x in objects[a] for y in objects[b])
 
 
+@pytest.mark.slow
 def test_min_distance_per_frame_agrees_with_fcl(capsys, oracle):
     seq = read_sequence(os.path.join(SEQUENCES, 'into_drum_clear.csv'),
                         joint_names=oracle.joint_names)
@@ -326,6 +328,7 @@ def _guard_rail_oracle(oracle, seq):
     return lambda q: _fcl_scene_pairs(oracle, q, rail)
 
 
+@pytest.mark.slow
 def test_the_5hz_guard_rail_sweep_is_clear_at_every_frame_and_not_between_them(capsys, tmp_path,
                                                                                  oracle):
     """The bundled sparse recording: every recorded state is clear (so the check without
