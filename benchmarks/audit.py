@@ -87,6 +87,13 @@ def spread(values: Sequence[float], fmt: str = '{:.2f}') -> str:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ['cluster']:      # python -m benchmarks audit cluster --help
+        from benchmarks import audit_cluster
+        return audit_cluster.main(argv[1:])
+    if argv[:1] == ['dataset']:      # python -m benchmarks audit dataset --help
+        from benchmarks import audit_dataset
+        return audit_dataset.main(argv[1:])
     parser = argparse.ArgumentParser(prog='python -m benchmarks audit',
                                      description=__doc__.split('\n\n')[0])
     parser.add_argument('--recordings', type=int, default=1000)

@@ -218,6 +218,31 @@ def test_a_dataset_in_normalised_units_maps_onto_the_joint_limits(fleet, capsys,
     assert _frame_keys(frames) == wanted[source]
 
 
+def test_a_node_reads_in_place_only_the_very_files_the_driver_stamped(fleet, tmp_path):
+    """Same path, size and modification time: read in place (a shared disk); any change, a
+    missing file or no stamp at all: fetched."""
+    unit = find_units([os.path.join(fleet[0], 'b', 'moving')])[0]      # a bag directory
+    paths = shipping.files(unit)
+    assert len(paths) > 1 and all(os.path.dirname(path) == unit.path for path in paths)
+    stamped = shipping.stamp(paths)
+    assert shipping.sees(stamped) and not shipping.sees(())
+    copy = tmp_path / 'copy.csv'
+    copy.write_text('time,a\n0,1\n')
+    stamped = shipping.stamp([str(copy)])
+    os.utime(copy, ns=(stamped[0][2] + 1, stamped[0][2] + 1))
+    assert not shipping.sees(stamped)
+    os.utime(copy, ns=(stamped[0][2], stamped[0][2]))
+    assert shipping.sees(stamped)
+    copy.write_text('time,a\n0,2\n0.1,3\n')
+    os.utime(copy, ns=(stamped[0][2], stamped[0][2]))
+    assert not shipping.sees(stamped)           # the size differs
+    copy.unlink()
+    assert not shipping.sees(stamped) and shipping.stamp([str(copy)])[0][1] == -1
+    episode = find_units([os.path.join(fleet[0], 'ds_v3') + '#1'])[0]
+    assert shipping.files(episode) == [os.path.join(episode.episode.root,
+                                                    episode.episode.data_file)]
+
+
 def _cli(capsys, argv):
     status = offline_check.main(argv + ['--progress', 'never'])
     out, err = capsys.readouterr()

@@ -122,6 +122,7 @@ def run_batch(units: List[Unit], spec: RobotSpec, options: CheckOptions, runner,
         record['settings'] = digest
         if not new:
             first[0] = time.perf_counter() - start
+            first_cpu[0] = time.process_time()
             bar.append(ProgressBar(len(todo), label='units', mode=progress))
         writer.write(record)
         new.append(record)
@@ -131,6 +132,7 @@ def run_batch(units: List[Unit], spec: RobotSpec, options: CheckOptions, runner,
                       'frames/s')
 
     cpu = time.process_time()
+    first_cpu = [cpu]
     try:
         stats = runner.run(todo, on_record, on_start) if todo else PoolStats()
     finally:
@@ -138,8 +140,9 @@ def run_batch(units: List[Unit], spec: RobotSpec, options: CheckOptions, runner,
         if bar:
             bar[0].close()
     seconds = time.perf_counter() - start
-    if not isinstance(runner, SerialRunner):
-        stats.driver_cpu = time.process_time() - cpu   # feeding the workers, the report
+    if not isinstance(runner, SerialRunner):   # feeding the workers, writing the report
+        stats.driver_cpu = time.process_time() - cpu
+        stats.steady_cpu = time.process_time() - first_cpu[0]
     order = {unit.source: k for k, unit in enumerate(units)}
     new.sort(key=lambda record: order.get(record['source'], len(order)))
     return BatchResult(done + new, new, stats, seconds, first[0])

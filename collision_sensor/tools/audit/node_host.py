@@ -113,17 +113,21 @@ class NodeHost:
         ``number``: ``('done', [(index, report line, RSS)], bytes of its own)`` or ``('died',
         index it was checking or None, reason, new worker's pid)``."""
         place = self.slots[slot]
+        failed, call = [], []
+        for index, unit, payload in items:   # fetched while the slot's last call runs
+            try:
+                call.append((index, unit, self._payload(unit, payload)))
+            except OSError as err:
+                failed.append((index, UnitChecker.failed_record(
+                    unit, self.options, f'{err.filename or unit.path}: cannot read: '
+                    f'{err.strerror or err}'), 0))
+            except Exception as err:     # the file server's fault: the unit's line says so
+                failed.append((index, UnitChecker.failed_record(
+                    unit, self.options, f'{unit.path}: cannot fetch it from the driver\'s '
+                    f'machine: {type(err).__name__}: {err}'), 0))
         with place.turn:
             place.turn.wait_for(lambda: place.next == number)
         try:
-            failed, call = [], []
-            for index, unit, payload in items:
-                try:
-                    call.append((index, unit, self._payload(unit, payload)))
-                except OSError as err:
-                    failed.append((index, UnitChecker.failed_record(
-                        unit, self.options, f'{err.filename or unit.path}: cannot read: '
-                        f'{err.strerror or err}'), 0))
             if not call:
                 return 'done', failed, 0
             outcome = place.worker.run_call(call)
@@ -137,11 +141,16 @@ class NodeHost:
                 place.turn.notify_all()
 
     def _payload(self, unit: Unit, payload):
-        """What the worker reads ``unit`` from: the payload as sent, or (FETCH) its files
-        fetched from a file server, a dataset's data file as a path to this node's copy."""
-        if payload != FETCH:
-            return payload
+        """What the worker reads ``unit`` from: the payload as sent, or for ``(FETCH,
+        stamp)`` its path when this node sees the files so stamped, else its files fetched
+        from a file server (a dataset's data file: a path to this node's copy)."""
         import ray
+        if isinstance(payload, ray.ObjectRef):    # a data file the driver put (Ray Client)
+            return ray.get(payload)
+        if not (isinstance(payload, tuple) and payload[:1] == (FETCH,)):
+            return payload
+        if shipping.sees(payload[1]):
+            return None
         server = self.servers[hash(unit.source) % len(self.servers)]
         try:
             if unit.kind != 'lerobot':

@@ -33,7 +33,7 @@ from collision_sensor.errors import ConfigError
 from collision_sensor.tools.audit import shipping
 from collision_sensor.tools.audit.node_host import FETCH, FileServer, NodeHost
 from collision_sensor.tools.audit.scheduling import DEPTH, PoolStats, call_units, \
-    charge_death, settle_lost, take_call, unit_weight
+    charge_death, settle_lost, take_call
 from collision_sensor.tools.audit.unit_check import CheckOptions, RobotSpec, UnitChecker
 from collision_sensor.tools.audit.units import Unit
 
@@ -47,6 +47,10 @@ START_SECONDS = 300.0
 NODE_START_FAILURES = 3
 #: File servers on the driver's machine.
 FILE_SERVERS = 2
+#: Units in one call at most, and bytes of recordings: a call costs the driver about 2 ms of
+#: CPU whatever it holds (Ray's submission, wait and answer), a unit a few microseconds more.
+CALL_UNITS = 128
+CALL_BYTES = 128 * 2 ** 20
 
 
 def require_ray():
@@ -82,6 +86,17 @@ class _Slot:
         return f'{self.host.node[:8]} pid {self.pid}'
 
 
+_REMOTE: Dict[type, object] = {}
+
+
+def remote_class(ray, cls):
+    """``ray.remote(cls)``, made once per process (each costs the driver ~50 ms of CPU to
+    export; Ray exports it again to a new job by itself)."""
+    if cls not in _REMOTE:
+        _REMOTE[cls] = ray.remote(cls)
+    return _REMOTE[cls]
+
+
 def absolute(unit: Unit) -> Unit:
     """``unit`` with an absolute path (itself when it has one)."""
     path = os.path.abspath(unit.path)
@@ -100,14 +115,17 @@ class RayPool:
     :param jobs: workers over the cluster at most (None: one per CPU); with ``local``, the
         CPUs of the cluster started.
     :param ship: True: every host fetches the files (as from another machine); False: none
-        does; None: the hosts on other machines than the driver's.
+        does; None: the hosts on other machines than the driver's, of the files they do not
+        see as the driver stamped them.
+    :param call_units: units in one call at most.
     """
 
     def __init__(self, spec: RobotSpec, options: CheckOptions, address: str,
-                 jobs: Optional[int] = None, ship: Optional[bool] = None):
+                 jobs: Optional[int] = None, ship: Optional[bool] = None,
+                 call_units: int = CALL_UNITS):
         self.ray = require_ray()
         self.spec, self.options, self.address, self.jobs = spec, options, address, jobs
-        self.ship = ship
+        self.ship, self.call_units = ship, call_units
 
     def _connect(self) -> bool:
         """Join or start the cluster; return whether this call started Ray here."""
@@ -158,7 +176,17 @@ class _Run:
         self.sent = [absolute(unit) for unit in units]
         self.start = time.perf_counter()
         self.stats = PoolStats(nodes=0)
-        self.weights = [unit_weight(unit) for unit in units]
+        stamps: Dict[str, tuple] = {}      # a dataset's data file: stamped once
+        self.stamps = []
+        for unit in self.sent:
+            paths = shipping.files(unit)
+            key = paths[0] if unit.kind == 'lerobot' else None
+            if key not in stamps:
+                stamps[key] = shipping.stamp(paths)
+            self.stamps.append(stamps.pop(None) if key is None else stamps[key])
+        self.weights = [unit.episode.length * 64 if unit.kind == 'lerobot'
+                        else sum(max(size, 0) for _, size, _ in stamped)
+                        for unit, stamped in zip(units, self.stamps)]
         self.pending: Deque[int] = collections.deque(range(len(units)))
         self.deaths: Dict[int, int] = collections.Counter()
         self.losses: Dict[int, int] = collections.Counter()
@@ -171,9 +199,9 @@ class _Run:
         self.client = ray.util.client.ray.is_connected()
         self.spec_ref = ray.put(pool.spec)
         self.shared: Dict[str, object] = collections.OrderedDict()  # client: data files put
-        self.remote = ray.remote(NodeHost)
+        self.remote = remote_class(ray, NodeHost)
         self.servers = [] if self.client else [
-            ray.remote(FileServer).options(
+            remote_class(ray, FileServer).options(
                 num_cpus=0, scheduling_strategy=self.affinity(self.here, soft=False)).remote()
             for _ in range(FILE_SERVERS)]
         self.looked = 0.0
@@ -199,6 +227,7 @@ class _Run:
                 max_task_retries=0, scheduling_strategy=self.affinity(node_id, soft=False)
             ).remote(self.spec_ref, self.options, workers, self.servers)
             local = node_id == self.here if self.pool.ship is None else not self.pool.ship
+            # (a host elsewhere reads in place what it sees as the driver stamped it)
             self.hosts[node_id] = _Host(handle, node_id, workers, handle.hello.remote(),
                                         local and not self.client)
             if budget is not None:
@@ -242,12 +271,15 @@ class _Run:
                                                         error))
 
     # ------------------------------------------------------------------ calls
-    def payload(self, unit: Unit, host: _Host):
-        """What a host reads ``unit`` from (None: its path; FETCH: the file server's)."""
+    def payload(self, index: int, host: _Host):
+        """What a host reads unit ``index`` from: None, its path; ``(FETCH, stamp)``, its
+        path if the node sees the files the driver stamped, else the file server's; or (Ray
+        Client) its files packed here."""
         if host.local:
             return None
         if not self.client:
-            return FETCH
+            return FETCH, (() if self.pool.ship else self.stamps[index])
+        unit = self.sent[index]
         if unit.kind != 'lerobot':
             return shipping.pack(unit)
         key = os.path.join(unit.episode.root, unit.episode.data_file)
@@ -261,15 +293,15 @@ class _Run:
         """Give ``slot`` calls up to DEPTH; a retried unit only to an idle worker, alone."""
         while self.pending and len(slot.queue) < DEPTH and not slot.alone:
             call = take_call(self.pending, self.weights,
-                             call_units(len(self.pending), max(1, len(self.slots))),
-                             self.alone, bool(slot.queue))
+                             call_units(len(self.pending), max(1, len(self.slots)),
+                                        self.pool.call_units),
+                             self.alone, bool(slot.queue), CALL_BYTES)
             if not call:
                 return
             items = []
             for index in call:
                 try:
-                    items.append((index, self.sent[index],
-                                  self.payload(self.sent[index], slot.host)))
+                    items.append((index, self.sent[index], self.payload(index, slot.host)))
                 except OSError as err:     # packed here (Ray Client): the unit fails
                     self.failed(index, f'{err.filename or "file"}: cannot read: '
                                 f'{err.strerror or err}')
@@ -279,6 +311,7 @@ class _Run:
                 continue
             ref = slot.host.handle.check.remote(slot.index, slot.sent, items)
             slot.sent += 1
+            self.stats.calls += 1
             slot.queue.append((call, ref))
             slot.alone = call[0] in self.alone
             if len(slot.queue) == 1:

@@ -14,6 +14,7 @@ back to the queue (:meth:`PoolStats.note_lost`), and only a unit whose nodes are
 :data:`LOST_LIMIT` times while it is checked is reported (a unit that brings its node down).
 """
 import os
+import stat
 from dataclasses import dataclass, field
 from typing import Callable, Container, Deque, Dict, List, Optional
 
@@ -21,7 +22,9 @@ from collision_sensor.tools.audit.units import Unit
 
 #: Calls a worker holds at once: the one it checks and the next.
 DEPTH = 2
-#: Units in one call at most, and bytes of recordings (a larger recording goes on its own).
+#: Units in one call of local workers at most, and bytes of recordings (a larger recording
+#: goes on its own); calls to Ray nodes cost the driver more, and are larger
+#: (:mod:`~collision_sensor.tools.audit.ray_pool`).
 CALL_UNITS = 16
 CALL_BYTES = 2 * 2 ** 20
 #: Times a unit is tried again after its worker died.
@@ -32,28 +35,28 @@ LOST_LIMIT = 3
 
 def unit_weight(unit: Unit) -> int:
     """Bytes of a unit's recording (an episode: its frames times 64), 0 if unknown."""
+    if unit.kind == 'lerobot':
+        return unit.episode.length * 64
     try:
-        if unit.kind == 'lerobot':
-            return unit.episode.length * 64
-        if os.path.isdir(unit.path):
-            return sum(entry.stat().st_size for entry in os.scandir(unit.path)
-                       if entry.is_file())
-        return os.path.getsize(unit.path)
+        status = os.stat(unit.path)
+        if not stat.S_ISDIR(status.st_mode):
+            return status.st_size
+        return sum(entry.stat().st_size for entry in os.scandir(unit.path) if entry.is_file())
     except OSError:
         return 0
 
 
-def call_units(pending: int, workers: int) -> int:
-    """How many small units the next call takes: CALL_UNITS, fewer as the queue runs out (the
+def call_units(pending: int, workers: int, most: int = CALL_UNITS) -> int:
+    """How many small units the next call takes: ``most``, fewer as the queue runs out (the
     last calls take one each, so that no worker idles while another finishes a long call)."""
-    return max(1, min(CALL_UNITS, pending // (2 * workers)))
+    return max(1, min(most, pending // (2 * workers)))
 
 
 def take_call(pending: Deque[int], weights: List[int], most: int, alone: set,
-              busy: bool) -> List[int]:
+              busy: bool, most_bytes: int = CALL_BYTES) -> List[int]:
     """Take the next call's units from the front of ``pending``: small ones together (up to
-    ``most`` units and CALL_BYTES); a large one or a retried one (in ``alone``) on its own, a
-    retried one only for an idle worker (not ``busy``).
+    ``most`` units and ``most_bytes`` of recordings); a larger one or a retried one (in
+    ``alone``) on its own, a retried one only for an idle worker (not ``busy``).
 
     :param weights: each unit's :func:`unit_weight`, by index.
     """
@@ -61,8 +64,8 @@ def take_call(pending: Deque[int], weights: List[int], most: int, alone: set,
     while pending and len(call) < most:
         index = pending[0]
         weight = weights[index]
-        on_its_own = index in alone or weight >= CALL_BYTES
-        if call and (on_its_own or size + weight > CALL_BYTES):
+        on_its_own = index in alone or weight >= most_bytes
+        if call and (on_its_own or size + weight > most_bytes):
             break
         if index in alone and busy:
             break
@@ -103,6 +106,9 @@ class PoolStats:
     :ivar nodes: nodes that checked units (Ray; 1 on this machine).
     :ivar start_seconds: from the start of the run until the first worker was ready.
     :ivar driver_cpu: CPU seconds of the driver's process during the run.
+    :ivar steady_cpu: those after the first line (what each further unit costs the driver,
+        without the start-up).
+    :ivar calls: calls sent to workers (Ray).
     """
 
     workers: int = 0
@@ -115,6 +121,8 @@ class PoolStats:
     nodes: int = 1
     start_seconds: float = 0.0
     driver_cpu: float = 0.0
+    steady_cpu: float = 0.0
+    calls: int = 0
     #: ``{worker: [RSS after each unit]}``, the first TRACE units of each.
     trace: Dict[str, List[int]] = field(default_factory=dict)
 

@@ -1,9 +1,10 @@
 """The work of one unit: read a recording, check every frame, return its report line.
 
-A worker (a local process, a Ray actor, or the driver itself with ``--jobs 1``) builds a
-:class:`UnitChecker` once from a :class:`RobotSpec` (the robot as loaded by the driver: its
-model, SRDF, scene and settings, plain arrays that pickle; no path is opened on the worker) and
-then checks units one after the other with the same checker. :meth:`UnitChecker.check` never
+The process that forks the workers (the driver with ``--jobs``, each Ray node's host), or the
+driver itself with ``--jobs 1``, builds a :class:`UnitChecker` once from a :class:`RobotSpec`
+(the robot as loaded by the driver: its model, SRDF, scene and settings, plain arrays that
+pickle; no path is opened where it is built) and the units are then checked one after the
+other with the same checker. :meth:`UnitChecker.check` never
 raises for a bad unit: the reason goes in the line's ``error``.
 
 What each unit is checked for is a list of :class:`UnitCheck` classes, by name in
