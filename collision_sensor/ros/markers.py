@@ -5,7 +5,7 @@ and the boxes of the links in contact at the last planned trajectory's first con
 """
 import math
 import time
-from typing import Dict, Optional
+from typing import Dict, NamedTuple, Optional
 
 import numpy as np
 from geometry_msgs.msg import Point, Pose
@@ -61,29 +61,83 @@ def quaternion_from_matrix(R) -> tuple:
             (R[1][0] - R[0][1]) / s)
 
 
+class NearRecord(NamedTuple):
+    """A near pair as the markers draw it (points as arrays)."""
+
+    link_a: str
+    link_b: str
+    distance: float
+    point_a: np.ndarray
+    point_b: np.ndarray
+
+
 def _point(point) -> Point:
     return Point(x=float(point[0]), y=float(point[1]), z=float(point[2]))
 
 
 class MarkerPublisher:
-    """Publish ``~/markers`` after verdicts (call everything with the node's lock held).
+    """Publish ``~/markers`` (``publish_markers``): the sensor's verdicts shown, looked at on
+    the node's poll timer.
 
     :param node: the node that owns the publisher.
+    :param enabled: ``publish_markers``.
+    :ivar scene_changed: set when the scene's objects changed (the markers show them again).
     """
 
-    def __init__(self, node):
-        self._publisher = node.create_publisher(MarkerArray, '~/markers', 10)
+    def __init__(self, node, enabled: bool):
+        self._node = node
+        self._publisher = None
         self.root_frame = ''
         self._content = ()      # (colliding links, near pairs) the markers show
+        self._serial = None     # the held verdict's serial they show
         self._time = 0.0
         self._shapes: Dict[str, tuple] = {}   # object: (its vertices, its marker's shape)
         self.scene_changed = True       # the scene file's objects, on the first verdict
         self._trajectory = []   # the last trajectory's first-contact markers
+        self.enable(enabled)
 
-    def close(self, node) -> None:
-        """Clear the markers and destroy the publisher (``publish_markers`` turned off)."""
-        self.clear(self.root_frame)
-        node.destroy_publisher(self._publisher)
+    @property
+    def enabled(self) -> bool:
+        return self._publisher is not None
+
+    def enable(self, enabled: bool) -> None:
+        """Advertise ``~/markers`` (``publish_markers`` true), or clear the markers and withdraw
+        it."""
+        if enabled and self._publisher is None:
+            self._publisher = self._node.create_publisher(MarkerArray, '~/markers', 10)
+            self.scene_changed = True
+        elif not enabled and self._publisher is not None:
+            self.clear(self.root_frame)
+            self._node.destroy_publisher(self._publisher)
+            self._publisher = None
+
+    def forget(self, root_frame: str) -> None:
+        """A new model: clear what the old one showed."""
+        if self.enabled:
+            self.clear(root_frame)
+        self.root_frame = root_frame
+        self.scene_changed = True
+        self._serial = None
+
+    def refresh(self, sensor) -> None:
+        """Show the verdict the sensor holds, when it changed (or at most every MARKER_PERIOD
+        while something collides or is near, or an attached object moves with the robot)."""
+        if not self.enabled:
+            return
+        held = sensor.held()
+        if held is None or (held['serial'] == self._serial and not self.scene_changed):
+            return
+        # The checker held still while its poses are read.
+        with sensor.changing() as checker:
+            if checker is None:
+                return
+            zone = held['zone']
+            records = [] if zone is None else [
+                NearRecord(a, b, d, np.array(pa), np.array(pb))
+                for a, b, d, pa, pb in zone['records']]
+            self._serial = held['serial']
+            self.publish(checker, self._node.get_clock().now().to_msg(),
+                         [tuple(pair) for pair in held['now']], records)
 
     def publish(self, checker, stamp, pairs, records=()) -> None:
         """Publish the boxes of the colliding bodies, the scene objects and, with
@@ -94,7 +148,8 @@ class MarkerPublisher:
         :param checker: the checker that gave the verdict (at the state it describes).
         :param stamp: the verdict's stamp.
         :param pairs: the colliding pairs.
-        :param records: the warning zone's ``ProximityRecord``\\ s.
+        :param records: the warning zone's near pairs (``link_a``, ``link_b``, ``distance``,
+            ``point_a``, ``point_b``).
         """
         colliding = tuple(sorted({name for pair in pairs for name in pair}))
         near = tuple((r.link_a, r.link_b) for r in records)
@@ -258,7 +313,7 @@ class MarkerPublisher:
         dropped = root_frame is not None and bool(self._trajectory)
         if root_frame is not None:
             self._trajectory = []
-        if self._content or self._shapes or dropped:
+        if self._publisher is not None and (self._content or self._shapes or dropped):
             marker = Marker(action=Marker.DELETEALL)
             marker.header.frame_id = self.root_frame
             self._publisher.publish(MarkerArray(markers=[marker] + self._trajectory))

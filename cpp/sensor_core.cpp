@@ -1,0 +1,858 @@
+// The sensor core (sensor_core.hpp): joint states in, answers out.
+#include "sensor_core.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <stdexcept>
+
+#include "engine.hpp"
+#include "motion.hpp"
+#include "proximity.hpp"
+#include "sensor_text.hpp"
+
+namespace collision_sensor {
+
+namespace {
+
+constexpr double INFINITE = std::numeric_limits<double>::infinity();
+// The most log lines waiting for the caller (a flood of bad input drops the rest, counted).
+constexpr size_t MAX_NOTES = 1000;
+// The most complete states kept for positions_at, whatever the window (1 s at 4 kHz).
+constexpr size_t WINDOW_CAPACITY = 4096;
+
+// Failure kinds (colliding_pairs status names).
+const char* const REJECTED = "joint_state_rejected";
+const char* const WAITING = "waiting_for_joints";
+const char* const ENGINE_ERROR = "engine_error";
+const char* const STALE = "joint_states_stale";
+
+// The engine refused a state: variable j is not usable (kinematics.hpp: unusable_variable).
+struct EngineRefused {
+    int64_t variable;
+};
+// An engine error (not an internal one): the engine, or a test's injected fault, said what.
+struct EngineError : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+std::string fixed1(double value) {
+    char buffer[64];
+    std::snprintf(buffer, sizeof buffer, "%.1f", value);
+    return buffer;
+}
+
+std::string bound(double value) {
+    return std::isfinite(value) ? text::general(value, 6) : "none";
+}
+
+const char* limit_policy_name(int policy) {
+    return policy == LIMITS_CLAMP ? "clamp" : policy == LIMITS_ACCEPT ? "accept" : "reject";
+}
+
+std::string upper(std::string s) {
+    for (char& c : s) c = char(std::toupper(static_cast<unsigned char>(c)));
+    return s;
+}
+
+// The wall clock (ROS time without simulated time), s: a zero stamp's time.
+double wall_seconds() {
+    return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch())
+        .count();
+}
+
+double stamp_seconds(const cdr::Stamp& stamp) {
+    return stamp.zero() ? wall_seconds() : stamp.seconds();
+}
+
+}  // namespace
+
+SensorCore::SensorCore(const SensorSettings& settings) : settings_(settings) {}
+
+void SensorCore::set_sink(Sink sink) {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    sink_ = std::move(sink);
+}
+
+std::vector<std::pair<int, std::vector<uint8_t>>> SensorCore::take_outbox() {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    std::vector<std::pair<int, std::vector<uint8_t>>> out;
+    out.swap(outbox_);
+    return out;
+}
+
+std::vector<Note> SensorCore::take_notes() {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    std::vector<Note> out(notes_.begin(), notes_.end());
+    notes_.clear();
+    if (notes_dropped_) {
+        out.push_back({1, "notes_dropped",
+                       std::to_string(notes_dropped_) +
+                           " log lines dropped: more came than the node writes (bad input "
+                           "flooding joint_states?); /diagnostics counts every input"});
+        notes_dropped_ = 0;
+    }
+    return out;
+}
+
+void SensorCore::note(int level, std::string kind, std::string line) {
+    if (notes_.size() >= MAX_NOTES) {
+        ++notes_dropped_;
+        return;
+    }
+    notes_.push_back({level, std::move(kind), std::move(line)});
+}
+
+// -- the model ----------------------------------------------------------------------------------
+
+void SensorCore::use_model(SensorModel model) {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    const size_t J = model.joint_names.size();
+    if (model.engine == nullptr || model.lower.size() != J || model.upper.size() != J ||
+        model.motion_kinds.size() != J ||
+        model.swapped.size() != model.names.pairs.size())
+        throw std::invalid_argument("use_model: an engine, and limits and kinds per variable");
+    auto merge = std::make_unique<JointMerge>(model.joint_names, model.derived, model.lower,
+                                              model.upper, settings_.limit_policy,
+                                              settings_.limit_tolerance, settings_.max_unknown);
+    if (merge_) merge->carry_from(*merge_);
+    for (const auto& [j, value] : model.defaults) merge->set_default(j, value);
+    const bool same_joints = has_last_ && model.joint_names == model_.joint_names;
+    const bool first = model_.engine == nullptr;
+    std::vector<double> last = last_;
+    merge_ = std::move(merge);
+    model_ = std::move(model);
+    writer_.set_names(model_.names);
+    out_of_limits_.clear();
+    for (size_t j = 0; j < J; ++j) {
+        if (!merge_->heard(j)) continue;
+        const double v = merge_->positions()[j], lo = model_.lower[j], hi = model_.upper[j];
+        if ((std::isfinite(lo) && v < lo) || (std::isfinite(hi) && v > hi))
+            out_of_limits_[model_.joint_names[j]] = {v, lo, hi};
+    }
+    window_.clear();
+    unchecked_.clear();
+    announced_waiting_ = false;
+    restart_motion(first ? "first_state" : "new_checker");
+    if (same_joints) {
+        last_ = std::move(last);
+        has_last_ = true;
+    }
+    held_ = held_zone_ = false;
+    configure(settings_);  // the spans and the ignored pairs, for this model
+}
+
+void SensorCore::set_engine(Engine* engine, AnswerNames names, std::vector<uint8_t> swapped) {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    if (engine == nullptr || swapped.size() != names.pairs.size())
+        throw std::invalid_argument("set_engine: an engine, and swapped per pair");
+    // The held verdict names its pairs by their index: carry it over by name.
+    std::map<std::pair<std::string, std::string>, int64_t> index;
+    for (size_t p = 0; p < names.pairs.size(); ++p) index[names.pairs[p]] = int64_t(p);
+    const auto remap = [&](std::vector<int64_t>* pairs) {
+        std::vector<int64_t> out;
+        for (const int64_t p : *pairs) {
+            const auto found = index.find(model_.names.pairs[p]);
+            if (found != index.end()) out.push_back(found->second);
+        }
+        std::sort(out.begin(), out.end());
+        *pairs = std::move(out);
+    };
+    remap(&held_verdict_.now);
+    remap(&held_verdict_.met);
+    std::vector<ZoneRecord> records;
+    for (ZoneRecord r : held_zone_value_.records) {
+        const auto found = index.find(model_.names.pairs[r.pair]);
+        if (found == index.end()) continue;
+        r.pair = found->second;
+        records.push_back(r);
+    }
+    held_zone_value_.records = std::move(records);
+    model_.engine = engine;
+    model_.names = std::move(names);
+    model_.swapped = std::move(swapped);
+    writer_.set_names(model_.names);
+    configure(settings_);
+}
+
+void SensorCore::configure(const SensorSettings& settings) {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    if (settings.warning_distance != settings_.warning_distance ||
+        settings.warning_ignore != settings_.warning_ignore)
+        held_zone_ = false;
+    settings_ = settings;
+    if (merge_) merge_->set_policy(settings.limit_policy);
+    const size_t J = model_.joint_names.size();
+    spans_.assign(J, INFINITE);
+    for (size_t j = 0; j < J; ++j) {
+        const double span = model_.upper[j] - model_.lower[j] + 2.0 * settings.limit_tolerance;
+        if (std::isfinite(span)) spans_[j] = span;
+    }
+    motion_pairs_.assign(model_.names.pairs.size(), 0);
+}
+
+void SensorCore::restart_motion(const char* reason) {
+    motion_reason_ = reason;
+    has_last_ = carried_ = false;
+}
+
+cdr::Header SensorCore::root_header(cdr::Stamp stamp) const {
+    cdr::Header h;
+    h.stamp = stamp;
+    h.frame_id = model_.names.root_frame;
+    return h;
+}
+
+// -- joint states -------------------------------------------------------------------------------
+
+void SensorCore::take(const uint8_t* data, size_t size, bool answer, double now) {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    ++period_received_;
+    ++totals_["received"];
+    if (!merge_) {
+        ++totals_["no_model"];
+        if (answer)
+            publish_failure(cdr::read_header(data, size),
+                            {WAITING, "no robot model yet: nothing can be checked",
+                             settings_.on_rejected_input});
+        return;
+    }
+    if (int64_t(size) > settings_.max_joint_state_bytes) {
+        reject("oversized", cdr::read_header(data, size),
+               std::to_string(size) + " bytes, above max_joint_state_bytes (" +
+                   std::to_string(settings_.max_joint_state_bytes) +
+                   "); raise the parameter if the robot's joint states are really that large",
+               answer, "OVERSIZED", "joint state rejected before decoding, state unchanged: ");
+        return;
+    }
+    const std::string error = cdr::read_joint_state(data, size, &scratch_message_);
+    if (!error.empty()) {
+        reject("malformed", cdr::read_header(data, size),
+               "not a sensor_msgs/JointState: " + error, answer, "MALFORMED");
+        return;
+    }
+    take_locked(scratch_message_, answer, now);
+}
+
+void SensorCore::take_view(const cdr::JointStateView& message, bool answer, double now) {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    ++period_received_;
+    ++totals_["received"];
+    if (!merge_) {
+        ++totals_["no_model"];
+        if (answer)
+            publish_failure(message.header, {WAITING, "no robot model yet: nothing can be checked",
+                                             settings_.on_rejected_input});
+        return;
+    }
+    take_locked(message, answer, now);
+}
+
+void SensorCore::take_batch(const std::vector<std::pair<const uint8_t*, size_t>>& batch,
+                            bool newest_only, double now) {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    for (size_t k = 0; k < batch.size(); ++k) {
+        const bool last = k + 1 == batch.size();
+        try {
+            take(batch[k].first, batch[k].second, !newest_only || last, now);
+            if (last && !unchecked_.empty()) {
+                // The newest message was not accepted: answer the newest that was.
+                --totals_["superseded"];
+                Unchecked newest = std::move(unchecked_.back());
+                unchecked_.pop_back();
+                check_and_answer(newest.header, newest.outcome);
+            }
+        } catch (const std::exception& e) {
+            // One message must never stop the sensor: answered as an internal error.
+            fail(cdr::read_header(batch[k].first, batch[k].second), e.what(), true);
+        }
+    }
+}
+
+void SensorCore::take_locked(const cdr::JointStateView& message, bool answer, double now) {
+    const cdr::Header& header = message.header;
+    MergeOutcome outcome = merge_->merge(message.names, message.positions);
+    if (outcome.verdict == MergeVerdict::REJECTED) {
+        const std::string problem = problem_name(outcome.problem);
+        reject(problem.c_str(), header, outcome.reason, answer, upper(problem));
+        return;
+    }
+    if (!outcome.new_unknown.empty() || outcome.unremembered) {
+        note(1, "unknown",
+             "ignoring " + std::to_string(outcome.unknown.size()) +
+                 " joint name(s) in joint_states that the robot model does not move: " +
+                 text::listing(outcome.unknown, outcome.unknown.size(), 5, 300) + "; " +
+                 std::to_string(merge_->unknown_names().size()) +
+                 " distinct unknown names remembered (at most " +
+                 std::to_string(merge_->max_unknown()) + "), " +
+                 std::to_string(merge_->unknown_overflow()) +
+                 " not remembered; /diagnostics lists them");
+    }
+    if (!outcome.clamped.empty()) {
+        ++totals_["clamped"];
+        std::vector<std::string> clamped;
+        for (const int64_t j : outcome.clamped) clamped.push_back(model_.joint_names[j]);
+        note(1, "clamped",
+             "joints beyond their limits clamped to them (joint_limit_policy clamp): " +
+                 text::listing(clamped, clamped.size(), 5));
+    }
+    if (!outcome.accepted()) {
+        ++totals_["ignored"];
+        if (answer && unchecked_.empty() && !publish_held(header)) answer_waiting(header);
+        return;
+    }
+    ++totals_["accepted"];
+    last_accepted_ = now;
+    accepted_any_ = true;
+    if (stale_) resume(now);
+    update_limits(outcome);
+    if (settings_.require_all_joints && !merge_->complete()) {
+        ++totals_["waiting_for_joints"];
+        if (!announced_waiting_) {
+            announced_waiting_ = true;
+            note(0, "", "waiting for joints " +
+                            text::listing(merge_->missing(), merge_->missing().size(), 20) +
+                            " before the first verdict (require_all_joints)");
+        }
+        if (answer && unchecked_.empty()) answer_waiting(header);
+        return;
+    }
+    if (merge_->complete()) record_window(stamp_seconds(header.stamp), merge_->positions());
+    if (!answer) {
+        // Overloaded: a newer state waits; this one is merged but not checked.
+        unchecked_.push_back({header, std::move(outcome)});
+        ++totals_["superseded"];
+        return;
+    }
+    check_and_answer(header, outcome);
+}
+
+void SensorCore::reject(const char* problem, const cdr::Header& header, const std::string& reason,
+                        bool answer, const std::string& kind, const char* prefix) {
+    ++period_rejected_;
+    ++totals_["rejected"];
+    ++totals_[std::string("rejected_") + problem];
+    note(1, kind, prefix + reason);
+    if (answer && unchecked_.empty())
+        publish_failure(header, {REJECTED, "joint state rejected: " + reason,
+                                 settings_.on_rejected_input});
+}
+
+void SensorCore::answer_waiting(const cdr::Header& header) {
+    const std::vector<std::string> missing = merge_->missing();
+    const std::string reason =
+        !missing.empty() && settings_.require_all_joints
+            ? "waiting for joints " + text::listing(missing, missing.size(), 20) +
+                  " before the first verdict (require_all_joints)"
+            : "no joint state has named a joint of the robot yet";
+    publish_failure(header, {WAITING, reason, settings_.on_rejected_input});
+}
+
+void SensorCore::update_limits(const MergeOutcome& outcome) {
+    const std::vector<double>& q = merge_->positions();
+    for (const int64_t j : outcome.updated) {
+        const std::string& name = model_.joint_names[j];
+        out_of_limits_.erase(name);
+        const double v = q[j], lo = model_.lower[j], hi = model_.upper[j];
+        if ((std::isfinite(lo) && v < lo) || (std::isfinite(hi) && v > hi)) {
+            out_of_limits_[name] = {v, lo, hi};
+            note(1, "limits",
+                 "joint " + text::quoted(name) + " at " + text::general(v, 6) +
+                     " is outside its limits [" + bound(lo) + ", " + bound(hi) +
+                     "]; checked as given (joint_limit_policy " +
+                     limit_policy_name(settings_.limit_policy) + ")");
+        }
+    }
+}
+
+void SensorCore::record_window(double stamp, const std::vector<double>& q) {
+    if (!window_.empty() && stamp < window_.back().stamp) {
+        window_.clear();  // time went back (a bag restarted, simulated time reset)
+    } else if (!window_.empty() && stamp == window_.back().stamp) {
+        window_.back().q = q;
+        return;
+    }
+    window_.push_back({stamp, q});
+    const double horizon = stamp - settings_.state_window;
+    // Keep one state at or before the horizon, so that a stamp there can still be placed.
+    while (window_.size() > WINDOW_CAPACITY ||
+           (window_.size() > 1 && window_[1].stamp <= horizon))
+        window_.pop_front();
+}
+
+std::vector<double> SensorCore::filled(const std::vector<double>& q) const {
+    std::vector<double> out = q;
+    std::lock_guard<std::mutex> hold(model_.engine->lock());
+    const double* base = has_last_ ? last_.data() : model_.engine->view().state.q_last;
+    for (size_t j = 0; j < out.size(); ++j)
+        if (!merge_->heard(j)) out[j] = base[j];
+    return out;
+}
+
+void SensorCore::check_and_answer(const cdr::Header& header, const MergeOutcome& outcome) {
+    const std::vector<double> q =
+        merge_->complete() ? merge_->positions() : filled(merge_->positions());
+    const auto undo_all = [&] {
+        merge_->undo(outcome);
+        for (auto it = unchecked_.rbegin(); it != unchecked_.rend(); ++it) merge_->undo(it->outcome);
+        const int64_t undone = 1 + int64_t(unchecked_.size());
+        totals_["superseded"] -= int64_t(unchecked_.size());
+        unchecked_.clear();
+        return undone;
+    };
+    Zone zone;
+    Verdict verdict;
+    try {
+        verdict = check(q, last_accepted_, settings_.warning_distance > 0.0 ? &zone : nullptr);
+    } catch (const EngineRefused& refused) {
+        // The engine refuses a value it cannot honour (a slider beyond its range, a zero
+        // quaternion): the message is rejected after all, with the superseded states merged
+        // since (counted as rejected instead).
+        const int64_t undone = undo_all();
+        period_rejected_ += undone - 1;
+        totals_["rejected"] += undone - 1;
+        totals_["rejected_engine_range"] += undone - 1;
+        reject("engine_range", header, text::printable(unusable_message(refused.variable, q), 500),
+               true, "ENGINE_RANGE");
+        return;
+    } catch (const EngineError& e) {
+        undo_all();
+        fail(header, e.what(), false);
+        return;
+    } catch (const std::exception& e) {
+        undo_all();
+        fail(header, e.what(), true);
+        return;
+    }
+    unchecked_.clear();
+    ++totals_["verdicts"];
+    if (!failing_.empty()) {
+        publish_failure(header, failing_.front().second);
+        return;
+    }
+    publish_verdict(header, verdict, settings_.warning_distance > 0.0 ? &zone : nullptr);
+}
+
+Verdict SensorCore::check(const std::vector<double>& q, double accepted_at, Zone* zone) {
+    if (fault_.variable >= 0 && fault_.variable < int64_t(q.size()) &&
+        q[fault_.variable] == fault_.value) {
+        if (fault_.internal) throw std::runtime_error(fault_.message);
+        throw EngineError(fault_.message);
+    }
+    const auto started = std::chrono::steady_clock::now();
+    const bool motion = settings_.check_motion, from_scratch = resync_;
+    std::string reason;
+    if (motion && from_scratch) {
+        reason = motion_reason_.empty() ? "engine_error" : motion_reason_;
+    } else if (motion) {
+        const double timeout = settings_.stale_timeout;
+        if (!has_last_) {
+            reason = motion_reason_.empty() ? "first_state" : motion_reason_;
+        } else if (timeout > 0.0 && accepted_at - last_accepted_at_ > timeout) {
+            reason = "stale_gap";
+        } else {
+            for (size_t j = 0; j < q.size(); ++j)
+                if (std::fabs(q[j] - last_[j]) > spans_[j]) {
+                    reason = "jump";
+                    break;
+                }
+        }
+    }
+    Engine& engine = *model_.engine;
+    const int64_t J = int64_t(q.size());
+    bool hit = false;
+    double t = 0.0;
+    Verdict v;
+    {
+        std::lock_guard<std::mutex> hold(engine.lock());
+        if (!motion || from_scratch || !reason.empty()) {
+            const int64_t code = engine.query(q.data(), from_scratch);
+            if (code < 0) throw EngineRefused{-1 - code};
+        } else if (carried_) {
+            int64_t query_code = 0;
+            const int64_t code = engine.update_motion(q.data(), &t, motion_pairs_.data(),
+                                                      &query_code);
+            if (code < 0) throw EngineRefused{-1 - code};
+            hit = code == 1;
+        } else {  // a new model with the same joints: from the state the one before checked
+            const int64_t code = engine.motion(last_.data(), q.data(), &t, motion_pairs_.data());
+            if (code < 0) throw EngineRefused{(-1 - code) % J};
+            hit = code == 1;
+            const int64_t query = engine.query(q.data(), false);
+            if (query < 0) throw EngineRefused{-1 - query};
+        }
+        const int64_t* status = engine.view().state.status;
+        const int64_t P = int64_t(model_.names.pairs.size());
+        for (int64_t p = 0; p < P; ++p)
+            if (status[p]) v.now.push_back(p);
+        if (hit)
+            for (int64_t p = 0; p < P; ++p)
+                if (motion_pairs_[p] && !status[p]) v.met.push_back(p);
+        if (zone) measure_zone(q, zone);
+    }
+    if (motion) ++motion_counts_[reason.empty() ? "swept" : reason];
+    motion_reason_.clear();
+    carried_ = has_last_ = true;
+    last_accepted_at_ = accepted_at;
+    last_ = q;
+    v.contact = hit || !v.now.empty();
+    if (hit) {
+        v.first_contact = t;
+        if (!v.met.empty() && v.now.empty()) ++motion_counts_["met_on_the_way"];
+    }
+    if (resync_) {
+        resync_ = false;
+        engine_error_.clear();
+    }
+    const double elapsed =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    ++period_checks_;
+    period_time_sum_ += elapsed;
+    period_time_max_ = std::max(period_time_max_, elapsed);
+    return v;
+}
+
+void SensorCore::measure_zone(const std::vector<double>& q, Zone* zone) {
+    Engine& engine = *model_.engine;
+    const int64_t P = int64_t(model_.names.pairs.size());
+    std::vector<double> distance(P), points(6 * P);
+    const ProximityRequest request = {settings_.warning_distance};
+    const ProximityResult result = {distance.data(), points.data()};
+    const int64_t code = engine.read_at(q.data(), [&](const EngineView& view, Scratch& scratch) {
+        measure_proximity(view, request, scratch, result);
+    });
+    if (code < 0) throw EngineRefused{-1 - code};
+    zone->records.clear();
+    for (int64_t p = 0; p < P; ++p) {
+        if (!std::isfinite(distance[p])) continue;
+        const auto& names = model_.names.pairs[p];
+        if (settings_.warning_ignore.count(names)) continue;
+        ZoneRecord r;
+        r.pair = p;
+        r.distance = distance[p];
+        const double* row = points.data() + 6 * p;
+        const bool swap = model_.swapped[p] != 0;  // the engine keeps a scene object second
+        for (int k = 0; k < 3; ++k) {
+            r.point_a[k] = swap ? row[3 + k] : row[k];
+            r.point_b[k] = swap ? row[k] : row[3 + k];
+        }
+        zone->records.push_back(r);
+    }
+    const auto& pairs = model_.names.pairs;
+    std::sort(zone->records.begin(), zone->records.end(),
+              [&](const ZoneRecord& a, const ZoneRecord& b) {
+                  if (a.distance != b.distance) return a.distance < b.distance;
+                  return pairs[a.pair] < pairs[b.pair];
+              });
+    zone->near = !zone->records.empty();
+    zone->min_distance = zone->near ? zone->records.front().distance : INFINITE;
+}
+
+std::string SensorCore::unusable_message(int64_t j, const std::vector<double>& q) const {
+    const std::string& name = model_.joint_names[j];
+    const double value = q[j];
+    const std::string rot = "/rot_x";
+    if (std::isfinite(value) && name.size() > rot.size() &&
+        name.compare(name.size() - rot.size(), rot.size(), rot) == 0 && j + 3 < int64_t(q.size())) {
+        const std::string joint = name.substr(0, name.size() - rot.size());
+        std::string values;
+        for (int k = 0; k < 4; ++k)
+            values += (k ? ", " : "") + text::general(q[j + k], 6);
+        return "floating joint \"" + joint + "\": quaternion (rot_x, rot_y, rot_z, rot_w) = (" +
+               values + ") is zero (norm below " + text::general(QUATERNION_NORM_MIN, 6) +
+               "); send a unit quaternion, (0, 0, 0, 1) for no rotation (nothing was changed)";
+    }
+    const std::string why =
+        std::isfinite(value)
+            ? "moves a joint out of the engine's range (a prismatic joint, or a planar or "
+              "floating joint's translation, by more than " +
+                  text::general(PRISMATIC_VALUE_MAX, 6) +
+                  " m, or a value that overflows); send a value within the joint's limits"
+            : std::string("is not finite; send a finite value");
+    return "joint \"" + name + "\": position " + text::repr(value) + " " + why +
+           " (nothing was changed)";
+}
+
+// -- answers ------------------------------------------------------------------------------------
+
+void SensorCore::emit(const Answer& answer) {
+    writer_.write(answer, &topics_, &messages_);
+    for (size_t k = 0; k < topics_.size(); ++k) {
+        if (sink_)
+            sink_(topics_[k], messages_[k].data(), messages_[k].size());
+        else
+            outbox_.emplace_back(topics_[k], messages_[k]);
+    }
+    last_answer_ = answer;
+}
+
+void SensorCore::publish_verdict(const cdr::Header& header, const Verdict& verdict,
+                                 const Zone* zone) {
+    Answer a;
+    a.header = header;
+    a.contact = verdict.contact;
+    a.verdict = verdict;
+    held_ = true;
+    held_verdict_ = verdict;
+    if (zone) {
+        a.zoned = true;
+        a.zone = *zone;
+        held_zone_ = true;
+        held_zone_value_ = *zone;
+    }
+    emit(a);
+    ++verdict_serial_;
+}
+
+bool SensorCore::publish_held(const cdr::Header& header) {
+    if (!held_) return false;
+    Answer a;
+    a.header = header;
+    a.contact = held_verdict_.contact;
+    a.verdict = held_verdict_;
+    if (settings_.warning_distance > 0.0 && held_zone_) {
+        a.zoned = true;
+        a.zone = held_zone_value_;
+    }
+    emit(a);
+    return true;
+}
+
+void SensorCore::publish_failure(const cdr::Header& header, const Failure& failure) {
+    Answer a;
+    a.header = header;
+    a.failed = true;
+    a.failure = failure;
+    const bool hold = failure.policy == POLICY_HOLD;
+    if (hold && held_) {
+        a.contact = held_verdict_.contact;
+        a.verdict = held_verdict_;
+    } else {
+        a.contact = true;
+    }
+    if (settings_.warning_distance > 0.0) {
+        a.zoned = a.zone_failed = true;
+        if (hold && held_zone_) {
+            a.zone = held_zone_value_;
+        } else {
+            a.zone.near = true;
+            a.zone.min_distance = -INFINITE;  // not a distance: no comparison says "far"
+        }
+    }
+    emit(a);
+    ++totals_["failure_answers"];
+}
+
+void SensorCore::fail(const cdr::Header& header, const std::string& error, bool internal) {
+    ++totals_["engine_errors"];
+    const std::string shown = text::printable(error, 500);
+    engine_error_ = shown;
+    resync_ = true;
+    restart_motion("engine_error");
+    const int policy = settings_.on_engine_error;
+    note(2, internal ? "internal" : "engine",
+         "collision check failed: " + shown +
+             "; the state stays the last one checked, answered by on_engine_error " +
+             policy_name(policy));
+    publish_failure(header, {ENGINE_ERROR, "engine error: " + shown, policy});
+}
+
+bool SensorCore::answer_current(cdr::Stamp stamp) {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    std::vector<double> q;
+    if (current_positions(&q) != 0) return false;
+    const cdr::Header header = root_header(stamp);
+    Zone zone;
+    const bool zoned = settings_.warning_distance > 0.0;
+    try {
+        const Verdict verdict = check(q, last_accepted_, zoned ? &zone : nullptr);
+        if (!failing_.empty())
+            publish_failure(header, failing_.front().second);
+        else
+            publish_verdict(header, verdict, zoned ? &zone : nullptr);
+    } catch (const EngineRefused& refused) {
+        fail(header, unusable_message(refused.variable, q), false);
+    } catch (const EngineError& e) {
+        fail(header, e.what(), false);
+    } catch (const std::exception& e) {
+        fail(header, e.what(), true);
+    }
+    return true;
+}
+
+void SensorCore::answer_failure(cdr::Stamp stamp, const Failure& failure) {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    publish_failure(root_header(stamp), failure);
+}
+
+void SensorCore::set_failing(const std::string& source, const Failure& failure) {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    for (auto& entry : failing_)
+        if (entry.first == source) {
+            entry.second = failure;
+            return;
+        }
+    failing_.emplace_back(source, failure);
+}
+
+void SensorCore::clear_failing(const std::string& source) {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    failing_.erase(std::remove_if(failing_.begin(), failing_.end(),
+                                  [&](const auto& entry) { return entry.first == source; }),
+                   failing_.end());
+}
+
+// -- staleness, the window, the state -----------------------------------------------------------
+
+bool SensorCore::stale_due(double now) const {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    return !stale_ && settings_.stale_timeout > 0.0 && accepted_any_ &&
+           now - last_accepted_ > settings_.stale_timeout;
+}
+
+bool SensorCore::poll_stale(double now, cdr::Stamp stamp) {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    if (!stale_due(now)) return false;
+    stale_ = true;
+    stale_since_ = last_accepted_;
+    ++stale_episodes_;
+    const std::string reason = "joint states stale: none accepted for " +
+                               fixed1(now - last_accepted_) + " s (stale_timeout " +
+                               text::general(settings_.stale_timeout, 6) + " s)";
+    note(1, "stale", reason + "; stale episode " + std::to_string(stale_episodes_));
+    if (settings_.stale_policy == POLICY_CONTACT)
+        publish_failure(root_header(stamp), {STALE, reason, POLICY_CONTACT});
+    return true;
+}
+
+void SensorCore::resume(double now) {
+    stale_ = false;
+    note(0, "resumed",
+         "joint states resumed after " + fixed1(now - stale_since_) +
+             " s without (stale episode " + std::to_string(stale_episodes_) + ")");
+}
+
+int SensorCore::positions_at(double stamp, std::vector<double>* q) const {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    if (window_.empty()) return current_positions(q) == 0 ? 0 : 2;
+    if (stamp < window_.front().stamp) return 1;
+    if (stamp >= window_.back().stamp) {
+        *q = window_.back().q;
+        return 0;
+    }
+    // window_[k - 1].stamp <= stamp < window_[k].stamp
+    const auto after = std::upper_bound(
+        window_.begin(), window_.end(), stamp,
+        [](double s, const WindowState& w) { return s < w.stamp; });
+    const WindowState& b = *after;
+    const WindowState& a = *(after - 1);
+    const double s = (stamp - a.stamp) / (b.stamp - a.stamp);
+    const int64_t J = int64_t(a.q.size());
+    std::vector<double> delta(J), var(J), quat0(J);
+    StraightPath path{a.q.data(), model_.motion_kinds.data(), J, delta.data(), var.data(),
+                      quat0.data()};
+    path.prepare(b.q.data());
+    q->resize(J);
+    path.at(s, q->data());
+    return 0;
+}
+
+double SensorCore::window_oldest() const {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    return window_.empty() ? std::nan("") : window_.front().stamp;
+}
+
+double SensorCore::window_newest() const {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    return window_.empty() ? std::nan("") : window_.back().stamp;
+}
+
+int SensorCore::current_positions(std::vector<double>* q) const {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    if (!merge_ || !accepted_any_) return 1;
+    if (merge_->complete()) {
+        *q = merge_->positions();
+        return 0;
+    }
+    if (settings_.require_all_joints) return 1;
+    *q = filled(merge_->positions());
+    return 0;
+}
+
+std::string SensorCore::start_state(double now, std::vector<double>* q) const {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    if (!merge_ || !accepted_any_)
+        return "no joint state accepted yet: where the robot starts is unknown";
+    const double timeout = settings_.stale_timeout;
+    if (timeout > 0.0 && now - last_accepted_ > timeout)
+        return "joint states stale: none accepted for " + fixed1(now - last_accepted_) +
+               " s (stale_timeout " + text::general(timeout, 6) +
+               " s): where the robot starts is unknown";
+    if (settings_.require_all_joints && !merge_->complete()) {
+        const std::vector<std::string> missing = merge_->missing();
+        return "waiting for joints " + text::listing(missing, missing.size(), 20) +
+               " (require_all_joints): where the robot starts is unknown";
+    }
+    std::lock_guard<std::mutex> engine_hold(model_.engine->lock());
+    const double* engine_q = model_.engine->view().state.q_last;
+    const std::vector<double>& merged = merge_->positions();
+    q->resize(merged.size());
+    for (size_t j = 0; j < merged.size(); ++j)
+        (*q)[j] = merge_->heard(j) ? merged[j] : engine_q[j];
+    return "";
+}
+
+std::vector<double> SensorCore::merged_positions() const {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    return merge_ ? merge_->positions() : std::vector<double>();
+}
+
+SensorSnapshot SensorCore::snapshot(double now, bool reset_period) {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    SensorSnapshot s;
+    s.totals = totals_;
+    s.period_received = period_received_;
+    s.period_rejected = period_rejected_;
+    s.period_checks = period_checks_;
+    s.period_check_time_sum = period_time_sum_;
+    s.period_check_time_max = period_time_max_;
+    if (reset_period) {
+        period_received_ = period_rejected_ = period_checks_ = 0;
+        period_time_sum_ = period_time_max_ = 0.0;
+    }
+    s.has_model = merge_ != nullptr;
+    if (merge_) {
+        s.missing = merge_->missing();
+        s.unknown = merge_->unknown_names();
+        s.unknown_overflow = merge_->unknown_overflow();
+    }
+    for (const auto& [name, entry] : out_of_limits_) {
+        const auto& [value, lo, hi] = entry;
+        s.out_of_limits.emplace_back(name, value, lo, hi);
+    }
+    s.accepted_any = accepted_any_;
+    s.seconds_since_accepted = accepted_any_ ? now - last_accepted_ : 0.0;
+    s.held = held_;
+    s.held_contact = held_ && held_verdict_.contact;
+    if (held_) {
+        s.held_now = held_verdict_.now;
+        s.held_met = held_verdict_.met;
+    }
+    s.stale = stale_;
+    s.stale_episodes = stale_episodes_;
+    s.engine_error = engine_error_;
+    if (!settings_.check_motion)
+        s.motion_state = "off";
+    else if (has_last_)
+        s.motion_state = "sweeping";
+    else
+        s.motion_state = "new_motion: " + (motion_reason_.empty() ? std::string("first_state")
+                                                                  : motion_reason_);
+    s.motion_counts = motion_counts_;
+    for (const auto& entry : failing_) s.failing.push_back(entry.first);
+    return s;
+}
+
+}  // namespace collision_sensor
