@@ -432,10 +432,12 @@ void bind_sensor(py::module_& m) {
                  bool held, zoned;
                  cs::AnswerNames names;
                  int64_t serial;
+                 cs::cdr::Stamp stamp;
                  {
                      py::gil_scoped_release release;
                      std::lock_guard<std::recursive_mutex> hold(c.mutex());
                      held = c.held() != nullptr;
+                     stamp = c.held_stamp();
                      zoned = c.held_zone() != nullptr;
                      if (held) v = *c.held();
                      if (zoned) zone = *c.held_zone();
@@ -446,20 +448,24 @@ void bind_sensor(py::module_& m) {
                  py::dict d = verdict_dict(names, v);
                  d["zone"] = zoned ? py::object(zone_dict(names, zone)) : py::object(py::none());
                  d["serial"] = serial;
+                 d["stamp"] = py::make_tuple(stamp.sec, stamp.nanosec);
                  return d;
              },
-             "The verdict held (the last one published) with its zone and serial, or None.")
+             "The verdict held (the last one published) with its zone, serial and stamp "
+             "(sec, nanosec), or None.")
         .def("inject_fault",
              [](cs::SensorCore& c, int64_t variable, double value, std::string message,
-                bool internal) {
-                 cs::InjectedFault f{variable, value, std::move(message), internal};
+                bool internal, bool corrupt) {
+                 cs::InjectedFault f{variable, value, std::move(message), internal, corrupt};
                  py::gil_scoped_release release;
-                 std::lock_guard<std::recursive_mutex> hold(c.mutex());
                  c.inject_fault(std::move(f));
              },
              py::arg("variable"), py::arg("value"), py::arg("message"), py::arg("internal"),
+             py::arg("corrupt") = false,
              "For tests of the fail-safe path: the check of a state whose variable is value "
-             "raises message, as an internal error or an engine error (variable -1: none).")
+             "raises message, as an internal error or an engine error (variable -1: clears every "
+             "fault); "
+             "corrupt: after marking every pair in contact in the carried state.")
         .def("set_publish",
              [](cs::SensorCore& c, py::object publish) {
                  if (publish.is_none()) {

@@ -151,6 +151,12 @@ std::string read_joint_state(const uint8_t* data, size_t size, JointStateView* o
         if (!r.read_string(&out->names[k])) return "a name runs past the message's end";
     if (!r.read_count(&n, 8) || !r.read_doubles(n, &out->positions))
         return "the position sequence runs past the message's end";
+    // velocity and effort: not used, but a message must hold them whole.
+    std::vector<double>& rest = out->rest;
+    if (!r.read_count(&n, 8) || !r.read_doubles(n, &rest))
+        return "the velocity sequence runs past the message's end";
+    if (!r.read_count(&n, 8) || !r.read_doubles(n, &rest))
+        return "the effort sequence runs past the message's end";
     return "";
 }
 

@@ -6,8 +6,8 @@
 // byte after the encapsulation; a string is a uint32 length (its bytes plus a NUL), the bytes
 // and the NUL; a sequence a uint32 count, then its elements.
 //
-// Read: sensor_msgs/JointState (header, name[], position[]; velocity and effort are skipped, so
-// a message whose name and position are well formed is taken whatever follows). Written:
+// Read: sensor_msgs/JointState (header, name[], position[]; velocity[] and effort[] must be
+// whole, their values are not kept). Written:
 // std_msgs/Bool, std_msgs/Float64, diagnostic_msgs/DiagnosticArray, little-endian.
 #pragma once
 
@@ -37,6 +37,7 @@ struct JointStateView {
     Header header;
     std::vector<std::string_view> names;
     std::vector<double> positions;
+    std::vector<double> rest;  // scratch: velocity, then effort (read to check them)
 };
 
 // Read a JointState from data[:size]. Returns "" and fills out, or what is wrong with the

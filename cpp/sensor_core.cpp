@@ -435,11 +435,24 @@ void SensorCore::check_and_answer(const cdr::Header& header, const MergeOutcome&
     publish_verdict(header, verdict, settings_.warning_distance > 0.0 ? &zone : nullptr);
 }
 
+void SensorCore::inject_fault(InjectedFault fault) {
+    std::lock_guard<std::recursive_mutex> hold(mutex_);
+    if (fault.variable < 0)
+        faults_.clear();
+    else
+        faults_.push_back(std::move(fault));
+}
+
 Verdict SensorCore::check(const std::vector<double>& q, double accepted_at, Zone* zone) {
-    if (fault_.variable >= 0 && fault_.variable < int64_t(q.size()) &&
-        q[fault_.variable] == fault_.value) {
-        if (fault_.internal) throw std::runtime_error(fault_.message);
-        throw EngineError(fault_.message);
+    for (const InjectedFault& fault : faults_) {
+        if (fault.variable >= int64_t(q.size()) || q[fault.variable] != fault.value) continue;
+        if (fault.corrupt) {
+            std::lock_guard<std::mutex> hold(model_.engine->lock());
+            int64_t* status = model_.engine->view().state.status;
+            std::fill(status, status + model_.names.pairs.size(), int64_t(1));
+        }
+        if (fault.internal) throw std::runtime_error(fault.message);
+        throw EngineError(fault.message);
     }
     const auto started = std::chrono::steady_clock::now();
     const bool motion = settings_.check_motion, from_scratch = resync_;
@@ -596,6 +609,7 @@ void SensorCore::publish_verdict(const cdr::Header& header, const Verdict& verdi
     a.verdict = verdict;
     held_ = true;
     held_verdict_ = verdict;
+    held_stamp_ = header.stamp;
     if (zone) {
         a.zoned = true;
         a.zone = *zone;

@@ -115,12 +115,15 @@ struct SensorSnapshot {
 };
 
 // A test's fault (inject_fault): the engine call for a state whose variable j is value fails
-// with message, as an internal error (internal) or an engine error.
+// with message, as an internal error (internal) or an engine error; with corrupt, after
+// marking every pair in contact in the carried state, as a fault half-way through a query
+// would leave it.
 struct InjectedFault {
     int64_t variable = -1;
     double value = 0.0;
     std::string message;
     bool internal = true;
+    bool corrupt = false;
 };
 
 class SensorCore {
@@ -192,9 +195,12 @@ class SensorCore {
     // The last verdict published, for markers: a counter that grows with each one.
     int64_t verdict_serial() const { return verdict_serial_; }
     const Verdict* held() const { return held_ ? &held_verdict_ : nullptr; }
+    // The stamp of the held verdict's answer.
+    cdr::Stamp held_stamp() const { return held_stamp_; }
     const Zone* held_zone() const { return held_zone_ ? &held_zone_value_ : nullptr; }
 
-    void inject_fault(InjectedFault fault) { fault_ = std::move(fault); }
+    // Add a test's fault (variable -1: clear every one).
+    void inject_fault(InjectedFault fault);
 
    private:
     struct Unchecked {
@@ -245,6 +251,7 @@ class SensorCore {
     // The held verdict (the last one published) and the zone's held values.
     bool held_ = false, held_zone_ = false;
     Verdict held_verdict_;
+    cdr::Stamp held_stamp_;
     Zone held_zone_value_;
 
     // Joint states.
@@ -271,7 +278,7 @@ class SensorCore {
     bool resync_ = false;  // check the next state from scratch (after an engine error)
     std::string engine_error_;
     std::vector<std::pair<std::string, Failure>> failing_;
-    InjectedFault fault_;
+    std::vector<InjectedFault> faults_;
 
     // Counters.
     std::map<std::string, int64_t> totals_;

@@ -74,7 +74,7 @@ class JointStateSource(InputSource):
     :param settings: the node's settings (``joint_states_qos``, ``overload_policy``).
     :param log: the node's :class:`~collision_sensor.ros.node_log.NodeLog`.
     :ivar way_in: ``compiled`` or ``rclpy``, once started.
-    :ivar why_rclpy: why the hop is not used ('' when it is).
+    :ivar rclpy_reason: why the hop is not used ('' when it is).
     """
 
     name = 'joint_states'
@@ -83,7 +83,7 @@ class JointStateSource(InputSource):
         self._node, self._sensor, self._topics, self._log = node, sensor, topics, log
         self._settings = settings
         self.way_in = ''
-        self.why_rclpy = ''
+        self.rclpy_reason = ''
         self._hop = None
         self._worker: Optional[NewestFirstWorker] = None
         self.subscription = None
@@ -101,8 +101,8 @@ class JointStateSource(InputSource):
                              f'{", ".join(WAYS_IN)}; fix the environment variable')
         hop = load_hop() if wanted == 'compiled' else 'COLLISION_SENSOR_JOINT_STATES=rclpy'
         if isinstance(hop, str):
-            self.why_rclpy = hop
-            self._start_rclpy(backlog)
+            self.rclpy_reason = hop
+            self._start_through_rclpy(backlog)
             return
         node = self._node
         self._hop = hop.JointStateHop(
@@ -113,7 +113,7 @@ class JointStateSource(InputSource):
         self._hop.start()
         self.way_in = 'compiled'
 
-    def _start_rclpy(self, backlog: int) -> None:
+    def _start_through_rclpy(self, backlog: int) -> None:
         sensor = self._sensor
         self._worker = NewestFirstWorker(
             lambda batch, newest_only: sensor.take_batch(batch, newest_only),
@@ -133,13 +133,15 @@ class JointStateSource(InputSource):
             return self._hop.topic_name
         return self.subscription.topic_name if self.subscription is not None else ''
 
-    def bind_publishers(self) -> None:
-        """Give the hop the answer topics' publishers as they are now (after the warning zone
-        turned on or off)."""
+    def bind_publishers(self, without=()) -> None:
+        """Give the hop the answer topics' publishers as they are now, but the topics
+        ``without`` (the warning zone's, before they are withdrawn)."""
         if self._hop is None:
             return
+        publishers = self._topics.publishers
         for name, number in TOPIC_NUMBERS.items():
-            self._hop.set_publisher(number, self._topics.handle(name) or 0)
+            publisher = None if name in without else publishers.get(name)
+            self._hop.set_publisher(number, publisher.handle.pointer if publisher else 0)
 
     def close(self) -> None:
         """Stop taking joint states (before the node's publishers go)."""

@@ -8,6 +8,7 @@ import time
 from typing import Dict, NamedTuple, Optional
 
 import numpy as np
+from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, Pose
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
@@ -136,7 +137,8 @@ class MarkerPublisher:
                 NearRecord(a, b, d, np.array(pa), np.array(pb))
                 for a, b, d, pa, pb in zone['records']]
             self._serial = held['serial']
-            self.publish(checker, self._node.get_clock().now().to_msg(),
+            sec, nanosec = held['stamp']
+            self.publish(checker, Time(sec=sec, nanosec=nanosec),
                          [tuple(pair) for pair in held['now']], records)
 
     def publish(self, checker, stamp, pairs, records=()) -> None:

@@ -153,26 +153,8 @@ class CollisionSensorNode(Node):
         self.sensor = Sensor(None, settings, publish=self.topics.publish)
         self.markers = MarkerPublisher(self, settings.publish_markers)
         self._diagnostics_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        sensor, log = self.sensor, self.log
-        self.joints = JointStateSource(self, sensor, self.topics, settings, log)
-        self.scene = SceneSource(self, sensor, settings, log, self.markers,
-                                 self._diagnostics_pub)
-        self.trajectories = TrajectorySource(self, sensor, settings, log, self.markers)
-        self.sources = [self.joints, self.scene, self.trajectories] + [
-            PointCloudSource(self, sensor, topic, settings, log, self.markers)
-            for topic in settings.point_cloud_topics]
+        self.sources = self._make_sources()
         self._loader = ModelLoader(self._build_and_install)
-        if settings.urdf_path:
-            notes = []
-            checker = build_checker(self._factory, settings.urdf_path, settings, notes)
-            self._install(checker, settings.urdf_path, f'urdf_path "{settings.urdf_path}"',
-                          settings, notes)
-            self.log.write(notes)
-            self._start_sources()
-        else:
-            self.create_subscription(String, 'robot_description', self._on_robot_description,
-                                     LATCHED_QOS)
-            self.get_logger().info('waiting for the robot on robot_description')
         # Finished builds are taken up from a timer on the executor's thread; not from a guard
         # condition, which rclpy's EventsExecutor (7.1.5) refuses.
         self.create_timer(MODEL_POLL_PERIOD, self._on_model_loaded)
@@ -180,21 +162,42 @@ class CollisionSensorNode(Node):
         self.create_timer(POLL_PERIOD, self._poll)
         self._runtime = RuntimeParameters(self)
         self.add_on_set_parameters_callback(self._runtime.on_set)
+        if settings.urdf_path:
+            notes = []
+            checker = build_checker(self._factory, settings.urdf_path, settings, notes)
+            self._install(checker, settings.urdf_path, f'urdf_path "{settings.urdf_path}"',
+                          settings, notes)
+            self.log.write(notes)
+            self._start_sources()       # the last step: joint states are answered from here on
+        else:
+            self.create_subscription(String, 'robot_description', self._on_robot_description,
+                                     LATCHED_QOS)
+            self.get_logger().info('waiting for the robot on robot_description')
+
+    def _make_sources(self) -> list:
+        """The node's inputs (see :mod:`collision_sensor.ros.input_source`): one line each."""
+        sensor, settings, log, markers = self.sensor, self.settings, self.log, self.markers
+        self.joints = JointStateSource(self, sensor, self.topics, settings, log)
+        self.scene = SceneSource(self, sensor, settings, log, markers, self._diagnostics_pub)
+        self.trajectories = TrajectorySource(self, sensor, settings, log, markers)
+        return [self.joints, self.scene, self.trajectories] + [
+            PointCloudSource(self, sensor, topic, settings, log, markers)
+            for topic in settings.point_cloud_topics]
 
     def _start_sources(self) -> None:
-        """Subscribe every source (once a model is in place) and announce that the node is
-        up."""
-        for source in self.sources:
+        """Subscribe every source (once a model is in place), the joint states last (the hop
+        answers them from its start), and announce that the node is up."""
+        for source in self.sources[1:] + self.sources[:1]:
             source.start()
         self.ready = True
         joints = self.joints
-        way = ('compiled hop' if joints.way_in == 'compiled'
-               else f'rclpy ({joints.why_rclpy})')
+        way = ('the compiled hop' if joints.way_in == 'compiled'
+               else f'rclpy ({joints.rclpy_reason})')
         self.get_logger().info(
-            f'ready: checking {joints.topic_name} ({self.settings.joint_states_qos}, {way}) for '
+            f'ready: checking {joints.topic_name} ({self.settings.joint_states_qos}) for '
             f'{printable(self.model_source, 300)}; verdicts on '
             f'{self.resolve_topic_name("contact")} and '
-            f'{self.resolve_topic_name("colliding_pairs")}')
+            f'{self.resolve_topic_name("colliding_pairs")}; joint states taken by {way}')
 
     # -- the model ----------------------------------------------------------------------------
 
@@ -354,8 +357,8 @@ class CollisionSensorNode(Node):
             self.joints.bind_publishers()
         self.sensor.configure(settings)
         if not zone and self.topics.zone:
+            self.joints.bind_publishers(without=ZONE_TOPICS)
             self.topics.withdraw_zone()
-            self.joints.bind_publishers()
         self.markers.enable(settings.publish_markers)
         for source in self.sources:
             source.apply_settings(settings)

@@ -16,7 +16,7 @@ from collision_sensor.errors import ConfigError
 from collision_sensor.sensor.parameters import (  # noqa: F401 - the node's names for them
     CONTACT, DYNAMIC, FAIL_SAFE_POLICIES, HOLD, JOINT_STATES_QOS, MAX_JOINT_STATE_BYTES,
     MAX_TRAJECTORY_BYTES, PARAMETERS, ROS_PARAMETER_PREFIXES, NodeSettings, ParameterSpec,
-    _SPECS, default_values, settings_from_values, unknown_parameters_error)
+    _SPECS, closest_name, default_values, settings_from_values, unknown_parameters_error)
 
 
 def unknown_overrides(node) -> List[str]:

@@ -7,7 +7,7 @@ through the joint-state hop (rcl, no Python) or through rclpy (``publish``). The
 publishers exist only while the zone is on: turned on, they are advertised before the core
 makes zone answers; turned off, they are withdrawn after it stopped.
 """
-from typing import Dict, Optional
+from typing import Dict
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -69,7 +69,3 @@ class VerdictTopics:
         if publisher is not None:
             publisher.publish(message)
 
-    def handle(self, topic: str) -> Optional[int]:
-        """The rcl handle of ``topic``'s publisher (its address), None when not advertised."""
-        publisher = self.publishers.get(topic)
-        return None if publisher is None else publisher.handle.pointer

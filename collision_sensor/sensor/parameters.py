@@ -252,7 +252,7 @@ class NodeSettings:
     :ivar joint_states_qos: one of :data:`JOINT_STATES_QOS`.
     :ivar publish_markers: publish ``~/markers``.
     :ivar joint_limit_policy: one of
-        :data:`~collision_sensor.ros.joint_state_merger.LIMIT_POLICIES`.
+        :data:`LIMIT_POLICIES`.
     :ivar joint_limit_tolerance: rad or m beyond a limit still taken as given.
     :ivar max_unknown_joints: unknown joint names remembered.
     :ivar max_joint_state_bytes: largest serialized joint_states message taken.

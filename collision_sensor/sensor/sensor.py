@@ -30,6 +30,7 @@ from typing import Callable, Dict, Iterator, List, Mapping, Optional, Sequence, 
 import numpy as np
 
 from collision_sensor.engine.compiled import engine as compiled
+from collision_sensor.engine.trajectory import check_trajectory
 from collision_sensor.sensor.model import engine_arguments, model_arguments
 from collision_sensor.sensor.parameters import NodeSettings, settings_from_values
 
@@ -45,6 +46,9 @@ CORE_PARAMETERS = ('check_motion', 'require_all_joints', 'joint_limit_policy',
                    'joint_limit_tolerance', 'max_unknown_joints', 'max_joint_state_bytes',
                    'stale_timeout', 'stale_policy', 'on_rejected_input', 'on_engine_error',
                    'warning_distance', 'warning_ignore', 'point_cloud_state_window')
+#: Segments of a planned trajectory checked per engine call: between two calls the engine is
+#: free for joint states (a long trajectory holds none back by more than a few such segments).
+TRAJECTORY_SEGMENTS_PER_CALL = 16
 #: Why a state was checked as an instant, not as a motion (counted on ``/diagnostics``).
 NEW_MOTION_REASONS = tuple(compiled.NEW_MOTION_REASONS)
 
@@ -200,11 +204,16 @@ class Sensor:
             yield self.checker
         finally:
             try:
-                if self.checker is not None and self.checker._engine is not self._engine:
-                    self.core.set_engine(**engine_arguments(self.checker))
-                    self._engine = self.checker._engine
+                self._take_up_engine()
             finally:
                 self.core.unlock()
+
+    def _take_up_engine(self) -> None:
+        """Answer with the engine the checker laid its scene out in, if it is a new one (the
+        core held)."""
+        if self.checker is not None and self.checker._engine is not self._engine:
+            self.core.set_engine(**engine_arguments(self.checker))
+            self._engine = self.checker._engine
 
     def configure(self, parameters: Union[Mapping, NodeSettings]) -> None:
         """Take parameters changed at run time (the core's: ``check_motion``,
@@ -280,6 +289,7 @@ class Sensor:
         inside :meth:`editing`) and answer the current state (None while there is none)."""
         with self.editing(), self.changing() as checker:
             checker.commit_scene_changes(prepared)
+            self._take_up_engine()
             return self.answer_current(stamp)
 
     def commit_points(self, prepared, stamp: Stamp = None) -> Optional[Verdict]:
@@ -287,12 +297,14 @@ class Sensor:
         the current state (None while there is none)."""
         with self.editing(), self.changing() as checker:
             checker.commit_points(prepared)
+            self._take_up_engine()
             return self.answer_current(stamp)
 
     def clear_points(self, source: str, stamp: Stamp = None) -> Optional[Verdict]:
         """Remove ``source``'s cloud and answer the current state (None while there is none)."""
         with self.editing(), self.changing() as checker:
             checker.clear_points(source)
+            self._take_up_engine()
             return self.answer_current(stamp)
 
     def check_trajectory(self, joint_names, points):
@@ -306,9 +318,10 @@ class Sensor:
             start, reason = self.start_state()
             if start is None:
                 return None, reason
-            return checker.check_trajectory(
-                joint_names, points, start=start,
-                limit_tolerance=self.settings.joint_limit_tolerance), ''
+            return check_trajectory(
+                checker, joint_names, points, start=start,
+                limit_tolerance=self.settings.joint_limit_tolerance,
+                segments_per_call=TRAJECTORY_SEGMENTS_PER_CALL), ''
 
     # -- the state ------------------------------------------------------------------------------
 

@@ -32,17 +32,11 @@ def ball(name, radius, xyz):
     return SceneObject(name, 'test', pose(xyz), vertices, faces)
 
 
-def fresh_pairs(checker, q):
-    """What a from-scratch check of ``checker``'s robot and scene says at ``q``: a new checker
-    with the same scene objects (poses, attachments) and point clouds is too costly to build
-    per step; a full ``check`` trusts nothing the incremental state carried."""
-    return checker.check(q).colliding_pairs
-
-
-def assert_labels(verdict, checker, q, q_before, motion: bool):
-    """The verdict's pairs are the state's own (a full check), and the pairs met on the way are
-    the motion's (check_motion from the state before) that are not in contact now."""
-    now = fresh_pairs(checker, q)
+def assert_labels(verdict, oracle, q, q_before, motion: bool):
+    """The verdict's pairs are the state's own (the oracle's full check: a checker of its own
+    given every change the sensor's was), and the pairs met on the way are the motion's
+    (check_motion from the state before) that are not in contact now."""
+    now = oracle.check(q).colliding_pairs
     assert verdict.failure is None
     assert verdict.colliding_pairs == now
     assert all(a < b for a, b in now)
@@ -50,7 +44,7 @@ def assert_labels(verdict, checker, q, q_before, motion: bool):
         assert verdict.met_on_the_way == () and verdict.first_contact is None
         assert verdict.contact == bool(now)
         return
-    on_the_way = checker.check_motion(q_before, q)
+    on_the_way = oracle.check_motion(q_before, q)
     met = tuple(pair for pair in on_the_way.colliding_pairs if pair not in now)
     assert set(verdict.met_on_the_way) <= set(on_the_way.colliding_pairs)
     assert not set(verdict.met_on_the_way) & set(now)
@@ -67,14 +61,14 @@ def test_every_pair_kind_and_trigger_labelled_as_a_fresh_check_says(motion):
     removed, objects attached to links and carried, clouds set and cleared), each on every pair
     kind (link-link, link-object, link-attached, link-cloud): 0 mislabelled pairs."""
     rng = random.Random(11 if motion else 12)
-    checker = small_checker()
+    checker, oracle = small_checker(), small_checker()
     sensor = Sensor(checker, {'check_motion': motion, 'stale_timeout': 0.0})
     names = checker.joint_names
     lower = np.array([max(checker.joint_limits[n][0], -3.0) for n in names])
     upper = np.array([min(checker.joint_limits[n][1], 3.0) for n in names])
     q = (lower + upper) / 2
     verdict = sensor.step(names, q)
-    assert_labels(verdict, checker, q, None, motion)
+    assert_labels(verdict, oracle, q, None, motion)
     q_before = q
     kinds_seen = set()
     objects = []
@@ -85,7 +79,7 @@ def test_every_pair_kind_and_trigger_labelled_as_a_fresh_check_says(motion):
             q = np.clip(q + rng.gauss(0, 1) * scale * (upper - lower) *
                         np.array([rng.random() for _ in names]), lower, upper)
             verdict = sensor.step(names, q)
-            assert_labels(verdict, checker, q, q_before, motion)
+            assert_labels(verdict, oracle, q, q_before, motion)
             q_before = q
         else:
             with sensor.editing():
@@ -121,15 +115,18 @@ def test_every_pair_kind_and_trigger_labelled_as_a_fresh_check_says(motion):
                         points = centre + np.random.default_rng(step).normal(0, 0.08, (300, 3))
                         prepared = checker.prepare_points('camera', points, positions=q)
                         verdict = sensor.commit_points(prepared)
+                        oracle.set_points('camera', points, positions=q)
                     else:
                         verdict = sensor.clear_points('camera')
+                        oracle.clear_points('camera')
                     changes = None
                 if changes is not None:
                     prepared = checker.prepare_scene_changes(changes)
                     verdict = sensor.apply_scene_changes(prepared)
+                    oracle.apply_scene_changes(changes)
             # A scene change is answered at the state where the robot stands: in contact now,
             # never "met on the way" (the robot did not move).
-            assert_labels(verdict, checker, q, q, motion)
+            assert_labels(verdict, oracle, q, q, motion)
         for a, b in verdict.colliding_pairs:
             kinds_seen.add('cloud' if b.startswith('cloud/') or a.startswith('cloud/') else
                            'attached' if a.startswith('held') or b.startswith('held') else
@@ -145,16 +142,18 @@ def test_an_object_added_at_the_tool_of_a_standing_robot_is_in_contact_now():
     """The case a user met: a scene object added at the tool while the robot stands still,
     with check_motion on, is "collides with", not "met on the way at 0"; so is every verdict
     after it while the robot stands."""
-    checker = small_checker(scene=None)
+    checker, oracle = small_checker(scene=None), small_checker(scene=None)
     sensor = Sensor(checker, {'check_motion': True})
     names = checker.joint_names
     q = np.array([0.3, -0.4, 0.0, 0.2])
     assert sensor.step(names, q).colliding_pairs == ()
-    tool = checker.link_poses()['tool'][:3, 3]
+    oracle.check(q)
+    tip = (oracle.link_poses()['tool'] @ [0.0, 0.0, 0.06, 1.0])[:3]   # in the tool, near its end
+    changes = [AddObject(ball('ball', 0.02, tip))]
     with sensor.editing():
-        prepared = checker.prepare_scene_changes([AddObject(ball('ball', 0.05, tool))])
-        verdict = sensor.apply_scene_changes(prepared)
-    assert verdict.colliding_pairs == (('ball', 'tool'),)
+        verdict = sensor.apply_scene_changes(checker.prepare_scene_changes(changes))
+    oracle.apply_scene_changes(changes)
+    assert verdict.colliding_pairs == oracle.check(q).colliding_pairs == (('ball', 'tool'),)
     assert verdict.met_on_the_way == () and verdict.first_contact is None
     statuses = [status for topic, data in verdict.messages if topic == 'colliding_pairs'
                 for status in decode_pairs(data)]
