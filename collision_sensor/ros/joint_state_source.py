@@ -102,7 +102,7 @@ class JointStateSource(InputSource):
         hop = load_hop() if wanted == 'compiled' else 'COLLISION_SENSOR_JOINT_STATES=rclpy'
         if isinstance(hop, str):
             self.rclpy_reason = hop
-            self._start_through_rclpy(backlog)
+            self._subscribe_through_the_executor(backlog)
             return
         node = self._node
         self._hop = hop.JointStateHop(
@@ -113,7 +113,7 @@ class JointStateSource(InputSource):
         self._hop.start()
         self.way_in = 'compiled'
 
-    def _start_through_rclpy(self, backlog: int) -> None:
+    def _subscribe_through_the_executor(self, backlog: int) -> None:
         sensor = self._sensor
         self._worker = NewestFirstWorker(
             lambda batch, newest_only: sensor.take_batch(batch, newest_only),
