@@ -26,9 +26,7 @@ VERDICT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=VERDICT_DEPTH,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
-#: The topics of an answer: name and type.
-TOPIC_TYPES = {'contact': Bool, 'colliding_pairs': DiagnosticArray, 'near': Bool,
-               'min_distance': Float64, 'near_pairs': DiagnosticArray}
+#: The warning zone's topics.
 ZONE_TOPICS = ('near', 'min_distance', 'near_pairs')
 
 
@@ -42,8 +40,9 @@ class VerdictTopics:
     def __init__(self, node, zone: bool):
         self._node = node
         self.publishers: Dict[str, object] = {
-            name: node.create_publisher(TOPIC_TYPES[name], name, VERDICT_QOS)
-            for name in ('contact', 'colliding_pairs')}
+            'contact': node.create_publisher(Bool, 'contact', VERDICT_QOS),
+            'colliding_pairs': node.create_publisher(DiagnosticArray, 'colliding_pairs',
+                                                     VERDICT_QOS)}
         if zone:
             self.advertise_zone()
 
@@ -52,10 +51,13 @@ class VerdictTopics:
         return 'near' in self.publishers
 
     def advertise_zone(self) -> None:
-        for name in ZONE_TOPICS:
-            if name not in self.publishers:
-                self.publishers[name] = self._node.create_publisher(
-                    TOPIC_TYPES[name], name, VERDICT_QOS)
+        if 'near' in self.publishers:
+            return
+        node = self._node
+        self.publishers.update(
+            near=node.create_publisher(Bool, 'near', VERDICT_QOS),
+            min_distance=node.create_publisher(Float64, 'min_distance', VERDICT_QOS),
+            near_pairs=node.create_publisher(DiagnosticArray, 'near_pairs', VERDICT_QOS))
 
     def withdraw_zone(self) -> None:
         for name in ZONE_TOPICS:
