@@ -190,7 +190,7 @@ void SensorCore::configure(const SensorSettings& settings) {
         const double span = model_.upper[j] - model_.lower[j] + 2.0 * settings.limit_tolerance;
         if (std::isfinite(span)) spans_[j] = span;
     }
-    motion_pairs_.assign(model_.names.pairs.size(), 0);
+    step_.motion.pairs.assign(model_.names.pairs.size(), 0);
 }
 
 void SensorCore::restart_motion(const char* reason) {
@@ -474,27 +474,26 @@ Verdict SensorCore::check(const std::vector<double>& q, double accepted_at, Zone
         }
     }
     Engine& engine = *model_.engine;
-    const int64_t J = int64_t(q.size());
     bool hit = false;
     double t = 0.0;
     Verdict v;
     {
         std::lock_guard<std::mutex> hold(engine.lock());
         if (!motion || from_scratch || !reason.empty()) {
-            const int64_t code = engine.query(q.data(), from_scratch);
-            if (code < 0) throw EngineRefused{-1 - code};
+            const QueryResult query = engine.query(q.data(), from_scratch);
+            if (query.refused()) throw EngineRefused{query.bad_variable};
         } else if (carried_) {
-            int64_t query_code = 0;
-            const int64_t code = engine.update_motion(q.data(), &t, motion_pairs_.data(),
-                                                      &query_code);
-            if (code < 0) throw EngineRefused{-1 - code};
-            hit = code == 1;
+            engine.update_motion(q.data(), step_);
+            if (step_.query.refused()) throw EngineRefused{step_.query.bad_variable};
+            hit = step_.motion.contact;
+            t = step_.motion.t;
         } else {  // a new model with the same joints: from the state the one before checked
-            const int64_t code = engine.motion(last_.data(), q.data(), &t, motion_pairs_.data());
-            if (code < 0) throw EngineRefused{(-1 - code) % J};
-            hit = code == 1;
-            const int64_t query = engine.query(q.data(), false);
-            if (query < 0) throw EngineRefused{-1 - query};
+            engine.motion(last_.data(), q.data(), step_.motion);
+            if (step_.motion.refused()) throw EngineRefused{step_.motion.bad.variable};
+            hit = step_.motion.contact;
+            t = step_.motion.t;
+            const QueryResult query = engine.query(q.data(), false);
+            if (query.refused()) throw EngineRefused{query.bad_variable};
         }
         const int64_t* status = engine.view().state.status;
         const int64_t P = int64_t(model_.names.pairs.size());
@@ -502,7 +501,7 @@ Verdict SensorCore::check(const std::vector<double>& q, double accepted_at, Zone
             if (status[p]) v.now.push_back(p);
         if (hit)
             for (int64_t p = 0; p < P; ++p)
-                if (motion_pairs_[p] && !status[p]) v.met.push_back(p);
+                if (step_.motion.pairs[p] && !status[p]) v.met.push_back(p);
         if (zone) measure_zone(q, zone);
     }
     if (motion) ++motion_counts_[reason.empty() ? "swept" : reason];
@@ -533,10 +532,8 @@ void SensorCore::measure_zone(const std::vector<double>& q, Zone* zone) {
     std::vector<double> distance(P), points(6 * P);
     const ProximityRequest request = {settings_.warning_distance};
     const ProximityResult result = {distance.data(), points.data()};
-    const int64_t code = engine.read_at(q.data(), [&](const EngineView& view, Scratch& scratch) {
-        measure_proximity(view, request, scratch, result);
-    });
-    if (code < 0) throw EngineRefused{-1 - code};
+    const QueryResult query = engine.proximity(q.data(), request, result);
+    if (query.refused()) throw EngineRefused{query.bad_variable};
     zone->records.clear();
     for (int64_t p = 0; p < P; ++p) {
         if (!std::isfinite(distance[p])) continue;

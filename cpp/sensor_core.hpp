@@ -49,12 +49,11 @@
 #include <vector>
 
 #include "cdr.hpp"
+#include "engine.hpp"
 #include "joint_merge.hpp"
 #include "sensor_answer.hpp"
 
 namespace collision_sensor {
-
-class Engine;
 
 struct SensorSettings {
     bool check_motion = true;
@@ -271,7 +270,7 @@ class SensorCore {
     std::vector<double> last_;
     double last_accepted_at_ = 0.0;
     std::vector<double> spans_;
-    std::vector<uint8_t> motion_pairs_;
+    StepResult step_;  // the engine's motion answers, kept between calls (no allocation)
     std::map<std::string, int64_t> motion_counts_;
 
     // Failures.

@@ -389,8 +389,10 @@ def colcon_install(tmp_path_factory):
     copy_shipped(workspace / 'src' / PACKAGE)
     python = plain_venv(str(workspace / 'venv'))
     colcon = [python, '-c', 'import sys; from colcon_core.command import main; sys.exit(main())']
-    # COLCON_HOME in the workspace: no user defaults (e.g. --symlink-install) leak in.
-    env = clean_env(COLCON_HOME=str(workspace / 'colcon_home'))
+    # COLCON_HOME in the workspace: no user defaults (e.g. --symlink-install) leak in. The
+    # ROS prefix a sourced workspace names on AMENT_PREFIX_PATH: this venv's, where the ROS 2
+    # wheels put rcl's headers as a ROS install does (include/rcl/rcl/...).
+    env = clean_env(COLCON_HOME=str(workspace / 'colcon_home'), AMENT_PREFIX_PATH=sys.prefix)
     # --base-paths keeps discovery to the workspace, so the one package found is ours
     # (--packages-select would need the colcon-package-selection extension).
     proc = run(colcon + ['--log-base', str(workspace / 'log'), 'build',
@@ -424,6 +426,16 @@ def test_colcon_install_has_what_ros2_run_and_the_ament_index_need(colcon_instal
     assert os.path.isfile(os.path.join(colcon_install, AMENT_MARKER))
     assert os.path.isfile(os.path.join(colcon_install, 'lib', PY, 'site-packages', PACKAGE,
                                        'model', 'share.py'))
+
+
+@pytest.mark.packaging
+def test_colcon_build_against_a_ros_prefix_builds_the_joint_state_hop(colcon_install):
+    """With rcl's headers in the prefix colcon builds against, the node's compiled joint-state
+    hop is built and installed beside the engine."""
+    if not os.path.isfile(os.path.join(sys.prefix, 'include', 'rcl', 'rcl', 'rcl.h')):
+        pytest.skip('no rcl headers in this environment (the ROS 2 wheels bring them)')
+    ros = os.path.join(colcon_install, 'lib', PY, 'site-packages', PACKAGE, 'ros')
+    assert [name for name in os.listdir(ros) if name.startswith('_joint_state_hop')], ros
 
 
 @pytest.mark.packaging
