@@ -32,7 +32,9 @@
 //   at its stamp), counters, and log lines (notes) for the caller to write.
 //
 // Every method takes the core's mutex; the Engine is called with its own lock taken after it
-// (never the other way round). Answers go to the sink (the hop publishes them straight away,
+// (never the other way round). Its implementation: sensor_core.cpp (the model, joint states
+// merged and checked), sensor_answers.cpp (answers, failures, staleness), sensor_state.cpp (the
+// window, the state, counters and log lines). Answers go to the sink (the hop publishes them straight away,
 // under the mutex, so they leave in the order they were made) or, without a sink, to the
 // outbox for the caller to take.
 #pragma once

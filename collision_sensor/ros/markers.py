@@ -62,6 +62,37 @@ def quaternion_from_matrix(R) -> tuple:
             (R[1][0] - R[0][1]) / s)
 
 
+class CheckerView:
+    """What the markers read of a checker, copied at one moment (the sensor held still): its
+    objects, attachments, paddings, clouds' voxels, and the boxes of the bodies drawn.
+
+    :param colliding: the bodies in contact (their boxes are drawn).
+    """
+
+    def __init__(self, checker, colliding):
+        self.object_names = checker.object_names
+        self.attachments = checker.attachments
+        self.scene_objects = checker.scene_objects
+        self.paddings = checker.paddings
+        self.point_cloud_sources = checker.point_cloud_sources
+        self.link_names = checker.link_names
+        self._voxels = {source: checker.cloud_voxels(source)
+                        for source in self.point_cloud_sources}
+        # Links (for the clouds' nearby voxels), the bodies in contact, big meshes' boxes.
+        names = set(colliding) | set(self.object_names)
+        if self.point_cloud_sources:
+            names |= set(self.link_names)
+        self._boxes = {}
+        for box in checker.collision_boxes(sorted(names)):
+            self._boxes.setdefault(box[0], []).append(box)
+
+    def collision_boxes(self, names):
+        return [box for name in names for box in self._boxes.get(name, ())]
+
+    def cloud_voxels(self, source):
+        return self._voxels[source]
+
+
 class NearRecord(NamedTuple):
     """A near pair as the markers draw it (points as arrays)."""
 
@@ -128,18 +159,19 @@ class MarkerPublisher:
         held = sensor.held()
         if held is None or (held['serial'] == self._serial and not self.scene_changed):
             return
-        # The checker held still while its poses are read.
+        # What the markers show, read with the checker held still (poses, objects, voxels);
+        # the messages are built and published after, without holding the sensor.
+        pairs = [tuple(pair) for pair in held['now']]
+        zone = held['zone']
+        records = [] if zone is None else [
+            NearRecord(a, b, d, np.array(pa), np.array(pb)) for a, b, d, pa, pb in zone['records']]
+        self._serial = held['serial']
         with sensor.changing() as checker:
-            if checker is None:
+            if checker is None or not self._due(checker, pairs, records):
                 return
-            zone = held['zone']
-            records = [] if zone is None else [
-                NearRecord(a, b, d, np.array(pa), np.array(pb))
-                for a, b, d, pa, pb in zone['records']]
-            self._serial = held['serial']
-            sec, nanosec = held['stamp']
-            self.publish(checker, Time(sec=sec, nanosec=nanosec),
-                         [tuple(pair) for pair in held['now']], records)
+            view = CheckerView(checker, {name for pair in pairs for name in pair})
+        sec, nanosec = held['stamp']
+        self.publish(view, Time(sec=sec, nanosec=nanosec), pairs, records)
 
     def publish(self, checker, stamp, pairs, records=()) -> None:
         """Publish the boxes of the colliding bodies, the scene objects and, with
@@ -154,18 +186,13 @@ class MarkerPublisher:
             ``point_a``, ``point_b``).
         """
         colliding = tuple(sorted({name for pair in pairs for name in pair}))
-        near = tuple((r.link_a, r.link_b) for r in records)
-        objects = checker.object_names
-        if not colliding and not near and not objects:
+        if not colliding and not records and not checker.object_names:
             self.clear()
             return
-        now = time.monotonic()
-        moving = colliding or near or checker.attachments
-        content = (colliding, near)
-        if not self.scene_changed and content == self._content and (
-                not moving or now - self._time < MARKER_PERIOD):
+        if not self._due(checker, pairs, records):
             return
-        self._content, self._time, self.scene_changed = content, now, False
+        self._content = (colliding, tuple((r.link_a, r.link_b) for r in records))
+        self._time, self.scene_changed = time.monotonic(), False
         # DELETEALL first: bodies that stopped colliding lose their boxes in the same message.
         markers = [Marker(action=Marker.DELETEALL)]
         for index, (name, T_world_box, half) in enumerate(checker.collision_boxes(colliding)):
@@ -181,6 +208,17 @@ class MarkerPublisher:
         markers.extend(self._proximity_markers(checker, stamp, records))
         markers.extend(self._trajectory)   # DELETEALL took them too
         self._publisher.publish(MarkerArray(markers=markers))
+
+    def _due(self, checker, pairs, records) -> bool:
+        """Whether what the markers show changed (or, while something collides or is near, or
+        an attached object moves with the robot, MARKER_PERIOD passed)."""
+        colliding = tuple(sorted({name for pair in pairs for name in pair}))
+        near = tuple((r.link_a, r.link_b) for r in records)
+        if not colliding and not near and not checker.object_names:
+            return bool(self._content)      # to clear what is shown
+        moving = colliding or near or checker.attachments
+        return self.scene_changed or (colliding, near) != self._content or (
+            bool(moving) and time.monotonic() - self._time >= MARKER_PERIOD)
 
     def trajectory_contact(self, boxes, stamp, text: str) -> None:
         """Show ``boxes`` (``(name, T_world_box, half)``: the links at a planned trajectory's
