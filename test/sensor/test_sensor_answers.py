@@ -189,3 +189,22 @@ def test_importing_the_sensor_imports_no_ros():
             '("rclpy", "sensor_msgs", "std_msgs", "diagnostic_msgs")))')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == '[]'
+
+
+def test_the_docs_example_runs_and_says_what_it_prints(monkeypatch):
+    """docs/node.md's example of the sensor without ROS, against what the calls return."""
+    import os
+    import re
+    here = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    text = open(os.path.join(here, 'docs', 'node.md')).read()
+    section = text[text.index('## The sensor without ROS'):]
+    code, = re.findall(r'^```python\n(.*?)^```', section, re.M | re.S)
+    monkeypatch.chdir(here)
+    scope = {}
+    exec(compile(code, 'docs/node.md', 'exec'), scope)
+    sensor, verdict = scope['sensor'], scope['verdict']
+    assert verdict.contact and ('tool_link', 'washer_cabinet') in verdict.colliding_pairs
+    assert [topic for topic, _ in verdict.messages] == ['contact', 'colliding_pairs']
+    rejected = sensor.step(['elbow'], [float('nan')], stamp=1.3)
+    assert rejected.failure.reason == ('joint state rejected: positions that are not finite: '
+                                       '"elbow"=nan') and rejected.contact
