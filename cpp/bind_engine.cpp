@@ -426,13 +426,6 @@ void bind_engine(py::module_& m) {
             },
             "Bring every link pose up to date.")
         .def(
-            "handle",
-            [](PyEngine& self) {
-                return py::capsule(self.engine.get(), "collision_sensor.Engine");
-            },
-            "The C++ engine, for the sensor core (SensorCore.use_model); valid while this "
-            "Engine lives.")
-        .def(
             "move_world_body",
             [](PyEngine& self, int64_t b, py::handle T) {
                 const double* data = exact_doubles(T, {4, 4});

@@ -71,12 +71,6 @@ cs::SensorSettings settings_from(const py::dict& d) {
     return s;
 }
 
-cs::Engine* engine_of(const py::capsule& handle) {
-    if (std::string(handle.name() ? handle.name() : "") != "collision_sensor.Engine")
-        throw std::invalid_argument("engine: not an Engine handle (Engine.handle())");
-    return handle.get_pointer<cs::Engine>();
-}
-
 cs::AnswerNames names_of(const std::vector<std::pair<std::string, std::string>>& pairs,
                          const std::string& root_frame) {
     cs::AnswerNames names;
@@ -168,14 +162,14 @@ void bind_sensor(py::module_& m) {
              },
              py::arg("settings"))
         .def("use_model",
-             [](cs::SensorCore& c, const py::capsule& engine, std::vector<std::string> joints,
+             [](cs::SensorCore& c, py::handle engine, std::vector<std::string> joints,
                 std::vector<std::string> derived, std::vector<double> lower,
                 std::vector<double> upper, std::vector<std::pair<int64_t, double>> defaults,
                 std::vector<int64_t> kinds,
                 std::vector<std::pair<std::string, std::string>> pairs, std::string root_frame,
                 std::vector<uint8_t> swapped) {
                  cs::SensorModel model;
-                 model.engine = engine_of(engine);
+                 model.engine = &engine_of(engine);
                  model.joint_names = std::move(joints);
                  model.derived = std::move(derived);
                  model.lower = std::move(lower);
@@ -191,10 +185,10 @@ void bind_sensor(py::module_& m) {
              py::arg("upper"), py::arg("defaults"), py::arg("motion_kinds"), py::arg("pairs"),
              py::arg("root_frame"), py::arg("swapped"))
         .def("set_engine",
-             [](cs::SensorCore& c, const py::capsule& engine,
+             [](cs::SensorCore& c, py::handle engine,
                 std::vector<std::pair<std::string, std::string>> pairs, std::string root_frame,
                 std::vector<uint8_t> swapped) {
-                 cs::Engine* e = engine_of(engine);
+                 cs::Engine* e = &engine_of(engine);
                  py::gil_scoped_release release;
                  c.set_engine(e, names_of(pairs, root_frame), std::move(swapped));
              },

@@ -50,7 +50,7 @@ def model_arguments(checker) -> Dict[str, object]:
     """Return the keyword arguments of ``SensorCore.use_model`` for ``checker``."""
     lower, upper = joint_limits(checker)
     return dict(
-        engine=checker._engine.handle(), joint_names=list(checker.joint_names),
+        engine=checker._engine, joint_names=list(checker.joint_names),
         derived=sorted(checker._joints.derived), lower=lower, upper=upper,
         defaults=base_defaults(checker), motion_kinds=[int(k) for k in checker.motion_kinds],
         pairs=[tuple(pair) for pair in checker.checked_pairs], root_frame=root_link(checker),
@@ -59,7 +59,7 @@ def model_arguments(checker) -> Dict[str, object]:
 
 def engine_arguments(checker) -> Dict[str, object]:
     """Return the keyword arguments of ``SensorCore.set_engine`` for ``checker``'s engine."""
-    return dict(engine=checker._engine.handle(),
+    return dict(engine=checker._engine,
                 pairs=[tuple(pair) for pair in checker.checked_pairs],
                 root_frame=root_link(checker), swapped=pair_sides(checker))
 
