@@ -32,6 +32,9 @@ FAULT = 'engine fault injected by the test'
 def start_faulty(ros, panda_urdf, panda_srdf, erd_share, mark, **overrides):
     """Start the node on the Panda; its check of a state with ``panda_joint1 == mark`` fails
     after marking every pair in contact in the carried state."""
+    # (no stale check unless a test asks: a loaded machine may pause longer than its default
+    # between two of the test's states, and a stale answer is not what these tests read)
+    overrides.setdefault('stale_timeout', 0.0)
     node = ros.add(CollisionSensorNode(
         namespace=ros.namespace, context=ros.context,
         parameter_overrides=panda_parameters(panda_urdf, panda_srdf, erd_share, **overrides)))
