@@ -33,7 +33,7 @@ def share_tree(folder):
 
 
 ENGINE_SOURCES = sorted(glob('cpp/*.cpp'))
-ENGINE_HEADERS = sorted(glob('cpp/*.hpp'))
+ENGINE_HEADERS = sorted(glob('cpp/*.hpp') + glob('cpp/*.h'))
 
 
 def source_digest(paths):
@@ -73,6 +73,42 @@ ENGINE = Pybind11Extension(
     define_macros=[('COLLISION_SENSOR_SOURCE_DIGEST',
                     '"%s"' % source_digest(sorted(ENGINE_SOURCES + ENGINE_HEADERS)))],
     extra_compile_args=['-O3', '-Wall', '-Wextra', '-fno-math-errno'])
+
+#: The ROS packages whose headers the joint-state hop includes (rcl and what its headers pull).
+RCL_HEADER_PACKAGES = ('rcl', 'rmw', 'rcutils', 'rosidl_runtime_c', 'rosidl_typesupport_interface',
+                       'rosidl_dynamic_typesupport', 'type_description_interfaces',
+                       'service_msgs', 'builtin_interfaces', 'rcl_yaml_param_parser',
+                       'rcl_interfaces')
+
+
+def rcl_include_dirs():
+    """Return the include directories of rcl's headers, or [] when none are found.
+
+    Looked for where ROS 2 puts them: the prefixes of a sourced ROS install or workspace
+    (``AMENT_PREFIX_PATH``, ``/opt/ros/$ROS_DISTRO``, ``/opt/ros/jazzy``) and this Python's own
+    prefix (the ROS 2 wheels install their headers into a venv's ``include/``).
+    """
+    prefixes = [entry for entry in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep)
+                if entry]
+    distro = os.environ.get('ROS_DISTRO')
+    prefixes += ([f'/opt/ros/{distro}'] if distro else []) + ['/opt/ros/jazzy', sys.prefix]
+    for prefix in prefixes:
+        include = os.path.join(prefix, 'include')
+        if os.path.isfile(os.path.join(include, 'rcl', 'rcl', 'rcl.h')):
+            return [directory for directory in
+                    (os.path.join(include, package) for package in RCL_HEADER_PACKAGES)
+                    if os.path.isdir(directory)]
+    return []
+
+
+# The node's joint-state hop (cpp/hop): built where rcl's headers are (a ROS install, or the
+# ROS 2 wheels installed before this package, as `make` does); without them the node answers
+# joint states through rclpy, and says so when it starts.
+HOP_INCLUDES = rcl_include_dirs()
+HOP = Pybind11Extension(
+    'collision_sensor.ros._joint_state_hop', ['cpp/hop/joint_state_hop.cpp'],
+    include_dirs=['cpp'] + HOP_INCLUDES, cxx_std=17, depends=['cpp/sensor_api.h'],
+    extra_compile_args=['-O2', '-Wall', '-Wextra'], libraries=['dl'])
 
 setup(
     name=PACKAGE,
@@ -120,7 +156,7 @@ setup(
             'wheel',    # the packaging tests build a wheel without build isolation
         ],
     },
-    ext_modules=[ENGINE],
+    ext_modules=[ENGINE] + ([HOP] if HOP_INCLUDES else []),
     cmdclass={'build_ext': BuildEngine},
     zip_safe=False,
     maintainer='collision_sensor maintainers',
@@ -129,7 +165,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'collision_sensor_node = collision_sensor.ros.node:main',
+            'collision_sensor_node = collision_sensor.ros.main:main',
             'collision_sensor_play = collision_sensor.ros.player:main',
             'collision_sensor_check = collision_sensor.tools.offline_check:main',
             'collision_sensor_acm = collision_sensor.tools.acm:main',

@@ -14,7 +14,7 @@ a busy machine counts as lost here.
 
 Each message carries a unique header stamp, which the node copies into its answer: every
 message is answered. This process keeps its own
-:class:`~collision_sensor.ros.joint_state_merger.JointStateMerger` with the node's settings to
+:class:`~benchmarks.joint_state_oracle.JointStateMerger` with the node's settings to
 know what the node must answer: for an accepted message that completes the state, the node's
 colliding pairs are compared with a fresh ``CollisionChecker.check`` here, on the merged state,
 followed by the pairs met on the way that ``CollisionChecker.check_motion`` finds from the state
@@ -299,9 +299,8 @@ def run_fuzz(messages: int, seed: int = 1, rate: float = 500.0, policy: str = 'r
 
     from collision_sensor import CollisionChecker, JointStateError
     from collision_sensor.model.example_robots import example_robot
-    from collision_sensor.ros.joint_state_merger import (
-        DEFAULT_LIMIT_TOLERANCE, JointStateMerger)
-    from collision_sensor.ros.motion_stream import joint_spans, jumped
+    from benchmarks.joint_state_oracle import (
+        DEFAULT_LIMIT_TOLERANCE, JointStateMerger, joint_spans, jumped)
 
     def say(text=''):
         print(text, file=out, flush=True)

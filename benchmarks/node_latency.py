@@ -53,7 +53,7 @@ its engine part (``check_spline``).
 
 The highest rate of those tried that had no drop is reported. ``--executor`` sets
 ``COLLISION_SENSOR_EXECUTOR`` for the node (see
-:func:`collision_sensor.ros.sensor_node.make_executor`) to compare executors. This is a
+:func:`collision_sensor.ros.node.make_executor`) to compare executors. This is a
 benchmark, not a test: it asserts nothing. DDS stays in shared memory
 (``FASTDDS_BUILTIN_TRANSPORTS=SHM``) in ``ROS_DOMAIN_ID`` (a random one if unset).
 """
@@ -122,7 +122,7 @@ class Driver:
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
         from sensor_msgs.msg import JointState
 
-        from collision_sensor.ros.sensor_node import make_executor
+        from collision_sensor.ros.node import make_executor
 
         self.context = rclpy.Context()
         rclpy.init(args=[], context=self.context)

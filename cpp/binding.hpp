@@ -112,6 +112,7 @@ class AreaLoan {
 void export_constants(py::module_& m);     // bindings.cpp: constants and the packed layout
 void bind_engine(py::module_& m);          // bind_engine.cpp: Engine, its result types
 void bind_clouds(py::module_& m);          // bind_clouds.cpp: VoxelCloud
+void bind_sensor(py::module_& m);          // bind_sensor.cpp: SensorCore
 void bind_kinematics(py::module_& m);      // bind_kernels.cpp: Kinematics
 void bind_query_kernels(py::module_& m);   // bind_kernels.cpp: box, triangle, tree kernels
 void bind_build_kernels(py::module_& m);   // bind_kernels.cpp: fits, trees, number tables

@@ -218,6 +218,7 @@ PYBIND11_MODULE(_engine, m) {
     export_constants(m);
     bind_engine(m);
     bind_clouds(m);
+    bind_sensor(m);
     bind_kinematics(m);
     bind_query_kernels(m);
     bind_build_kernels(m);

@@ -1,10 +1,11 @@
 """The package's layers, as docs/engine.md's architecture section draws them, by imports.
 
-model (files in, a model out) <- engine (the checker and the compiled engine) <- tools (the
-offline command-line tools) <- ros (everything on the ROS graph) <- testing (the sensor in
-users' own tests: the node and a client of it, through ros). A layer imports only from layers to
-its left and from the base modules (``errors``, ``untrusted_text``); rclpy and the message
-packages are imported only in ``ros`` and ``testing``. The package never imports the benchmarks
+model (files in, a model out) <- engine (the checker and the compiled engine) <- sensor (the
+sensor without ROS: inputs in, verdicts out) <- tools (the offline command-line tools) <- ros
+(everything on the ROS graph) <- testing (the sensor in users' own tests: the node and a client
+of it, through ros). A layer imports only from layers to its left and from the base modules
+(``errors``, ``untrusted_text``); rclpy and the message packages are imported only in ``ros``
+and ``testing``. The package never imports the benchmarks
 (a folder of the source tree, not installed) nor their peers (python-fcl, pinocchio, coal: test
 extras); test_packaging.py checks the same on an installed wheel.
 """
@@ -14,7 +15,7 @@ import pathlib
 import collision_sensor
 
 PACKAGE_DIR = pathlib.Path(collision_sensor.__file__).parent
-ORDER = ('model', 'engine', 'tools', 'ros', 'testing')
+ORDER = ('model', 'engine', 'sensor', 'tools', 'ros', 'testing')
 #: The layers that talk to the ROS graph.
 ROS_LAYERS = ('ros', 'testing')
 #: Imported by the benchmarks and the tests only, never by the package.

@@ -31,7 +31,7 @@ SHIPPED = ('package.xml', 'setup.py', 'setup.cfg', 'pyproject.toml', 'MANIFEST.i
 CONSOLE_SCRIPTS = ('collision_sensor_node', 'collision_sensor_play', 'collision_sensor_check',
                    'collision_sensor_acm', 'collision_sensor_demo', 'collision_sensor_ctl')
 ROS_FREE_MODULES = ('collision_sensor', 'collision_sensor.engine.checker',
-                    'collision_sensor.model.sequences',
+                    'collision_sensor.sensor', 'collision_sensor.model.sequences',
                     'collision_sensor.tools.acm', 'collision_sensor.tools.offline_check',
                     'collision_sensor.ros.demo',
                     # pytest loads the plugin wherever the package is installed; the public
@@ -39,7 +39,7 @@ ROS_FREE_MODULES = ('collision_sensor', 'collision_sensor.engine.checker',
                     'collision_sensor.testing', 'collision_sensor.testing.plugin',
                     # The console script's module installs its signal handlers before it
                     # imports ROS or the engine (see its docstring): it must stay light.
-                    'collision_sensor.ros.node')
+                    'collision_sensor.ros.main')
 AMENT_MARKER = 'share/ament_index/resource_index/packages/' + PACKAGE
 PY = f'python{sys.version_info.major}.{sys.version_info.minor}'
 # Prints where the package and its data were found; run from outside the checkout.
@@ -134,7 +134,7 @@ def test_import_loads_no_ros(module):
 
 def test_import_probe_sees_ros_when_it_is_loaded():
     # The control: the node does import rclpy and message packages, and the probe says so.
-    loaded = ros_modules_loaded_by('collision_sensor.ros.sensor_node')
+    loaded = ros_modules_loaded_by('collision_sensor.ros.node')
     assert 'rclpy' in loaded
     assert 'sensor_msgs' in loaded
 
@@ -315,7 +315,7 @@ def test_pip_install_imports_no_benchmark_and_no_peer(wheel, pip_venv, tmp_path)
                env=clean_env())
     found = json.loads(proc.stdout.strip().splitlines()[-1])
     assert found['root'].startswith(os.path.join(pip_venv, 'lib')), found['root']
-    assert 'collision_sensor.ros.sensor_node' in found['modules']     # the walk saw them all
+    assert 'collision_sensor.ros.node' in found['modules']     # the walk saw them all
     assert len(found['modules']) >= 60, found['modules']
     by_the_package = [(name, importer) for name, importer in found['attempted']
                       if importer.startswith(found['root'] + os.sep)]
@@ -389,8 +389,10 @@ def colcon_install(tmp_path_factory):
     copy_shipped(workspace / 'src' / PACKAGE)
     python = plain_venv(str(workspace / 'venv'))
     colcon = [python, '-c', 'import sys; from colcon_core.command import main; sys.exit(main())']
-    # COLCON_HOME in the workspace: no user defaults (e.g. --symlink-install) leak in.
-    env = clean_env(COLCON_HOME=str(workspace / 'colcon_home'))
+    # COLCON_HOME in the workspace: no user defaults (e.g. --symlink-install) leak in. The
+    # ROS prefix a sourced workspace names on AMENT_PREFIX_PATH: this venv's, where the ROS 2
+    # wheels put rcl's headers as a ROS install does (include/rcl/rcl/...).
+    env = clean_env(COLCON_HOME=str(workspace / 'colcon_home'), AMENT_PREFIX_PATH=sys.prefix)
     # --base-paths keeps discovery to the workspace, so the one package found is ours
     # (--packages-select would need the colcon-package-selection extension).
     proc = run(colcon + ['--log-base', str(workspace / 'log'), 'build',
@@ -424,6 +426,16 @@ def test_colcon_install_has_what_ros2_run_and_the_ament_index_need(colcon_instal
     assert os.path.isfile(os.path.join(colcon_install, AMENT_MARKER))
     assert os.path.isfile(os.path.join(colcon_install, 'lib', PY, 'site-packages', PACKAGE,
                                        'model', 'share.py'))
+
+
+@pytest.mark.packaging
+def test_colcon_build_against_a_ros_prefix_builds_the_joint_state_hop(colcon_install):
+    """With rcl's headers in the prefix colcon builds against, the node's compiled joint-state
+    hop is built and installed beside the engine."""
+    if not os.path.isfile(os.path.join(sys.prefix, 'include', 'rcl', 'rcl', 'rcl.h')):
+        pytest.skip('no rcl headers in this environment (the ROS 2 wheels bring them)')
+    ros = os.path.join(colcon_install, 'lib', PY, 'site-packages', PACKAGE, 'ros')
+    assert [name for name in os.listdir(ros) if name.startswith('_joint_state_hop')], ros
 
 
 @pytest.mark.packaging

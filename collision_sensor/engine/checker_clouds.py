@@ -32,7 +32,7 @@ class CheckerClouds:
         :mod:`collision_sensor.engine.point_clouds`, which says what a cloud can tell).
 
         The source's next cloud replaces this one in place (only the cloud's pairs are
-        re-checked); its first adds the object (pairs ``link:cloud/<source>``, which
+        re-checked); its first adds the object (pairs of ``cloud/<source>`` and each link, which
         ``allowed_collisions`` may name).
 
         :param source: the sensor's name (a topic): the object is ``cloud/<source>``.

@@ -34,7 +34,7 @@ def _sources_beside_package():
     if not os.path.isfile(os.path.join(folder, 'bindings.cpp')):
         return []
     return sorted(os.path.join(folder, name) for name in os.listdir(folder)
-                  if name.endswith(('.cpp', '.hpp')))
+                  if name.endswith(('.cpp', '.hpp', '.h')))
 
 
 def source_digest(paths) -> str:

@@ -3,8 +3,8 @@ checked like any world object.
 
 A *source* (a camera, a lidar: any name) gives clouds one after another through
 :meth:`CollisionChecker.set_points`; each becomes the world object ``cloud/<source>``, checked
-against every robot link and attached object (pairs ``link:cloud/<source>``), with proximity,
-padding, the exception list and the motion checks, as any world object. What a cloud becomes
+against every robot link and attached object (pairs named in sorted order, as every pair),
+with proximity, padding, the exception list and the motion checks, as any world object. What a cloud becomes
 (``cpp/cloud_filter.hpp``, in C++ with the interpreter released):
 
 * rows with a NaN or infinite coordinate are dropped (organised clouds have holes), and rows

@@ -2,9 +2,9 @@
 
 Pure Python, no rclpy: a marker is read through its fields (``ns``, ``id``, ``type``,
 ``action``, ``header.frame_id``, ``pose``, ``scale``, ``points``, ``mesh_resource``, ``text``),
-so an rclpy message, a rosbags one or a test double all work. The node
-(:mod:`collision_sensor.ros.sensor_node`) applies the changes with
-:meth:`CollisionChecker.prepare_scene_changes` / ``commit_scene_changes``.
+so an rclpy message, a rosbags one or a test double all work. The node's scene source
+(:mod:`collision_sensor.ros.scene_source`) applies the changes with
+:meth:`CollisionChecker.prepare_scene_changes` and the sensor's ``apply_scene_changes``.
 
 Rules (docs/dynamic_scene.md):
 

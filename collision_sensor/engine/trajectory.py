@@ -28,7 +28,7 @@ from typing import NamedTuple, Optional, Sequence, Tuple
 import numpy as np
 
 from collision_sensor.engine.compiled import engine
-from collision_sensor.engine.motion import MotionResult
+from collision_sensor.engine.motion import FREE, MotionResult, PathResult
 from collision_sensor.errors import JointStateError
 
 Pair = Tuple[str, str]
@@ -267,8 +267,21 @@ def build_segments(checker, joint_names: Sequence[str], points: Sequence[Traject
     return coef, np.asarray(times)
 
 
+def _first_contact(checker, coef: np.ndarray, per_call: Optional[int]) -> PathResult:
+    """``checker.check_spline(coef)``, ``per_call`` segments at a time (segments are checked in
+    turn until one is not free, each on its own: the first met is the same)."""
+    if not per_call:
+        return checker.check_spline(coef)
+    for first in range(0, len(coef), per_call):
+        path = checker.check_spline(coef[first:first + per_call])
+        if path.first_invalid_segment is not None:
+            return PathResult(first + path.first_invalid_segment, path.motion)
+    return PathResult(None, FREE)
+
+
 def check_trajectory(checker, joint_names: Sequence[str], points: Sequence[TrajectoryPoint],
-                     start=None, limit_tolerance: float = 0.0) -> TrajectoryResult:
+                     start=None, limit_tolerance: float = 0.0,
+                     segments_per_call: Optional[int] = None) -> TrajectoryResult:
     """Check a planned trajectory along the path the controller will follow (see the module).
 
     :param joint_names: the trajectory's joints (a subset of ``checker.joint_names``).
@@ -276,6 +289,9 @@ def check_trajectory(checker, joint_names: Sequence[str], points: Sequence[Traje
     :param start: the state it starts from, as ``positions`` of ``checker.check`` (default:
         the checker's current positions); joints not named keep these values.
     :param limit_tolerance: rad or m beyond a joint limit still accepted.
+    :param segments_per_call: check the segments this many at a time (the engine is free for
+        other queries between two calls: the sensor answers joint states meanwhile); None: all
+        in one call. The answer is the same.
     :return: a :class:`TrajectoryResult`; a malformed trajectory is invalid with its reason
         (no exception). Nothing in the checker changes.
     """
@@ -308,7 +324,7 @@ def check_trajectory(checker, joint_names: Sequence[str], points: Sequence[Traje
                 f'({where}), beyond its limits [{lower:.6g}, {upper:.6g}] (tolerance '
                 f'{limit_tolerance:g}); slow the trajectory down or move the point '
                 'away from the limit')
-    path = checker.check_spline(coef)
+    path = _first_contact(checker, coef, segments_per_call)
     if path.first_invalid_segment is None:
         return TrajectoryResult(True, None, None, (), '')
     i = path.first_invalid_segment

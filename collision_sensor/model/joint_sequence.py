@@ -178,8 +178,8 @@ class JointSequence:
 
     def positions_at(self, t: float) -> np.ndarray:
         """Return the joint positions at time ``t``: linear between the two frames around it
-        (the node's joint-state window, :mod:`collision_sensor.ros.joint_state_window`, with
-        every frame kept); the first or last frame outside them.
+        (as the sensor's window of recent states, ``Sensor.positions_at``, with every frame
+        kept); the first or last frame outside them.
 
         :return: (J,) float64.
         """

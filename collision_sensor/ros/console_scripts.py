@@ -26,7 +26,7 @@ PACKAGE = 'collision_sensor'
 #: Console script -> the module whose ``main`` it runs (``python -m`` when no script is found).
 #: setup.py's entry points name the same modules (test/test_packaging.py checks it).
 MODULES = {
-    'collision_sensor_node': 'collision_sensor.ros.node',
+    'collision_sensor_node': 'collision_sensor.ros.main',
     'collision_sensor_play': 'collision_sensor.ros.player',
     'collision_sensor_check': 'collision_sensor.tools.offline_check',
     'collision_sensor_acm': 'collision_sensor.tools.acm',

@@ -5,9 +5,10 @@ and the boxes of the links in contact at the last planned trajectory's first con
 """
 import math
 import time
-from typing import Dict, Optional
+from typing import Dict, NamedTuple, Optional
 
 import numpy as np
+from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, Pose
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
@@ -61,29 +62,116 @@ def quaternion_from_matrix(R) -> tuple:
             (R[1][0] - R[0][1]) / s)
 
 
+class CheckerView:
+    """What the markers read of a checker, copied at one moment (the sensor held still): its
+    objects, attachments, paddings, clouds' voxels, and the boxes of the bodies drawn.
+
+    :param colliding: the bodies in contact (their boxes are drawn).
+    """
+
+    def __init__(self, checker, colliding):
+        self.object_names = checker.object_names
+        self.attachments = checker.attachments
+        self.scene_objects = checker.scene_objects
+        self.paddings = checker.paddings
+        self.point_cloud_sources = checker.point_cloud_sources
+        self.link_names = checker.link_names
+        self._voxels = {source: checker.cloud_voxels(source)
+                        for source in self.point_cloud_sources}
+        # Links (for the clouds' nearby voxels), the bodies in contact, big meshes' boxes.
+        names = set(colliding) | set(self.object_names)
+        if self.point_cloud_sources:
+            names |= set(self.link_names)
+        self._boxes = {}
+        for box in checker.collision_boxes(sorted(names)):
+            self._boxes.setdefault(box[0], []).append(box)
+
+    def collision_boxes(self, names):
+        return [box for name in names for box in self._boxes.get(name, ())]
+
+    def cloud_voxels(self, source):
+        return self._voxels[source]
+
+
+class NearRecord(NamedTuple):
+    """A near pair as the markers draw it (points as arrays)."""
+
+    link_a: str
+    link_b: str
+    distance: float
+    point_a: np.ndarray
+    point_b: np.ndarray
+
+
 def _point(point) -> Point:
     return Point(x=float(point[0]), y=float(point[1]), z=float(point[2]))
 
 
 class MarkerPublisher:
-    """Publish ``~/markers`` after verdicts (call everything with the node's lock held).
+    """Publish ``~/markers`` (``publish_markers``): the sensor's verdicts shown, looked at on
+    the node's poll timer.
 
     :param node: the node that owns the publisher.
+    :param enabled: ``publish_markers``.
+    :ivar scene_changed: set when the scene's objects changed (the markers show them again).
     """
 
-    def __init__(self, node):
-        self._publisher = node.create_publisher(MarkerArray, '~/markers', 10)
+    def __init__(self, node, enabled: bool):
+        self._node = node
+        self._publisher = None
         self.root_frame = ''
         self._content = ()      # (colliding links, near pairs) the markers show
+        self._serial = None     # the held verdict's serial they show
         self._time = 0.0
         self._shapes: Dict[str, tuple] = {}   # object: (its vertices, its marker's shape)
         self.scene_changed = True       # the scene file's objects, on the first verdict
         self._trajectory = []   # the last trajectory's first-contact markers
+        self.enable(enabled)
 
-    def close(self, node) -> None:
-        """Clear the markers and destroy the publisher (``publish_markers`` turned off)."""
-        self.clear(self.root_frame)
-        node.destroy_publisher(self._publisher)
+    @property
+    def enabled(self) -> bool:
+        return self._publisher is not None
+
+    def enable(self, enabled: bool) -> None:
+        """Advertise ``~/markers`` (``publish_markers`` true), or clear the markers and withdraw
+        it."""
+        if enabled and self._publisher is None:
+            self._publisher = self._node.create_publisher(MarkerArray, '~/markers', 10)
+            self.scene_changed = True
+        elif not enabled and self._publisher is not None:
+            self.clear(self.root_frame)
+            self._node.destroy_publisher(self._publisher)
+            self._publisher = None
+
+    def forget(self, root_frame: str) -> None:
+        """A new model: clear what the old one showed."""
+        if self.enabled:
+            self.clear(root_frame)
+        self.root_frame = root_frame
+        self.scene_changed = True
+        self._serial = None
+
+    def refresh(self, sensor) -> None:
+        """Show the verdict the sensor holds, when it changed (or at most every MARKER_PERIOD
+        while something collides or is near, or an attached object moves with the robot)."""
+        if not self.enabled:
+            return
+        held = sensor.held()
+        if held is None or (held['serial'] == self._serial and not self.scene_changed):
+            return
+        # What the markers show, read with the checker held still (poses, objects, voxels);
+        # the messages are built and published after, without holding the sensor.
+        pairs = [tuple(pair) for pair in held['now']]
+        zone = held['zone']
+        records = [] if zone is None else [
+            NearRecord(a, b, d, np.array(pa), np.array(pb)) for a, b, d, pa, pb in zone['records']]
+        self._serial = held['serial']
+        with sensor.changing() as checker:
+            if checker is None or not self._due(checker, pairs, records):
+                return
+            view = CheckerView(checker, {name for pair in pairs for name in pair})
+        sec, nanosec = held['stamp']
+        self.publish(view, Time(sec=sec, nanosec=nanosec), pairs, records)
 
     def publish(self, checker, stamp, pairs, records=()) -> None:
         """Publish the boxes of the colliding bodies, the scene objects and, with
@@ -94,21 +182,17 @@ class MarkerPublisher:
         :param checker: the checker that gave the verdict (at the state it describes).
         :param stamp: the verdict's stamp.
         :param pairs: the colliding pairs.
-        :param records: the warning zone's ``ProximityRecord``\\ s.
+        :param records: the warning zone's near pairs (``link_a``, ``link_b``, ``distance``,
+            ``point_a``, ``point_b``).
         """
         colliding = tuple(sorted({name for pair in pairs for name in pair}))
-        near = tuple((r.link_a, r.link_b) for r in records)
-        objects = checker.object_names
-        if not colliding and not near and not objects:
+        if not colliding and not records and not checker.object_names:
             self.clear()
             return
-        now = time.monotonic()
-        moving = colliding or near or checker.attachments
-        content = (colliding, near)
-        if not self.scene_changed and content == self._content and (
-                not moving or now - self._time < MARKER_PERIOD):
+        if not self._due(checker, pairs, records):
             return
-        self._content, self._time, self.scene_changed = content, now, False
+        self._content = (colliding, tuple((r.link_a, r.link_b) for r in records))
+        self._time, self.scene_changed = time.monotonic(), False
         # DELETEALL first: bodies that stopped colliding lose their boxes in the same message.
         markers = [Marker(action=Marker.DELETEALL)]
         for index, (name, T_world_box, half) in enumerate(checker.collision_boxes(colliding)):
@@ -124,6 +208,17 @@ class MarkerPublisher:
         markers.extend(self._proximity_markers(checker, stamp, records))
         markers.extend(self._trajectory)   # DELETEALL took them too
         self._publisher.publish(MarkerArray(markers=markers))
+
+    def _due(self, checker, pairs, records) -> bool:
+        """Whether what the markers show changed (or, while something collides or is near, or
+        an attached object moves with the robot, MARKER_PERIOD passed)."""
+        colliding = tuple(sorted({name for pair in pairs for name in pair}))
+        near = tuple((r.link_a, r.link_b) for r in records)
+        if not colliding and not near and not checker.object_names:
+            return bool(self._content)      # to clear what is shown
+        moving = colliding or near or checker.attachments
+        return self.scene_changed or (colliding, near) != self._content or (
+            bool(moving) and time.monotonic() - self._time >= MARKER_PERIOD)
 
     def trajectory_contact(self, boxes, stamp, text: str) -> None:
         """Show ``boxes`` (``(name, T_world_box, half)``: the links at a planned trajectory's
@@ -258,7 +353,7 @@ class MarkerPublisher:
         dropped = root_frame is not None and bool(self._trajectory)
         if root_frame is not None:
             self._trajectory = []
-        if self._content or self._shapes or dropped:
+        if self._publisher is not None and (self._content or self._shapes or dropped):
             marker = Marker(action=Marker.DELETEALL)
             marker.header.frame_id = self.root_frame
             self._publisher.publish(MarkerArray(markers=[marker] + self._trajectory))

@@ -15,11 +15,12 @@ import collections
 import difflib
 import threading
 import warnings
-from typing import Callable
+from typing import Callable, FrozenSet, List, Tuple
 
 from collision_sensor.errors import LoadWarning
-from collision_sensor.ros.warning_zone import near_everywhere_notes
 from collision_sensor.untrusted_text import printable, quoted
+
+Pair = Tuple[str, str]
 
 #: Largest robot_description accepted (UTF-8 bytes); real URDFs with inline meshes stay far
 #: below.
@@ -149,3 +150,31 @@ class ModelLoader:
                     self.busy = False
                     if self._closed:
                         return
+
+
+def near_everywhere_notes(checker, distance: float, ignore: FrozenSet[Pair]) -> List[tuple]:
+    """Name the pairs nearer than ``distance`` wherever the robot goes, with the fix (log notes,
+    see :mod:`collision_sensor.ros.node_log`); nothing when there are none.
+
+    Runs :func:`pairs_near_everywhere` on ``checker``: call it on a checker not in use yet.
+    """
+    if distance <= 0:
+        return []
+    # Imported here: sampling brings numpy.random (2 MiB) that a node without a zone never uses.
+    from collision_sensor.engine.sampling import (
+        NEAR_FRACTION, NEAR_SAMPLES, pairs_near_everywhere)
+    found = [pair for pair in pairs_near_everywhere(checker, distance)
+             if (pair.link_a, pair.link_b) not in ignore]
+    if not found:
+        return []
+    samples = found[0].samples
+    listed = ', '.join(f'{p.link_a}:{p.link_b} ({p.largest:.4f} m at most'
+                       + ('' if p.near == p.samples else f', near in {p.near} of {p.samples}')
+                       + ')' for p in found)
+    entries = ', '.join(f'"{p.link_a}:{p.link_b}"' for p in found)
+    return [('warning', None, (
+        f'warning zone: {len(found)} pair(s) nearer than warning_distance {distance:g} m '
+        f'wherever the robot goes (in at least {NEAR_FRACTION:.0%} of {samples} configurations '
+        f'sampled: the neutral one and {NEAR_SAMPLES} uniform within the joint limits), so near '
+        f'would be true all the time: {listed}. Leave them out of the zone with the parameter '
+        f'warning_ignore: [{entries}], or lower warning_distance below their distance'))]

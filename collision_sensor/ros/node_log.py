@@ -10,6 +10,9 @@ from typing import Callable, Dict, Iterable, Optional, Tuple
 
 #: s between two warnings of one kind.
 WARNING_PERIOD = 1.0
+#: Kinds whose lines come at most once per this many seconds (a planner that pauses makes many
+#: stale episodes): the next line says how many were held back.
+LONG_PERIODS = {'stale': 30.0, 'resumed': 30.0}
 
 #: ``(level, throttle kind or None, text)``: level ``'info'``, ``'warning'`` or ``'error'``.
 Note = Tuple[str, Optional[str], str]
@@ -69,10 +72,16 @@ class NodeLog:
     def warn(self, kind: str, text: str, level: str = 'warning') -> None:
         """Write ``text`` unless a line of ``kind`` was written less than a period ago; the
         next line of that kind says how many were held back."""
-        held = self.throttle.admit(kind, self._clock())
-        if held is not None:
-            more = f' ({held} more like this in the last {WARNING_PERIOD:g} s)' if held else ''
-            self.log(level, text + more)
+        period = LONG_PERIODS.get(kind)
+        held = self.throttle.admit(kind, self._clock(), period)
+        if held is None:
+            return
+        if not held:
+            self.log(level, text)
+        elif period is None:
+            self.log(level, f'{text} ({held} more like this in the last {WARNING_PERIOD:g} s)')
+        else:
+            self.log(level, f'{text} ({held} more since the last report)')
 
     def write(self, notes: Iterable[Note]) -> None:
         """Write the notes collected under the lock."""

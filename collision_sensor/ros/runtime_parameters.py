@@ -42,7 +42,7 @@ def check_names(settings, checker) -> None:
 class RuntimeParameters:
     """The node's ``on_set_parameters`` callback (the executor's thread).
 
-    :param node: the :class:`~collision_sensor.ros.sensor_node.CollisionSensorNode`.
+    :param node: the :class:`~collision_sensor.ros.node.CollisionSensorNode`.
     """
 
     def __init__(self, node):

@@ -22,7 +22,7 @@ from collision_sensor.ros.playback_messages import (
     cloud_message, marker_message, stamp_from_seconds)
 from collision_sensor.ros.playback_schedule import (
     cloud_after_frame, frame_offsets, loop_period, recorded_cloud_offsets)
-from collision_sensor.ros.sensor_node import SCENE_QOS
+from collision_sensor.ros.scene_source import SCENE_QOS
 from collision_sensor.tools.progress import ProgressBar
 
 TOPIC = 'joint_states'

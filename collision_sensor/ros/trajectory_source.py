@@ -38,13 +38,14 @@ in contact at a trajectory's first contact (namespace ``trajectory_contact``, ma
 text naming the time and the pairs) until the next trajectory is answered.
 
 Threads: the executor only takes the bytes; trajectories are decoded and checked in arrival order
-on a thread of their own. A check holds the node's lock only to read the start state (and to place
-the markers): ``check_trajectory`` leaves the carried state alone and the engine serializes its
-calls, so joint states keep being answered meanwhile. It holds the checker-change lock
-(``host.checker_changes``) throughout instead: a scene array or a new checker waits until the
-trajectory is answered, so a trajectory is checked against one scene and one model.
+on a thread of their own, at a lower priority than the joint states' answers. A check reads the
+start state from the sensor and holds the sensor's scene still throughout
+(:meth:`~collision_sensor.sensor.Sensor.check_trajectory`): a scene array or a new checker waits
+until the trajectory is answered, so a trajectory is checked against one scene and one model;
+``check_trajectory`` leaves the carried state alone, so joint states keep being answered.
 """
 import array
+import collections
 import hashlib
 import struct
 import sys
@@ -57,13 +58,14 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
+from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
 
 from collision_sensor.engine.trajectory import (
     TrajectoryPoint, TrajectoryResult, build_segments)
 from collision_sensor.ros.input_source import InputSource
-from collision_sensor.ros.joint_state_source import Oversized, header_of
 from collision_sensor.ros.work_queue import BACKGROUND_NICE, NewestFirstWorker
+from collision_sensor.sensor.model import root_link
 from collision_sensor.untrusted_text import listing, printable
 
 #: ``trajectory``: reliable, volatile (a trajectory is not for late joiners), keep last 100: a
@@ -89,6 +91,34 @@ MAX_REASON_CHARS = 1000
 #: What ``kind`` says (see the module docstring).
 KINDS = ('valid', 'contact', 'joint_limits', 'malformed', 'no_start', 'oversized', 'dropped',
          'engine_error')
+
+
+def header_of(data: bytes) -> Header:
+    """Read ``header`` from a serialized message (CDR: 4 bytes of encapsulation, then stamp
+    sec int32, nanosec uint32, frame_id as uint32 length + bytes + NUL)."""
+    header = Header()
+    try:
+        order = '<' if data[1] == 1 else '>'
+        sec, nanosec, length = struct.unpack_from(order + 'iII', data, 4)
+        header.stamp.sec, header.stamp.nanosec = sec, nanosec
+        if 0 < length <= 257:
+            header.frame_id = printable(data[16:16 + length - 1].decode('utf-8', 'replace'), 256)
+    except (IndexError, struct.error, ValueError, AssertionError):
+        pass
+    return header
+
+
+class Oversized:
+    """A trajectory above ``max_trajectory_bytes``, left undecoded: answered by its header.
+
+    :ivar size: its serialized size in bytes.
+    """
+
+    __slots__ = ('size', 'header')
+
+    def __init__(self, data: bytes):
+        self.size = len(data)
+        self.header = header_of(data)
 
 
 class Dropped:
@@ -183,37 +213,42 @@ def boxes_at(checker, q, names) -> list:
 
 
 class TrajectorySource(InputSource):
-    """Planned trajectories: subscription, size bound, the check, the answer and the relay."""
+    """Planned trajectories: subscription, size bound, the check, the answer and the relay.
+
+    :param node: the node the subscription and publishers belong to.
+    :param sensor: the :class:`~collision_sensor.sensor.Sensor` that checks.
+    :param settings: the node's settings (``max_trajectory_bytes``).
+    :param log: the node's :class:`~collision_sensor.ros.node_log.NodeLog`.
+    :param markers: the node's :class:`~collision_sensor.ros.markers.MarkerPublisher`.
+    """
 
     name = 'trajectory'
 
-    def __init__(self, host):
-        super().__init__(host)
+    def __init__(self, node, sensor, settings, log, markers):
+        self._node, self._sensor, self._log, self._markers = node, sensor, log, markers
         self._worker: Optional[NewestFirstWorker] = None
         self._result_pub = self._relay_pub = None
-        self._max_bytes = host.settings.max_trajectory_bytes
+        self._max_bytes = settings.max_trajectory_bytes
+        self.counts = collections.Counter()
         self.last = ('', '')     # the last answer's (kind, reason)
         self.problems = 0        # oversized, dropped or failed since the last status
         self.check_time_max = 0.0
 
     def start(self) -> None:
-        host = self.host
-        self._result_pub = host.create_publisher(
+        node = self._node
+        self._result_pub = node.create_publisher(
             DiagnosticArray, 'trajectory_result', RESULT_QOS,
             event_callbacks=PublisherEventCallbacks(
                 incompatible_qos=self._on_incompatible_result_qos, use_default_callbacks=False))
-        self._relay_pub = host.create_publisher(JointTrajectory, 'trajectory_out', RELAY_QOS)
+        self._relay_pub = node.create_publisher(JointTrajectory, 'trajectory_out', RELAY_QOS)
         self._worker = NewestFirstWorker(self._check_batch, 'trajectory checker', None,
                                          nice=BACKGROUND_NICE)
-        host.create_subscription(
+        node.create_subscription(
             JointTrajectory, 'trajectory', self._take, TRAJECTORY_QOS, raw=True,
             callback_group=MutuallyExclusiveCallbackGroup(),
             event_callbacks=SubscriptionEventCallbacks(
                 message_lost=self._on_message_lost, incompatible_qos=self._on_incompatible_qos,
                 use_default_callbacks=False))
-
-    def timeout_due(self, now: float) -> bool:
-        return False    # a planner publishes when it plans: no timeout
 
     def close(self) -> None:
         if self._worker is not None:
@@ -235,22 +270,20 @@ class TrajectorySource(InputSource):
         self._worker.put(item)
 
     def _on_message_lost(self, info) -> None:
-        host = self.host
-        with host.lock:
-            host.totals['trajectories_lost'] += info.total_count_change
-            self.problems += 1
-        host.log.warn('trajectory_lost', f'{info.total_count_change} trajectories lost before '
+        self.counts['lost'] += info.total_count_change
+        self.problems += 1
+        self._log.warn('trajectory_lost', f'{info.total_count_change} trajectories lost before '
                       f'the node took them ({info.total_count} in all): never answered; send '
                       'fewer at once (counted as lost_total on the trajectory status)')
 
     def _on_incompatible_qos(self, event) -> None:
-        self.host.log.warn(
+        self._log.warn(
             'trajectory_qos', 'a publisher of trajectory offers a QoS this subscription cannot '
             f'match (policy {event.last_policy_kind}); its trajectories are never received. '
             'Publish reliable')
 
     def _on_incompatible_result_qos(self, event) -> None:
-        self.host.log.warn(
+        self._log.warn(
             'trajectory_result_qos', 'a subscriber of trajectory_result asks for a QoS it does '
             f'not offer (policy {event.last_policy_kind}); it receives no answer. Answers are '
             'reliable and volatile: subscribe volatile before sending a trajectory')
@@ -258,22 +291,20 @@ class TrajectorySource(InputSource):
     # -- the checking thread ------------------------------------------------------------------
 
     def _check_batch(self, batch: list, _newest_only: bool) -> None:
-        host = self.host
         for item in batch:
             notes = []
             try:
                 self._answer(item, notes)
             except Exception as error:  # noqa: B902 - one trajectory must never stop the node
-                if not host.context.ok():
+                if not self._node.context.ok():
                     return
                 notes.append(('error', None, 'trajectory skipped after an internal error: '
                               f'{printable(repr(error), 300)}'))
-            host.log.write(notes)
+            self._log.write(notes)
 
     def _answer(self, item, notes: list) -> None:
         """Check one trajectory (or answer a placeholder), publish its result, relay it when
         valid."""
-        host = self.host
         if isinstance(item, Oversized):
             self._publish(item.header, 'oversized', None, (
                 f'{item.size} bytes, above max_trajectory_bytes ({self._max_bytes}); raise the '
@@ -297,26 +328,22 @@ class TrajectorySource(InputSource):
         size = (len(points), len(names))
         digest = trajectory_digest(msg)
         started = time.perf_counter()
-        with host.checker_changes:
-            with host.lock:
-                checker = host.checker
-                start, why = (None, 'no robot model yet') if checker is None else \
-                    host.joints.start_state(checker, time.monotonic())
-                tolerance = host.settings.joint_limit_tolerance
-            if start is None:
-                self._publish(msg.header, 'no_start', None, why, notes, size, digest)
-                return
+        sensor = self._sensor
+        with sensor.editing() as checker:
             try:
-                result = checker.check_trajectory(names, points, start=start,
-                                                  limit_tolerance=tolerance)
+                result, why = sensor.check_trajectory(names, points)
             except Exception as error:  # noqa: B902 - answered, never relayed
                 self._publish(msg.header, 'engine_error', None, 'the check failed: '
                               f'{printable(repr(error), 300)}', notes, size, digest)
                 return
+            if result is None:
+                self._publish(msg.header, 'no_start', None, why, notes, size, digest)
+                return
             elapsed = time.perf_counter() - started
             self.check_time_max = max(self.check_time_max, elapsed)
-            if host.markers is not None:
+            if self._markers.enabled:
                 try:
+                    start, _ = sensor.start_state()
                     self._show_contact(checker, msg, names, points, start, result)
                 except Exception as error:  # noqa: B902 - the answer goes out regardless
                     notes.append(('warning', 'trajectory_markers', 'trajectory markers '
@@ -330,7 +357,6 @@ class TrajectorySource(InputSource):
     def _show_contact(self, checker, msg, names, points, start, result) -> None:
         """Show on ``~/markers`` the boxes of the pairs in contact at the first contact, or
         clear the last trajectory's (a trajectory without contact)."""
-        host = self.host
         boxes, text = [], ''
         if result.colliding_pairs:
             q_start = np.array([start[name] for name in checker.joint_names])
@@ -342,18 +368,19 @@ class TrajectorySource(InputSource):
             text = printable(f'trajectory: first contact at {result.time_from_start:.3f} s '
                              f'(segment {i}): ' + ', '.join(f'{a}:{b}' for a, b
                                                             in result.colliding_pairs), 300)
-        with host.lock:
-            if host.markers is None or host.checker is not checker:
+        with self._sensor.changing():
+            if not self._markers.enabled or self._sensor.checker is not checker:
                 return
             if text:
                 boxes = boxes_at(checker, q, linked)
-            host.markers.trajectory_contact(boxes, msg.header.stamp, text)
+            self._markers.trajectory_contact(boxes, msg.header.stamp, text)
 
     def _publish(self, header, kind: str, result: Optional[TrajectoryResult], reason: str,
                  notes: list, size=(0, 0), digest: str = '') -> None:
         """Publish the one status answering a trajectory (``digest``: its
         :func:`trajectory_digest`, '' when undecoded); log an invalid one (throttled)."""
-        host = self.host
+        checker = self._sensor.checker
+        root = root_link(checker) if checker is not None else ''
         valid = kind == 'valid'
         segment = result.first_invalid_segment if result is not None else None
         at = result.time_from_start if result is not None else None
@@ -375,30 +402,29 @@ class TrajectorySource(InputSource):
         }
         status = DiagnosticStatus(
             level=DiagnosticStatus.OK if valid else DiagnosticStatus.ERROR,
-            name=f'{host.get_fully_qualified_name().lstrip("/")}: trajectory',
-            message='valid' if valid else reason, hardware_id=host.root_frame,
+            name=f'{self._node.get_fully_qualified_name().lstrip("/")}: trajectory',
+            message='valid' if valid else reason, hardware_id=root,
             values=[KeyValue(key=key, value=value) for key, value in values.items()])
         self._result_pub.publish(DiagnosticArray(header=header, status=[status]))
-        with host.lock:
-            host.totals['trajectories'] += 1
-            host.totals[f'trajectories_{kind}'] += 1
-            if valid:
-                host.totals['trajectories_relayed'] += 1
-            if kind in ('oversized', 'dropped', 'engine_error'):
-                self.problems += 1
-            self.last = (kind, reason)
+        counts = self.counts
+        counts['trajectories'] += 1
+        counts[kind] += 1
+        counts['relayed'] += valid
+        if kind in ('oversized', 'dropped', 'engine_error'):
+            self.problems += 1
+        self.last = (kind, reason)
         if not valid:
             notes.append(('warning', f'trajectory_{kind}',
                           f'trajectory refused ({kind}), not relayed: {reason}'))
 
     # -- diagnostics --------------------------------------------------------------------------
 
-    def status(self, now: float, notes: list) -> Optional[DiagnosticStatus]:
-        """The ``trajectory`` status on /diagnostics (lock held), once the source started."""
-        host = self.host
+    def status(self, now: float) -> Optional[DiagnosticStatus]:
+        """The ``trajectory`` status on /diagnostics, once the source started."""
         if self._result_pub is None:
             return None
-        totals = host.totals
+        counts = self.counts
+        checker = self._sensor.checker
         kind, reason = self.last
         level, message = DiagnosticStatus.OK, 'no trajectory yet'
         if kind:
@@ -410,10 +436,10 @@ class TrajectorySource(InputSource):
                        f'{message}')
         self.problems = 0
         values = {
-            'trajectories_total': str(totals['trajectories']),
-            'relayed_total': str(totals['trajectories_relayed']),
-            'lost_total': str(totals['trajectories_lost']),
-            **{f'{k}_total': str(totals[f'trajectories_{k}']) for k in KINDS},
+            'trajectories_total': str(counts['trajectories']),
+            'relayed_total': str(counts['relayed']),
+            'lost_total': str(counts['lost']),
+            **{f'{k}_total': str(counts[k]) for k in KINDS},
             'last_kind': kind,
             'last_reason': reason,
             'check_time_max_ms': f'{1e3 * self.check_time_max:.3f}',
@@ -421,6 +447,7 @@ class TrajectorySource(InputSource):
             'waiting': str(self._worker.backlog() if self._worker is not None else 0),
         }
         return DiagnosticStatus(
-            level=level, name=f'{host.get_fully_qualified_name().lstrip("/")}: trajectory',
-            message=printable(message, 1000), hardware_id=printable(host.root_frame),
+            level=level, name=f'{self._node.get_fully_qualified_name().lstrip("/")}: trajectory',
+            message=printable(message, 1000),
+            hardware_id=printable(root_link(checker) if checker is not None else ''),
             values=[KeyValue(key=key, value=value) for key, value in values.items()])

@@ -5,11 +5,11 @@ import queue
 import threading
 from typing import Callable, Optional
 
-#: The input rate the node is specified for (Hz).
-MAX_INPUT_RATE = 1000.0
-#: Joint states that may wait for the checking thread before it answers only the newest: 0.1 s
-#: at :data:`MAX_INPUT_RATE`, as the verdict history (``verdicts.VERDICT_DEPTH``).
-MAX_BACKLOG = 100
+#: The joint-state rate the node is specified for (Hz): every joint state is answered up to it.
+MAX_INPUT_RATE = 2000.0
+#: Joint states that may wait at once before only the newest is answered: 0.1 s at
+#: :data:`MAX_INPUT_RATE`, as the answers' history (``verdict_topics.VERDICT_DEPTH``).
+MAX_BACKLOG = int(0.1 * MAX_INPUT_RATE)
 #: The niceness added to the threads of work that yields to the joint states' verdicts.
 BACKGROUND_NICE = 10
 

@@ -3,7 +3,7 @@ it over its topics and waits for the answer that belongs to what it sent.
 
 :func:`running_sensor` (a context manager) and the ``collision_sensor`` pytest fixture
 (:mod:`collision_sensor.testing.plugin`) start a :class:`SensorUnderTest`: the node
-(:class:`~collision_sensor.ros.sensor_node.CollisionSensorNode`, its public constructor only)
+(:class:`~collision_sensor.ros.node.CollisionSensorNode`, its public constructor only)
 on a robot, a scene and parameters, in an rclpy Context of its own, a DDS domain of its own and
 a namespace of its own, spun on a thread of its own with the client's node. Everything goes
 through the node's topics and parameter services, as a planner or a driver would talk to it,
@@ -146,7 +146,7 @@ class SensorUnderTest:
 
         :raises CollisionSensorError: the node refused its configuration (the reason named).
         """
-        from collision_sensor.ros.sensor_node import CollisionSensorNode
+        from collision_sensor.ros.node import CollisionSensorNode
         # Discovery stays on this machine unless the caller configured it.
         if not os.environ.get('ROS_LOCALHOST_ONLY'):
             os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')

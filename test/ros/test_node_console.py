@@ -148,7 +148,7 @@ def test_console_script_points_fast_dds_at_the_shipped_profile_only_when_unconfi
                                                                                       monkeypatch):
     from lxml import etree
 
-    from collision_sensor.ros.node import apply_dds_profile
+    from collision_sensor.ros.main import apply_dds_profile
     monkeypatch.chdir(tmp_path)
     environ = {}
     profile = apply_dds_profile(environ)

@@ -2,10 +2,10 @@
 refused joint state are answered as such, never as "clear", by the policies ``on_engine_error``,
 ``stale_policy`` and ``on_rejected_input``.
 
-Real failures, seen as a subscriber sees them: the engine fault is a real checker whose update
-fails half-way, its carried statuses overwritten (as a fault inside the engine would leave
-them), so a node that kept the merge, or went on from the carried state, would answer wrong;
-the references are fresh checkers.
+Real failures, seen as a subscriber sees them: the engine fault is injected into the sensor's
+core (``inject_fault``): its check of one state fails half-way, the carried statuses
+overwritten (as a fault inside the engine would leave them), so a node that kept the merge, or
+went on from the carried state, would answer wrong; the references are fresh checkers.
 """
 import math
 
@@ -25,29 +25,22 @@ from node_harness import (  # noqa: E402,F401 - the fixtures of the node's tests
     poses, ros, stamp_of, start_node)
 
 
-def faulty_factory(*args, **kwargs):
-    """A real Panda checker whose update fails at ``panda_joint1 == faulty_factory.mark`` (the
-    colliding test state's value) after overwriting the engine's carried statuses (every pair
-    "colliding")."""
-    checker = CollisionChecker.from_urdf(*args, **kwargs)
-    update, j = checker.update, checker.joint_names.index('panda_joint1')
-
-    def faulty_update(positions):
-        value = (positions[j] if isinstance(positions, np.ndarray)
-                 else positions.get('panda_joint1'))
-        if value == faulty_factory.mark:
-            checker.packed_array('status')[:] = 1
-            raise RuntimeError('engine fault injected by the test')
-        return update(positions)
-
-    checker.update = faulty_update
-    return checker
+#: The message of the fault the tests inject.
+FAULT = 'engine fault injected by the test'
 
 
-def start_faulty(ros, panda_urdf, panda_srdf, erd_share, **overrides):
-    return ros.add(CollisionSensorNode(
-        namespace=ros.namespace, context=ros.context, checker_factory=faulty_factory,
+def start_faulty(ros, panda_urdf, panda_srdf, erd_share, mark, **overrides):
+    """Start the node on the Panda; its check of a state with ``panda_joint1 == mark`` fails
+    after marking every pair in contact in the carried state."""
+    # (no stale check unless a test asks: a loaded machine may pause longer than its default
+    # between two of the test's states, and a stale answer is not what these tests read)
+    overrides.setdefault('stale_timeout', 0.0)
+    node = ros.add(CollisionSensorNode(
+        namespace=ros.namespace, context=ros.context,
         parameter_overrides=panda_parameters(panda_urdf, panda_srdf, erd_share, **overrides)))
+    joint = node.checker.joint_names.index('panda_joint1')
+    node.sensor.core.inject_fault(joint, mark, FAULT, True, True)
+    return node
 
 
 def entry_values(status):
@@ -57,14 +50,13 @@ def entry_values(status):
 @pytest.fixture
 def marked(panda, poses):
     """The colliding state, at which the engine fails: kept by mistake, it would show."""
-    faulty_factory.mark = poses['hit']['panda_joint1']
-    assert poses['free']['panda_joint1'] != faulty_factory.mark
+    assert poses['free']['panda_joint1'] != poses['hit']['panda_joint1']
     return poses['hit']
 
 
 def test_engine_fault_answers_contact_and_the_next_state_is_checked_from_scratch(
         ros, panda, panda_urdf, panda_srdf, erd_share, poses, marked, capfd):
-    start_faulty(ros, panda_urdf, panda_srdf, erd_share)
+    start_faulty(ros, panda_urdf, panda_srdf, erd_share, marked['panda_joint1'])
     probe = Probe(ros)
     free = poses['free']
     assert probe.send(joint_state(free, stamp=stamp_of(1))) == (False, ())
@@ -74,12 +66,12 @@ def test_engine_fault_answers_contact_and_the_next_state_is_checked_from_scratch
     assert answer.header.stamp == stamp_of(2)
     entry = answer.status[0]
     assert entry.level == DiagnosticStatus.ERROR
-    assert 'engine fault injected by the test' in entry.message
+    assert FAULT in entry.message
     assert entry_values(entry)['policy'] == 'contact' and entry_values(entry)['kind'] == \
         'engine_error'
     status, values = probe.next_diagnostics(lambda v: v['engine_errors_total'] == '1')
     assert status.level == DiagnosticStatus.ERROR and values['engine_error']
-    assert 'engine fault injected by the test' in status.message
+    assert FAULT in status.message
     # The merge was undone (the state is the free one, not the marked collision) and the
     # corrupted carried state was not trusted: the gripper alone moves, and the verdict is a
     # fresh checker's on the free state with that gripper.
@@ -92,15 +84,14 @@ def test_engine_fault_answers_contact_and_the_next_state_is_checked_from_scratch
     status, values = probe.next_diagnostics(lambda v: v['engine_error'] == '')
     assert status.level == DiagnosticStatus.OK
     assert values['new_motions_engine_error'] == '1' and values['motion'] == 'sweeping'
-    assert 'collision check failed: RuntimeError(\'engine fault injected by the test\')' in \
-        logged(ros, capfd, 'collision check failed')
+    assert f'collision check failed: {FAULT}' in logged(ros, capfd, 'collision check failed')
 
 
 def test_engine_fault_with_hold_repeats_the_last_verdict_and_reports_error(
         ros, panda_urdf, panda_srdf, erd_share, poses, marked):
     # Instants (check_motion off): the poses jump.
-    start_faulty(ros, panda_urdf, panda_srdf, erd_share, on_engine_error='hold',
-                 check_motion=False)
+    start_faulty(ros, panda_urdf, panda_srdf, erd_share, marked['panda_joint1'],
+                 on_engine_error='hold', check_motion=False)
     probe = Probe(ros)
     hit_elsewhere = dict(marked, panda_joint1=marked['panda_joint1'] + 1e-9)
     reference = CollisionChecker.from_urdf(panda_urdf, srdf=panda_srdf,
@@ -118,7 +109,8 @@ def test_engine_fault_with_hold_repeats_the_last_verdict_and_reports_error(
 
 def test_warning_zone_follows_a_fail_safe_answer(ros, panda_urdf, panda_srdf, erd_share,
                                                  poses, marked):
-    start_faulty(ros, panda_urdf, panda_srdf, erd_share, warning_distance=0.05)
+    start_faulty(ros, panda_urdf, panda_srdf, erd_share, marked['panda_joint1'],
+                 warning_distance=0.05)
     probe = Probe(ros)
     near = ros.record(Bool, 'near', reliable(1000, latched=True))
     minimum = ros.record(Float64, 'min_distance', reliable(1000, latched=True))

@@ -73,7 +73,7 @@ def test_bad_joint_states_are_rejected_and_change_nothing(ros, panda_urdf, panda
     assert probe.send(velocity_only) == (False, ())    # ignored: the state held, its verdict
     # The known state is unchanged: a message moving nothing gives the free verdict again.
     assert probe.send(joint_state({'panda_joint1': free['panda_joint1']})) == (False, ())
-    err = capfd.readouterr().err
+    err = logged(ros, capfd, '"panda_finger_joint1"=nan')
     assert 'joint state rejected' in err and '8 names but 7 positions' in err   # throttled:
     # the first of a kind within a second is shown, so each kind appears once here.
     assert 'given more than once: "panda_joint3"' in err
@@ -137,7 +137,7 @@ def test_an_oversized_joint_state_is_rejected_before_decoding(ros, panda_urdf, p
     assert probe.send(joint_state({'panda_joint1': poses['free']['panda_joint1']})) == \
         (False, ())
     assert probe.send(joint_state(poses['hit']))[0]     # the robot's own states still fit
-    err = capfd.readouterr().err
+    err = logged(ros, capfd, 'above max_joint_state_bytes (4096)')
     assert 'joint state rejected before decoding, state unchanged' in err
     assert 'above max_joint_state_bytes (4096)' in err
     _, values = probe.next_diagnostics(lambda v: v['rejected_oversized'] != '0')
@@ -163,7 +163,7 @@ def test_out_of_limit_joints_are_rejected_by_default(ros, panda_urdf, panda_srdf
     # Within the tolerance (0.01 rad) a value is taken as given.
     state = dict(poses['free'], panda_joint4=-0.0698 + 0.005)
     assert probe.send(joint_state(state))
-    err = capfd.readouterr().err
+    err = logged(ros, capfd, 'by more than joint_limit_tolerance 0.01')
     assert 'joint state rejected, state unchanged: joint "panda_joint4" at 0.5 outside its ' \
            'limits [-3.0718, -0.0698] by more than joint_limit_tolerance 0.01' in err
     assert 'joint_limit_policy to "clamp" or "accept"' in err
@@ -201,56 +201,30 @@ def test_out_of_limit_joints_accepted_on_request_are_checked_and_reported(
     assert status.level >= DiagnosticStatus.WARN
 
 
-class _FlakyChecker:
-    """A real checker whose update fails at one marked configuration."""
-
-    MARK = 0.123
-
-    def __init__(self, checker):
-        self._checker = checker
-
-    def __getattr__(self, name):
-        return getattr(self._checker, name)
-
-    def _fault(self, positions):
-        # A mapping, or (the node's fast path) an array in joint_names order.
-        value = (positions.get('panda_joint1') if hasattr(positions, 'get')
-                 else positions[self._checker.joint_names.index('panda_joint1')])
-        if value == self.MARK:
-            raise RuntimeError('engine fault injected by the test')
-        if value == -self.MARK:
-            raise ConfigError('engine error injected by the test')
-
-    def update(self, positions):
-        self._fault(positions)
-        return self._checker.update(positions)
-
-    def check(self, positions):     # after an engine error the node checks from scratch
-        self._fault(positions)
-        return self._checker.check(positions)
+#: The state (panda_joint1) at which the tests' injected faults fire.
+MARK = 0.123
 
 
 def test_engine_errors_are_logged_and_the_node_keeps_running(ros, panda_urdf, panda_srdf,
                                                              erd_share, poses, capfd):
-    def factory(*args, **kwargs):
-        return _FlakyChecker(CollisionChecker.from_urdf(*args, **kwargs))
-
-    ros.add(CollisionSensorNode(
-        namespace=ros.namespace, context=ros.context, checker_factory=factory,
+    node = ros.add(CollisionSensorNode(
+        namespace=ros.namespace, context=ros.context,
         parameter_overrides=panda_parameters(panda_urdf, panda_srdf, erd_share)))
+    joint = node.checker.joint_names.index('panda_joint1')
+    node.sensor.core.inject_fault(joint, MARK, 'engine fault injected by the test', True)
+    node.sensor.core.inject_fault(joint, -MARK, 'engine error injected by the test', False)
     probe = Probe(ros)
     free = poses['free']
     assert probe.send(joint_state(free)) == (False, ())
     # Answered, fail safe (on_engine_error contact): contact true, the error named.
-    assert probe.send(joint_state(dict(free, panda_joint1=_FlakyChecker.MARK))) == \
+    assert probe.send(joint_state(dict(free, panda_joint1=MARK))) == \
         (True, (('engine_error',),))
-    assert probe.send(joint_state(dict(free, panda_joint1=-_FlakyChecker.MARK))) == \
+    assert probe.send(joint_state(dict(free, panda_joint1=-MARK))) == \
         (True, (('engine_error',),))
     assert 'engine error injected by the test' in probe.pairs.last.status[0].message
     assert probe.send(joint_state(free)) == (False, ())
-    err = capfd.readouterr().err
-    assert 'engine fault injected by the test' in err
-    assert 'collision check failed: engine error injected by the test' in err
+    err = logged(ros, capfd, 'collision check failed: engine error injected by the test')
+    assert 'collision check failed: engine fault injected by the test' in err
     _, values = probe.next_diagnostics(lambda v: v['engine_errors_total'] != '0')
     assert values['engine_errors_total'] == '2'
 

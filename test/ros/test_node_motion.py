@@ -2,7 +2,7 @@
 reads it; the oracle a fresh ``CollisionChecker`` with the same scene (``check_motion`` from the
 state before, ``check`` at the state).
 
-The case (test_motion_stream.py): the Panda's elbow move sampled at 5 Hz at 0.3, 0.5 and 0.8 of
+The case (test/motion_cases.py): the Panda's elbow move sampled at 5 Hz at 0.3, 0.5 and 0.8 of
 the way, every state clear, a 2 mm plate from the ``scene`` topic crossed between the last two.
 """
 import numpy as np
@@ -16,7 +16,7 @@ from visualization_msgs.msg import Marker, MarkerArray  # noqa: E402
 
 from collision_sensor.ros.node import quaternion_from_matrix  # noqa: E402
 from ros_helpers import reliable  # noqa: E402
-from test_motion_stream import PLATE, crossing  # noqa: E402,F401 - the case's fixture
+from motion_cases import PLATE, crossing  # noqa: E402,F401 - the case's fixture
 from node_harness import (  # noqa: E402,F401 - the fixtures of the node's tests
     ARM, GRIPPER, Probe, joint_state, panda_parameters, ros, start_node)
 

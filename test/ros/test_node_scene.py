@@ -317,7 +317,7 @@ def test_joint_states_are_all_answered_while_a_large_mesh_is_added(ros, robot_fi
 
 
 def test_markers_show_scene_objects_attached_and_colliding(ros, robot_file):
-    from collision_sensor.ros.sensor_node import (
+    from collision_sensor.ros.node import (
         ATTACHED_OBJECT_COLOR, COLLIDING_OBJECT_COLOR, WORLD_OBJECT_COLOR)
     start(ros, robot_file, publish_markers=True)
     probe = SceneProbe(ros, robot_file)

@@ -4,7 +4,7 @@ unchanged on ``trajectory_out``, invalid ones never. The oracle: a fresh
 ``CollisionChecker.check_trajectory`` from the same start, with the same scene (a scene file)
 and tolerance.
 
-The case (test_motion_stream.py): the Panda's elbow move across a 2 mm plate; the robot stands at
+The case (test/motion_cases.py): the Panda's elbow move across a 2 mm plate; the robot stands at
 0.5 of the way, a trajectory back to 0.3 is free, one on to 0.8 crosses the plate.
 """
 import hashlib
@@ -27,7 +27,7 @@ from collision_sensor.engine.trajectory import TrajectoryPoint  # noqa: E402
 from collision_sensor.ros.trajectory_source import MAX_TRAJECTORY_BACKLOG  # noqa: E402
 from collision_sensor.untrusted_text import printable  # noqa: E402
 from ros_helpers import WAIT, node_status, reliable  # noqa: E402
-from test_motion_stream import crossing, scene_of  # noqa: E402,F401 - the case's fixture
+from motion_cases import crossing, scene_of  # noqa: E402,F401 - the case's fixture
 from node_harness import (  # noqa: E402,F401 - the fixtures of the node's tests
     ARM, GRIPPER, Probe, joint_state, logged, panda_parameters, ros, start_node)
 

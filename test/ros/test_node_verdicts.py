@@ -11,6 +11,7 @@ import pytest
 
 pytest.importorskip('rclpy')
 
+from rclpy.serialization import serialize_message  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Bool  # noqa: E402
@@ -136,7 +137,8 @@ def test_overload_checks_the_newest_state_and_counts_the_rest(ros, panda, panda_
     batch = [joint_state(frames[k], stamp=stamp_of(k), names=names) for k in range(5)]
     batch.append(joint_state({GRIPPER[0]: 0.0123}, stamp=stamp_of(5)))
     batch.append(joint_state(frames[6][:7], stamp=stamp_of(6), names=ARM))
-    node._on_joint_states(batch, True)    # what the checking thread does with a long backlog
+    # What the hop does with a long backlog: every message merged, the newest answered.
+    node.sensor.take_batch([serialize_message(m) for m in batch], True)
     ros.spin_for(0.3)
     assert len(probe.pairs) == count + 1 and len(probe.contact) == count + 1
     reference = panda.check(dict(zip(names, list(frames[6][:7]) + [0.0123])))
@@ -156,7 +158,7 @@ def test_overload_whose_newest_message_is_rejected_answers_the_newest_accepted(
     bad = joint_state(frames[2], stamp=stamp_of(2), names=names)
     bad.position[0] = math.nan
     batch = [joint_state(frames[k], stamp=stamp_of(k), names=names) for k in range(2)] + [bad]
-    node._on_joint_states(batch, True)
+    node.sensor.take_batch([serialize_message(m) for m in batch], True)
     assert ros.spin_until(lambda: len(probe.pairs) == 1)
     ros.spin_for(0.2)
     assert len(probe.pairs) == 1 and probe.pairs.last.header.stamp == stamp_of(1)
@@ -167,7 +169,7 @@ def test_overload_whose_newest_message_is_rejected_answers_the_newest_accepted(
 
 
 def test_checking_thread_answers_each_message_unless_the_backlog_is_long():
-    from collision_sensor.ros.sensor_node import MAX_BACKLOG, _NewestFirstWorker
+    from collision_sensor.ros.work_queue import MAX_BACKLOG, NewestFirstWorker
     import threading
     calls, entered, release = [], threading.Event(), threading.Event()
 
@@ -176,7 +178,7 @@ def test_checking_thread_answers_each_message_unless_the_backlog_is_long():
         entered.set()
         release.wait(5.0)
 
-    worker = _NewestFirstWorker(handle, 'test worker')
+    worker = NewestFirstWorker(handle, 'test worker')
     try:
         worker.put('first')
         assert entered.wait(5.0)
@@ -194,47 +196,6 @@ def test_checking_thread_answers_each_message_unless_the_backlog_is_long():
         worker.stop()
     assert calls == [(['first'], False), (list(range(MAX_BACKLOG + 1)), True),
                      (['alone'], False)]
-
-
-def test_verdicts_published_serialized_are_the_messages_they_stand_for(ros):
-    """VerdictPublisher writes its messages serialized, the stamp in place: each verdict read
-    back by a plain subscriber is the DiagnosticArray built from scratch for that header and
-    those pairs (header frames of every length modulo 4, pairs that come and go, a motion's
-    pairs met on the way, the held verdict repeated)."""
-    from collision_sensor.engine.checker import CheckResult
-    from collision_sensor.ros.motion_stream import MotionVerdict
-    from collision_sensor.ros.verdicts import VERDICT_QOS, VerdictPublisher
-    from std_msgs.msg import Header
-    from rclpy.node import Node
-    host = ros.add(Node('verdicts', namespace=ros.namespace, context=ros.context))
-    verdicts = VerdictPublisher(host)
-    verdicts.forget('world')
-    contacts = ros.record(Bool, 'contact', VERDICT_QOS)
-    pairs = ros.record(DiagnosticArray, 'colliding_pairs', VERDICT_QOS)
-    assert ros.spin_until(lambda: host.count_subscribers(f'{ros.namespace}/colliding_pairs'), 5)
-    reference = VerdictPublisher.__new__(VerdictPublisher)   # its status builder, nothing sent
-    reference.root_frame = 'world'
-    cases = []
-    sets = [(), (('hand', 'table'),), (('hand', 'table'), ('link3', 'link7')), ()]
-    for k in range(12):
-        header = Header(frame_id=['', 'a', 'ab', 'abc', 'base_link'][k % 5])
-        header.stamp.sec, header.stamp.nanosec = 1700000000 + k, 1000 * k + 7
-        colliding = sets[k % len(sets)]
-        motion = (MotionVerdict(True, 0.25, (('elbow', 'shelf'),)) if k % 3 == 2
-                  else MotionVerdict(False, None, ()))
-        if k == 7:
-            assert verdicts.publish_held(header)
-            colliding, motion = cases[-1][1], cases[-1][2]
-        else:
-            verdicts.publish(header, CheckResult(bool(colliding), colliding, 0), motion)
-        cases.append((header, colliding, motion))
-    assert ros.spin_until(lambda: len(pairs) >= len(cases) and len(contacts) >= len(cases), 5)
-    for (header, colliding, motion), got, contact in zip(cases, pairs.messages,
-                                                        contacts.messages):
-        want = DiagnosticArray(header=header,
-                               status=reference._pair_statuses(colliding, motion))
-        assert got == want
-        assert contact.data == (bool(colliding) or motion.in_collision)
 
 
 @pytest.mark.skipif(not os.path.isdir('/proc/self/task'), reason='Linux schedules threads')
@@ -274,15 +235,23 @@ def test_background_work_yields_the_cores_to_the_joint_states():
 
 def test_node_uses_only_public_rclpy():
     """No private rclpy layer (``_rclpy``, ``take_message``): it changes between releases.
-    Every module of the node, since it is split by concern; the one private read (the names
-    of the parameters given, which rclpy does not expose) is in node_parameters, guarded."""
+    Every module of the node, since it is split by concern. Two reads below the public API,
+    each in one place and guarded: the names of the parameters given, which rclpy does not
+    expose (node_parameters); and what the compiled hop needs to make its subscription on the
+    node rclpy made (joint_state_source: the rcl handles' addresses and the message's type
+    support, as rclpy hands them to rcl itself)."""
     import pathlib
     from collision_sensor import ros
+    below = {'node_parameters.py': ["overrides = getattr(node, '_parameter_overrides', None)"],
+             'joint_state_source.py': ['message_type.__class__.__import_type_support__()',
+                                       'return message_type._TYPE_SUPPORT']}
     for path in pathlib.Path(ros.__file__).parent.glob('*.py'):
         source = path.read_text()
         assert 'rclpy.impl' not in source and 'take_message' not in source, path.name
         assert '_rclpy' not in source, path.name
         private = [line.strip() for line in source.splitlines()
-                   if "'_parameter_overrides'" in line or 'node._' in line]
-        assert private == ([] if path.name != 'node_parameters.py' else
-                           ["overrides = getattr(node, '_parameter_overrides', None)"]), path.name
+                   if "'_parameter_overrides'" in line or 'node._' in line
+                   or '_TYPE_SUPPORT' in line or '__import_type_support__' in line]
+        assert private == below.get(path.name, []), path.name
+        if path.name != 'joint_state_source.py':
+            assert '.handle.pointer' not in source, path.name

@@ -1,7 +1,9 @@
-"""Merge partial joint states into one robot state, rejecting malformed messages whole.
+"""The rules of the sensor's joint-state merge and motion stream, stated in plain Python: the
+oracle the fuzzer and the sensor's tests compare the compiled core (``cpp/joint_merge.hpp``,
+``cpp/sensor_core.hpp``) with.
 
-Pure Python, no ROS: the node hands over the ``name`` and ``position`` fields of each
-``sensor_msgs/JointState`` and gets back an :class:`Outcome` that says what happened and why.
+:class:`JointStateMerger` takes the ``name`` and ``position`` fields of each
+``sensor_msgs/JointState`` and gives back an :class:`Outcome` that says what happened and why.
 
 The rules, in the order they are applied to one message:
 
@@ -33,17 +35,10 @@ from typing import Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
+from collision_sensor.sensor.parameters import (  # noqa: F401 - the fuzzer's names for them
+    DEFAULT_LIMIT_TOLERANCE, LIMIT_POLICIES, MAX_UNKNOWN_NAMES)
 from collision_sensor.untrusted_text import listing, quoted
 
-#: What a value beyond a joint's limits does (rule 5).
-LIMIT_POLICIES = ('reject', 'clamp', 'accept')
-#: Default of ``limit_tolerance``: rad or m a value may lie beyond a limit and still be taken as
-#: given. 0.01 rad (0.57 deg) / 10 mm is above encoder noise and calibration offsets of
-#: industrial arms, and far below the errors it is meant to catch (degrees sent as radians,
-#: joints out of order, uninitialised values).
-DEFAULT_LIMIT_TOLERANCE = 0.01
-#: Default of ``max_unknown_names``: unknown names remembered (and each reported once).
-MAX_UNKNOWN_NAMES = 100
 #: Most names listed in one rejection reason.
 _MAX_LISTED = 5
 
@@ -324,3 +319,22 @@ def joints_out_of_limits(positions: Mapping[str, float],
         if below or above:
             offending.append((name, value, lower, upper))
     return offending
+
+
+def joint_spans(checker, tolerance: float) -> np.ndarray:
+    """Return how far each variable of ``checker`` can move between two states the sensor
+    sweeps: its joint's range widened by ``tolerance`` at both ends (``inf`` without limits);
+    a longer move is a jump, checked as a new motion.
+
+    :return: ``(J,) float64`` in the order of ``checker.joint_names``.
+    """
+    limits = np.array([checker.joint_limits[name] for name in checker.joint_names],
+                      dtype=np.float64).reshape(-1, 2)
+    span = limits[:, 1] - limits[:, 0] + 2.0 * tolerance
+    span[~np.isfinite(span)] = np.inf
+    return span
+
+
+def jumped(spans: np.ndarray, q_from: np.ndarray, q_to: np.ndarray) -> bool:
+    """Return True when some variable moved farther than its span (:func:`joint_spans`)."""
+    return bool(np.any(np.abs(q_to - q_from) > spans))
