@@ -25,9 +25,13 @@ QUICK := not (slow or packaging or demo or ray or node_process)
 
 .PHONY: demo test check bench clean
 
-$(STAMP): setup.py setup.cfg package.xml pyproject.toml $(wildcard cpp/*.cpp cpp/*.hpp)
+$(STAMP): setup.py setup.cfg package.xml pyproject.toml $(wildcard cpp/*.cpp cpp/*.hpp cpp/*.h cpp/hop/*.cpp)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip wheel
+	# ROS 2 first: its wheels put rcl's headers in the venv, which the node's compiled
+	# joint-state hop is built against (setup.py; without them the node takes joint states
+	# through rclpy).
+	$(BIN)/python -m pip install --quiet 'ros-jazzy-rclpy[fastrtps]' ros-jazzy-common-interfaces
 	$(BIN)/python -m pip install --quiet -e '.[ros,test]'
 	touch $(STAMP)
 
