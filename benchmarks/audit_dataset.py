@@ -176,7 +176,7 @@ def run(episodes: int, frames: int, runs: int, seed: int, log) -> str:
     speed_checking = [a['checking'] / b['checking'] for a, b in zip(results[1], results[2])]
     share = [e / f for e, f in zip(extra, first)]
     lines = ['## An SO-101 dataset audited (python -m benchmarks audit dataset)', '',
-             f'Run {time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}: {episodes} episodes of '
+             f'{episodes} episodes of '
              f'{frames} frames at 30 fps ({episodes * frames:,} frames, {size / mib:.1f} MiB of '
              f'parquet; {results[1][0]["frames_in_collision"]:,} frames in collision), LeRobot '
              'v3.0, the SO-101 of example-robot-data (398,884 triangles); '
