@@ -20,6 +20,7 @@ under 10 % of the first's (the command's own with ``--jobs 1``).
 import argparse
 import os
 import re
+import resource
 import statistics
 import subprocess
 import sys
@@ -111,6 +112,7 @@ def audit(dataset: str, joint_map: str, jobs: int, report: str) -> dict:
     argv = [sys.executable, '-m', 'collision_sensor.tools.offline_check', dataset, '--urdf',
             urdf, '--package-path', f'example-robot-data={share}', '--joint-map', joint_map,
             '--report', report, '--jobs', str(jobs), '--progress', 'never']
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                cwd=os.path.dirname(report))
@@ -118,6 +120,8 @@ def audit(dataset: str, joint_map: str, jobs: int, report: str) -> dict:
     out, err = process.communicate()
     wall = time.perf_counter() - start
     sampler.stop()
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)   # the command and its workers
+    cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
     if process.returncode not in (0, 1):
         raise RuntimeError(f'collision_sensor_check --jobs {jobs} failed: {err}')
     checking = float(re.search(r'this run: .* in ([\d.]+) s', out).group(1))
@@ -126,6 +130,7 @@ def audit(dataset: str, joint_map: str, jobs: int, report: str) -> dict:
     with open(report) as stream:
         lines = stream.read()
     return {'wall': wall, 'checking': checking, 'driver': driver, 'workers': workers,
+            'cpu': cpu,
             'pss': sampler.total_pss, 'lines': lines,
             'frames_in_collision': sum(int(m) for m in re.findall(
                 r'"frames_in_collision": (\d+)', lines))}
@@ -176,7 +181,7 @@ def run(episodes: int, frames: int, runs: int, seed: int, log) -> str:
     speed_checking = [a['checking'] / b['checking'] for a, b in zip(results[1], results[2])]
     share = [e / f for e, f in zip(extra, first)]
     lines = ['## An SO-101 dataset audited (python -m benchmarks audit dataset)', '',
-             f'Run {time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}: {episodes} episodes of '
+             f'{episodes} episodes of '
              f'{frames} frames at 30 fps ({episodes * frames:,} frames, {size / mib:.1f} MiB of '
              f'parquet; {results[1][0]["frames_in_collision"]:,} frames in collision), LeRobot '
              'v3.0, the SO-101 of example-robot-data (398,884 triangles); '
@@ -187,7 +192,8 @@ def run(episodes: int, frames: int, runs: int, seed: int, log) -> str:
              f'run gave the same report lines: {"yes" if same else "NO"}.', '',
              '| run | wall s, as the user waits | checking s (after the model is loaded) | '
              'the command\'s process: resident MiB | each worker: resident MiB, of it its own '
-             '| all processes: proportional MiB (PSS) |', '|---|---|---|---|---|---|']
+             '| all processes: proportional MiB (PSS) | all processes: CPU s (cores used) |',
+             '|---|---|---|---|---|---|---|']
     for jobs in (1, 2):
         rows = results[jobs]
         workers = [w for r in rows for w in r['workers']]
@@ -197,7 +203,9 @@ def run(episodes: int, frames: int, runs: int, seed: int, log) -> str:
         lines.append(f'| --jobs {jobs} | {spread([r["wall"] for r in rows])} | '
                      f'{spread([r["checking"] for r in rows])} | '
                      f'{spread([r["driver"]["Rss"] / mib for r in rows], "{:.0f}")} | '
-                     f'{worker_text} | {spread([r["pss"] / mib for r in rows], "{:.0f}")} |')
+                     f'{worker_text} | {spread([r["pss"] / mib for r in rows], "{:.0f}")} | '
+                     f'{spread([r["cpu"] for r in rows])} '
+                     f'({statistics.median(r["cpu"] / r["wall"] for r in rows):.2f}) |')
     lines += ['', '| target | measured (min / median / max) | verdict |', '|---|---|---|',
               f'| --jobs 2 >= {SPEED_TARGET}x --jobs 1, as the user waits | {spread(speed)}x | '
               f'**{"PASS" if statistics.median(speed) >= SPEED_TARGET else "MISS"}** |',

@@ -61,6 +61,20 @@ BENCHMARKS = (
                                         '--markdown', out]
               + (['--recordings', '6', '--frames', '40', '--no-ray'] if quick else []),
               merges_runs=True),
+    Benchmark('audit_dataset', 'Checking a LeRobot dataset of the SO-101',
+              '`collision_sensor_check` on 200 SO-101 episodes as LeRobot records them, '
+              '`--jobs 1` and `--jobs 2`: time, and the memory of every process.',
+              lambda runs, quick, out: ['benchmarks', 'audit', 'dataset', '--runs', str(runs),
+                                        '--markdown', out]
+              + (['--episodes', '4', '--frames', '60'] if quick else []),
+              merges_runs=True),
+    Benchmark('audit_cluster', 'Checking many recordings on a Ray cluster',
+              '`collision_sensor_check --ray` on a simulated cluster (two one-CPU nodes beside '
+              'the driver): throughput against `--jobs 2`, the driver\'s CPU per unit and the '
+              'cluster it can feed, nodes killed mid-run.',
+              lambda runs, quick, out: ['benchmarks', 'audit', 'cluster', '--runs', str(runs),
+                                        '--markdown', out] + (['--quick'] if quick else []),
+              merges_runs=True),
     Benchmark('node', 'The node: joint states in, verdicts out',
               '`collision_sensor_node` (Panda) as a process of its own, fed joint states at '
               'rising rates by another; latency from publishing to the verdict.',
