@@ -96,13 +96,19 @@ def set_parameter(node, probe, **values):
     assert probe.ros.spin_until(lambda: len(probe.pairs) > count, 60.0), 'not applied'
 
 
+#: s: a stale_timeout no loaded machine reaches between two states of one test: the motion is
+#: swept however slow the machine (the tests of the stale gap set their own).
+STEADY = 300.0
+
+
 def test_a_sparse_stream_crossing_a_thin_plate_says_contact_on_the_way(ros, crossing, panda_urdf,
                                                                       panda_srdf, erd_share):
     """On (the default): every state clear, yet the motion between the last two crosses the
     plate: contact, with the pairs met on the way (first_contact). Off at run time: the same
     stream says clear; on again: the motion back across the plate is caught."""
     a, b, c = crossing.q0, crossing.q_half, crossing.q1
-    node = start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share))
+    node = start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
+                                            stale_timeout=STEADY))
     probe = MotionProbe(ros)
     assert probe.state(a, pace=False) == (False, ())       # the first state: an instant
     assert probe.state(b) == (False, ())                   # swept, free
@@ -133,7 +139,8 @@ def test_pairs_in_contact_at_the_end_and_met_on_the_way_are_told_apart(ros, cros
                                                                        erd_share):
     """A motion that ends in contact with one pair and met another first: the pair in contact
     keeps the usual entry, the other has first_contact."""
-    node = start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share))
+    node = start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
+                                            stale_timeout=STEADY))
     assert node.settings.check_motion     # the default
     probe = MotionProbe(ros)
     b = crossing.q_half
@@ -168,7 +175,8 @@ def test_a_parameter_change_keeps_the_motion_across_the_new_checker(ros, crossin
     """padding set at run time: a new checker replaces the one in use; the next state's motion
     is still swept from the state before (the new checker's own state is its build's)."""
     b, c = crossing.q_half, crossing.q1
-    node = start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share))
+    node = start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share,
+                                            stale_timeout=STEADY))
     probe = MotionProbe(ros)
     probe.state(b, pace=False)
     probe.scene([plate_marker(crossing)])
