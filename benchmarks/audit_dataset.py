@@ -178,7 +178,9 @@ def run(episodes: int, frames: int, runs: int, seed: int, log) -> str:
     first = [r['driver']['Rss'] / mib for r in results[1]]
     extra = [max(w['Private'] for w in r['workers']) / mib for r in results[2]]
     speed = [a['wall'] / b['wall'] for a, b in zip(results[1], results[2])]
-    speed_checking = [a['checking'] / b['checking'] for a, b in zip(results[1], results[2])]
+    # the summary gives tenths of a second: a run of tiny units may say 0.0 s
+    speed_checking = [a['checking'] / b['checking'] if b['checking'] else float('nan')
+                      for a, b in zip(results[1], results[2])]
     share = [e / f for e, f in zip(extra, first)]
     lines = ['## An SO-101 dataset audited (python -m benchmarks audit dataset)', '',
              f'{episodes} episodes of '
