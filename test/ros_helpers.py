@@ -51,13 +51,29 @@ class RosHarness:
         self.namespace = f'/{label}_{uuid.uuid4().hex[:8]}'
         self.executor = SingleThreadedExecutor(context=self.context)
         self._nodes: List[Node] = []
+        # What the sensor nodes logged as an internal error: a bug, unless a test provokes one
+        # (it then sets internal_errors_expected).
+        self.internal_errors: List[str] = []
+        self.internal_errors_expected = False
         self.probe = self.add(Node('probe', namespace=self.namespace, context=self.context))
 
     def add(self, node: Node) -> Node:
         """Spin ``node`` with this harness's executor and destroy it at :meth:`close`."""
         self.executor.add_node(node)
         self._nodes.append(node)
+        log = getattr(node, 'log', None)
+        if log is not None and hasattr(log, 'write'):
+            self._watch_internal_errors(log)
         return node
+
+    def _watch_internal_errors(self, log) -> None:
+        logged = log.log
+
+        def log_and_keep(level: str, text: str) -> None:
+            if 'internal error' in text:
+                self.internal_errors.append(text)
+            logged(level, text)
+        log.log = log_and_keep
 
     def remove(self, node: Node) -> None:
         """Stop spinning ``node`` and destroy it now."""
@@ -101,6 +117,8 @@ class RosHarness:
         self._nodes.clear()
         self.executor.shutdown()
         rclpy.try_shutdown(context=self.context)
+        assert self.internal_errors_expected or not self.internal_errors, \
+            f'the node logged internal errors: {self.internal_errors[:3]}'
 
 
 def node_status(ros: RosHarness, diagnostics: Recorder, which: str, condition,

@@ -29,6 +29,7 @@ as nav2's collision_monitor stops when a source goes quiet) every verdict is a f
 voxels are removed (stale points never linger) and verdicts go on without it. /diagnostics says
 ERROR either way.
 """
+import threading
 import time
 from typing import Optional
 
@@ -94,6 +95,10 @@ class PointCloudSource(InputSource):
         self.started: Optional[float] = None
         self.last_accepted: Optional[float] = None
         self.timed_out_now = False
+        # Held while the timeout episode (timed_out_now, last_accepted) is read or changed: by
+        # the cloud's thread when a cloud is accepted, by the node's poll when it times out.
+        # Taken after the sensor's editing() and before its core, as everything else.
+        self._episode = threading.Lock()
 
     # -- life cycle ---------------------------------------------------------------------------
 
@@ -217,10 +222,14 @@ class PointCloudSource(InputSource):
             except CloudMessageError as error:
                 self._reject(error.kind, str(error), notes)
                 return
-            if self.timed_out_now:
-                self.timed_out_now = False
-                sensor.recover_source(self.name)
-                notes.append(('info', None, f'{self.name}: clouds resumed'))
+            # Accepted from now on: a poll meanwhile cannot start a new episode on the old
+            # age, nor leave this one failing after the cloud's verdict.
+            with self._episode:
+                self.last_accepted = time.monotonic()
+                if self.timed_out_now:
+                    self.timed_out_now = False
+                    sensor.recover_source(self.name)
+                    notes.append(('info', None, f'{self.name}: clouds resumed'))
             sensor.commit_points(prepared, (stamp.sec, stamp.nanosec))
             self._last_good = (rows.points, frame, positions)
         self.stats = stats
@@ -228,7 +237,6 @@ class PointCloudSource(InputSource):
         self.counts['accepted'] += 1
         self.counts['capped'] += stats.capped > 0
         self._period_accepted += 1
-        self.last_accepted = time.monotonic()
         self._markers.scene_changed = True
         if stats.capped:
             notes.append(('warning', f'cloud_capped {self.topic}', f'{self.name}: '
@@ -257,27 +265,31 @@ class PointCloudSource(InputSource):
         cloud comes; with ignore its last voxels are removed. Once per episode."""
         settings = self._settings
         timeout = settings.point_cloud_timeout
-        if timeout <= 0.0 or self.timed_out_now or self.started is None:
-            return
-        last = self.last_accepted if self.last_accepted is not None else self.started
-        if now - last <= timeout:
-            return
-        self.timed_out_now = True
-        self.counts['timeouts'] += 1
-        since = 'since the start' if self.last_accepted is None else \
-            f'for {now - self.last_accepted:.1f} s'
         policy = settings.point_cloud_on_timeout
-        reason = (f'{self.name}: no cloud accepted {since} (point_cloud_timeout '
-                  f'{timeout:g} s, point_cloud_on_timeout {policy})')
-        self._log.warn(f'cloud_timeout {self.topic}', reason)
         sensor = self._sensor
+        with self._episode:
+            if timeout <= 0.0 or self.timed_out_now or self.started is None:
+                return
+            last = self.last_accepted if self.last_accepted is not None else self.started
+            if now - last <= timeout:
+                return
+            self.timed_out_now = True
+            self.counts['timeouts'] += 1
+            since = 'since the start' if self.last_accepted is None else \
+                f'for {now - self.last_accepted:.1f} s'
+            reason = (f'{self.name}: no cloud accepted {since} (point_cloud_timeout '
+                      f'{timeout:g} s, point_cloud_on_timeout {policy})')
+            if policy == CONTACT:
+                failure = Failure(POINT_CLOUD_TIMEOUT, reason, CONTACT)
+                sensor.fail_source(self.name, failure)
+                sensor.answer_failure(failure, stamp)
+        self._log.warn(f'cloud_timeout {self.topic}', reason)
         if policy == CONTACT:
-            failure = Failure(POINT_CLOUD_TIMEOUT, reason, CONTACT)
-            sensor.fail_source(self.name, failure)
-            sensor.answer_failure(failure, stamp)
             return
-        with sensor.editing() as checker:
-            if checker is not None and self.topic in checker.point_cloud_sources:
+        with sensor.editing() as checker, self._episode:
+            # Unless a cloud came meanwhile: its voxels are fresh.
+            if self.timed_out_now and checker is not None and \
+                    self.topic in checker.point_cloud_sources:
                 sensor.clear_points(self.topic, stamp)
                 self._last_good = None
                 self._markers.scene_changed = True

@@ -64,7 +64,6 @@ class SceneSource(InputSource):
         self._worker: Optional[NewestFirstWorker] = None
         self.rejection = ''    # the last rejected array's reason, '' once one applied
         self.counts = collections.Counter()
-        self._publish_status = None
 
     def start(self) -> None:
         # Arrays published before arrive now (transient local).
