@@ -5,6 +5,18 @@ Loading it imports nothing of ROS; the fixture does, when a test asks for it.
 """
 import pytest
 
+#: Warnings the ROS 2 wheels raise on import, whoever uses them (rosidl's parser imports lark,
+#: which imports modules Python 3.11 deprecates): not the test's business.
+ROS_IMPORT_WARNINGS = (
+    "ignore:module 'sre_parse' is deprecated:DeprecationWarning",
+    "ignore:module 'sre_constants' is deprecated:DeprecationWarning",
+)
+
+
+def pytest_configure(config):
+    for line in ROS_IMPORT_WARNINGS:
+        config.addinivalue_line('filterwarnings', line)
+
 
 @pytest.fixture
 def collision_sensor():
