@@ -423,18 +423,12 @@ WithinResult MotionQuery::pair_within(int64_t p, const double* pose, double m, d
                 reach = std::min(reach, std::max(u, m + h) - m);
                 continue;
             }
-            int64_t* row = stack + 3 * n_seeds++;
-            row[0] = front[k];
-            row[1] = front[k + 1];
-            row[2] = 0;
+            seed_pair(stack, n_seeds++, front[k], front[k + 1]);
         }
     } else {
         for (int64_t ea = m_.elem_start[a]; ea < m_.elem_end[a]; ++ea) {
             for (int64_t eb = m_.elem_start[b]; eb < m_.elem_end[b]; ++eb) {
-                int64_t* row = stack + 3 * n_seeds++;
-                row[0] = m_.roots[ea];
-                row[1] = m_.roots[eb];
-                row[2] = 0;
+                seed_pair(stack, n_seeds++, m_.roots[ea], m_.roots[eb]);
             }
         }
     }

@@ -376,11 +376,7 @@ inline FrontScan front_scan(const TreePairTraversal& node, const FrontRows& old,
             ++n_kept;
             best = std::min(best, g);
         } else {
-            int64_t* row = stack + 3 * n_seeds;
-            row[0] = na;
-            row[1] = nb;
-            row[2] = 0;
-            ++n_seeds;
+            seed_pair(stack, n_seeds++, na, nb);
         }
     }
     int64_t* counters = node.work.counters;
