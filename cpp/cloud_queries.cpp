@@ -185,24 +185,22 @@ struct DistanceCloudNode : BodyCloudNode {
 // cloud_pair_within's node: boxes by node_pair_apart (the cloud does not move), leaves by the
 // triangles' distance to the cubes; one within ends the descent.
 struct WithinCloudNode : BodyCloudNode {
+    const IntervalTest test;
     const double h, extra, pad;
     MotionMargin& motion;
-    const int box_test;
-    const double* Ta;
     const BoxMotion still{0.0, {0.0, 0.0, 0.0}, 0.0};  // the cloud does not move
     double reach;
     int64_t n_boxes = 0, n_triangles = 0;
     WithinResult within = {false, 0.0, 0.0};
 
-    WithinCloudNode(const Forest& f, const VoxelGrid& g, const double* P, double h,
-                    double extra, double pad, MotionMargin& motion, int box_test, double reach)
-        : BodyCloudNode{f, g, P},
-          h(h),
-          extra(extra),
+    WithinCloudNode(const Forest& f, const VoxelGrid& g, const IntervalTest& test, double pad,
+                    double reach)
+        : BodyCloudNode{f, g, test.P},
+          test(test),
+          h(test.h),
+          extra(test.extra),
           pad(pad),
-          motion(motion),
-          box_test(box_test),
-          Ta(motion.side[0].T),
+          motion(test.motion),
           reach(reach) {}
 
     CS_ALWAYS_INLINE bool apart(int64_t na, int64_t nv, int64_t, Seen& seen) {
@@ -210,9 +208,9 @@ struct WithinCloudNode : BodyCloudNode {
         const double* B = g.box(nv);
         const BoxMotion& ma = motion.node(f, na, 0);
         ++n_boxes;
-        double x;
-        if (node_pair_apart(A, B, P, Ta, ma, still, h, extra, motion, box_test, &x)) {
-            reach = std::min(reach, x);
+        NodePairApart proof;
+        if (node_pair_apart(test, A, B, ma, still, proof)) {
+            reach = std::min(reach, proof.reach);
             return true;
         }
         seen = {A, B, &ma};
@@ -438,9 +436,11 @@ void measure_cloud_pair(const Model& m, const State& s, int64_t p, const double*
     result.distance[p] = best.distance;
 }
 
-WithinResult cloud_pair_within(const Model& m, int64_t a, const VoxelGrid& g, const double* P,
-                               double h, double extra, MotionMargin& motion, int box_test,
-                               int64_t* counters) {
+WithinResult cloud_pair_within(const Model& m, int64_t a, const VoxelGrid& g,
+                               const IntervalTest& test, int64_t* counters) {
+    const double* P = test.P;
+    const double h = test.h, extra = test.extra;
+    MotionMargin& motion = test.motion;
     double reach = motion.h2;
     if (g.empty()) return {false, 0.0, reach};
     // Solids first: a cube's corner moves no farther than the body's box allows.
@@ -456,7 +456,7 @@ WithinResult cloud_pair_within(const Model& m, int64_t a, const VoxelGrid& g, co
         reach = std::min(reach, solid_reach);
     }
     const int64_t n_seeds = seed_body(m, a, g);
-    WithinCloudNode node(m.forest, g, P, h, extra, m.padding[a], motion, box_test, reach);
+    WithinCloudNode node(m.forest, g, test, m.padding[a], reach);
     descend(node, cloud_stack.data(), n_seeds);
     counters[COUNT_BOX_TESTS] += node.n_boxes;
     counters[COUNT_TRIANGLE_TESTS] += node.n_triangles;

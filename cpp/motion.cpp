@@ -366,20 +366,19 @@ double MotionQuery::solid_gap(int64_t a, int64_t b, const double* P) const {
 WithinResult MotionQuery::pair_within(int64_t p, const double* pose, double m, double h,
                                       double crude, double extra) {
     const int64_t a = m_.pair_a[p], b = m_.pair_b[p];
-    if (m_.is_cloud(b))  // a point cloud's voxels (cloud_queries.hpp)
-        return cloud_pair_within(m_, a, *m_.clouds[b], pose, h, extra, w_.margin,
-                                 c_.view.options.box_test, counters_);
     MotionMargin& mm = w_.margin;
+    const int box_test = c_.view.options.box_test;
+    const IntervalTest test = {pose, mm.side[0].T, h, extra, mm, box_test};
+    if (m_.is_cloud(b))  // a point cloud's voxels (cloud_queries.hpp)
+        return cloud_pair_within(m_, a, *m_.clouds[b], test, counters_);
     const double* A = m_.body_box(a);
     const double* B = m_.body_box(b);
-    const int box_test = c_.view.options.box_test;
     const BoxMotion ma = mm.box_motion(A, 0), mb = mm.box_motion(B, 1);
     const double rate = ma.rate + mb.rate;
     const double r = h * rate + extra;
+    NodePairApart bodies;
+    if (node_pair_apart(test, A, B, ma, mb, bodies)) return {false, 0.0, bodies.reach};
     double reach = mm.h2;
-    if (node_pair_apart(A, B, pose, mm.side[0].T, ma, mb, h, extra, mm, box_test, &reach))
-        return {false, 0.0, reach};
-    reach = mm.h2;
     if (m_.body_solid[a] || m_.body_solid[b]) {
         // A test vertex of one body moves no farther than the body's box allows.
         const double solid = solid_gap(a, b, pose);

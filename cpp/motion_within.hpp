@@ -31,9 +31,10 @@ struct WithinNode {
 
     const Forest& f;
     const double* P;
-    const int box_method, expansion;
+    const int expansion;
     const double h, extra, pad;
     MotionMargin& motion;
+    const IntervalTest test;
     DistanceWork& rows;
     WithinFront& front;
     const double* Ta;
@@ -46,12 +47,13 @@ struct WithinNode {
     explicit WithinNode(const WithinTraversal& t)
         : f(t.forest),
           P(t.pose),
-          box_method(t.request.box_test),
           expansion(t.request.expansion),
           h(t.request.h),
           extra(t.request.extra),
           pad(t.request.pad),
           motion(t.motion),
+          test{t.pose, t.motion.side[0].T, t.request.h, t.request.extra, t.motion,
+               t.request.box_test},
           rows(t.rows),
           front(t.front),
           Ta(t.motion.side[0].T),
@@ -80,11 +82,10 @@ struct WithinNode {
         const BoxMotion& mb = motion.node(f, nb, 1);
         const double* placed = placed_row(f, nb, P, rows);
         ++n_boxes;
-        double x, gap;
-        if (node_pair_apart(A, B, P, Ta, ma, mb, h, extra, motion, box_method, &x, &gap,
-                            placed)) {
-            reach = std::min(reach, x);
-            stopped(na, nb, x, gap);
+        NodePairApart proof;
+        if (placed_pair_apart(test, A, B, placed, ma, mb, proof)) {
+            reach = std::min(reach, proof.reach);
+            stopped(na, nb, proof.reach, proof.gap);
             return true;
         }
         seen = {A, B, &ma, &mb, placed};
