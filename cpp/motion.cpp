@@ -368,9 +368,11 @@ WithinResult MotionQuery::pair_within(int64_t p, const double* pose, double m, d
     const int64_t a = m_.pair_a[p], b = m_.pair_b[p];
     MotionMargin& mm = w_.margin;
     const int box_test = c_.view.options.box_test;
+    if (m_.is_cloud(b)) {  // a point cloud's voxels (cloud_queries.hpp)
+        const IntervalTest cloud = {pose, mm.side[0].T, h, extra, mm, box_test};
+        return cloud_pair_within(m_, a, *m_.clouds[b], cloud, counters_);
+    }
     const IntervalTest test = {pose, mm.side[0].T, h, extra, mm, box_test};
-    if (m_.is_cloud(b))  // a point cloud's voxels (cloud_queries.hpp)
-        return cloud_pair_within(m_, a, *m_.clouds[b], test, counters_);
     const double* A = m_.body_box(a);
     const double* B = m_.body_box(b);
     const BoxMotion ma = mm.box_motion(A, 0), mb = mm.box_motion(B, 1);
