@@ -32,10 +32,11 @@
 // its two trees (a Forest, a VoxelGrid's hierarchy, the self-filter's); WHOLE_A: tree a is
 // taken whole, its root's box for everything under it (a solid element), never expanded.
 //
-// The descent and every node's hooks are templates in headers, forced inline: each query's
-// loop must compile into one function, with the node's fields in registers (a hook left out of
-// line would pass the node by address, and every field would then be read from memory at each
-// pair, across the stack's writes, which may alias them).
+// The descent and every node's hooks are forced inline (descend is a template; each node is
+// defined beside the one query that uses it): each query's loop must compile into one
+// function, with the node's fields in registers (a hook left out of line would pass the node by
+// address, and every field would then be read from memory at each pair, across the stack's
+// writes, which may alias them).
 #pragma once
 
 #include <cstdint>

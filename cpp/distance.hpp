@@ -351,8 +351,10 @@ struct DistanceNode {
 
 // trees_distance's floor: the search stops once best.distance is at most floor (a caller that
 // only asks whether the distance exceeds floor has its answer then; -INF: the smallest).
-inline void trees_distance(const DistanceTraversal& traversal, int64_t ra, int64_t rb,
-                           NearestPoints& best, double floor = -INF) {
+// Forced inline, into its callers' loops over a pair's trees (proximity.cpp, motion.cpp): left
+// out of line, the callers' own box tests compile to more instructions.
+CS_ALWAYS_INLINE void trees_distance(const DistanceTraversal& traversal, int64_t ra,
+                                     int64_t rb, NearestPoints& best, double floor = -INF) {
     ++traversal.rows.placed_tag;
     DistanceNode node(traversal, best, floor);
     const double root = node.bound(ra, rb);

@@ -305,8 +305,11 @@ struct CollideNode {
     }
 };
 
+// Forced inline, into its caller's loop over the pairs (recheck.cpp): left out of line, the
+// box test inside the descent compiles to more instructions (its registers spill).
 template <bool Inflated>
-inline TreesResult collide_trees_as(const TreePairTraversal& traversal, int64_t n_seeds) {
+CS_ALWAYS_INLINE TreesResult collide_trees_as(const TreePairTraversal& traversal,
+                                              int64_t n_seeds) {
     FrontRecord no_front = {{nullptr, nullptr, 0}, -1};
     CollideNode<Inflated> node(traversal, traversal.front ? *traversal.front : no_front);
     descend(node, traversal.work.stack, n_seeds);
