@@ -272,10 +272,8 @@ void bind_query_kernels(py::module_& m) {
               request.pad = pad;
               request.inflation = inflation;
               request.track = true;
-              std::vector<int64_t> stack(3 * (n + 8)), counters(cs::N_COUNTERS);
-              stack[0] = root_a;
-              stack[1] = root_b;
-              stack[2] = 0;
+              std::vector<int64_t> stack(cs::PAIR_ROW * (n + 8)), counters(cs::N_COUNTERS);
+              cs::seed_pair(stack.data(), 0, root_a, root_b);
               const cs::TreePairTraversal traversal = {forest, pose.data(), request,
                                                        {stack.data(), counters.data()},
                                                        nullptr};

@@ -348,8 +348,8 @@ CloudStats CloudBuilder::build(const Model& m, const double* T_links, const Clou
             item_hi_[3 * i + k] = tally_.hi[3 * v + k];
         }
     }
-    build_box_hierarchy(codes_.data(), item_lo_.data(), item_hi_.data(), n_near, 1,
-                        filter_nodes_, filter_boxes_);
+    filter_depth_ = build_box_hierarchy(codes_.data(), item_lo_.data(), item_hi_.data(), n_near,
+                                        1, filter_nodes_, filter_boxes_);
     if (n_near > 0) collect_candidates(m, T_links, r, s.threads);
     else start_.assign(V + 1, 0);
 

@@ -154,6 +154,10 @@ class CloudBuilder {
     void collect_candidates(const Model& m, const double* T_links, double r, int64_t threads);
     void element_candidates(const Model& m, const double* T_links, double r, int64_t b,
                             int64_t e, FilterWork& work);
+    // element_candidates' node for the descent (cloud_self_filter.cpp); Solid: the element
+    // taken whole, its solid against the voxels.
+    template <bool Solid>
+    struct CandidateNode;
     void classify_voxels(const Model& m, double r, int64_t threads);
     int classify(const Model& m, int64_t v, double r, std::vector<Nearby>& near);
     bool removed(const Model& m, const double* x, double r, const Nearby* near,
@@ -187,6 +191,7 @@ class CloudBuilder {
     std::vector<double> item_lo_, item_hi_;
     std::vector<int64_t> filter_nodes_;
     std::vector<double> filter_boxes_;
+    int64_t filter_depth_ = 0;
     // The robot's elements (body, element) in the order one thread visits them, and where
     // each one's candidates went: each element is traversed by one thread, and sorted_
     // gathers them in element order, so the list is the one thread's on any number.

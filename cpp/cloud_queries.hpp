@@ -50,9 +50,9 @@ void recheck_cloud_pair(CheckContext& c, int64_t p, int64_t a, int64_t b, const 
 void measure_cloud_pair(const Model& m, const State& s, int64_t p, const double* pose,
                         double max_distance, const ProximityResult& result);
 
-// pair_within for link a and a cloud (the hook in motion.cpp): the cloud does not move.
+// pair_within for link a and a cloud (the hook in motion.cpp), test.P the cloud's pose in body
+// a: the cloud does not move.
 WithinResult cloud_pair_within(const Model& m, int64_t a, const VoxelGrid& grid,
-                               const double* P, double h, double extra, MotionMargin& motion,
-                               int box_test, int64_t* counters);
+                               const IntervalTest& test, int64_t* counters);
 
 }  // namespace collision_sensor

@@ -10,9 +10,10 @@
 #include <limits>
 
 #include "containment.hpp"
+#include "descent.hpp"
 #include "inlining.hpp"
+#include "leaf_pair.hpp"
 #include "tolerances.hpp"
-#include "traversal.hpp"
 #include "triangle_box.hpp"
 #include "workers.hpp"
 
@@ -76,22 +77,44 @@ void CloudBuilder::collect_candidates(const Model& m, const double* T_links, dou
     }
 }
 
-// Element e of body b against the filter's hierarchy: its candidates appended to work.found.
-void CloudBuilder::element_candidates(const Model& m, const double* T_links, double r,
-                                      int64_t b, int64_t e, FilterWork& work) {
-    const Forest& f = m.forest;
-    const double* tree_boxes = filter_boxes_.data();
-    const int64_t* tree_nodes = filter_nodes_.data();
-    auto fbox = [&](int64_t n) { return tree_boxes + BOX_WIDTH * n; };
-    auto fnode = [&](int64_t n) { return tree_nodes + NODE_WIDTH * n; };
-    const double* T = T_links + 16 * b;
+// Element e of body b against the filter's hierarchy (the descent, descent.hpp): tree a the
+// element's, each node's box at the cloud's state grown by r (world_box), tree b the
+// filter's (leaves of one voxel, world-aligned boxes). A leaf pair is a candidate: the robot
+// leaf's triangles, or the element's solid (Solid: the element taken whole, its root's box).
+// The larger node is expanded (the sum of its half extents), its right child visited first.
+template <bool Solid>
+struct CloudBuilder::CandidateNode {
+    static constexpr bool WHOLE_A = Solid;
+    struct Seen {
+        const double* A;  // world_box(na)
+        const double* B;
+    };
+
+    const Forest& f;
+    const double* tree_boxes;
+    const int64_t* tree_nodes;
+    const double* T;  // body b's world pose (4, 4)
+    const double r;
+    double* node_world;  // NODE_WORLD numbers per robot node, current where stamped
+    int64_t* node_stamp;
+    const int64_t stamp;
+    const int64_t* voxel_of;  // hierarchy item -> voxel
+    const int64_t b, e;
+    std::vector<Candidate>& out;
+
+    CS_ALWAYS_INLINE const int64_t* node_a(int64_t n) const { return f.node(n); }
+    CS_ALWAYS_INLINE const int64_t* node_b(int64_t n) const {
+        return tree_nodes + NODE_WIDTH * n;
+    }
+    CS_ALWAYS_INLINE const double* box_b(int64_t n) const { return tree_boxes + BOX_WIDTH * n; }
+
     // A robot node's world-aligned box (centre, half extents) and its own box's world axes
     // and half extents, both grown by r (NODE_WORLD numbers: c, e, W (W[3k + i]: axis k's
     // world coordinate i), h).
-    auto world_box = [&](int64_t n) {
-        double* out = node_world_.data() + NODE_WORLD * n;
-        if (node_stamp_[n] == stamp_) return out;
-        node_stamp_[n] = stamp_;
+    CS_ALWAYS_INLINE const double* world_box(int64_t n) {
+        double* out = node_world + NODE_WORLD * n;
+        if (node_stamp[n] == stamp) return out;
+        node_stamp[n] = stamp;
         const double* box = f.box(n);
         double* W = out + 6;
         for (int i = 0; i < 3; ++i) {
@@ -110,13 +133,14 @@ void CloudBuilder::element_candidates(const Model& m, const double* T_links, dou
             out[15 + i] = (box[BOX_HALF + i] + r) * (1.0 + BOUND_ROUNDING_REL) + rounding;
         }
         return out;
-    };
-    // False when a robot node's box grown by r and a box row of the hierarchy (world-aligned)
-    // are apart on a world axis or on an axis k of the node's box (the row reaches
-    // sum_i |W_k[i]| half_i along it). The node's axes cut candidates its world box, up to
-    // sqrt(3) wider than the node on each axis when tilted, lets through. Both err wide
+    }
+
+    // False when a robot node's box grown by r (world_box) and a box row of the hierarchy
+    // (world-aligned) are apart on a world axis or on an axis k of the node's box (the row
+    // reaches sum_i |W_k[i]| half_i along it). The node's axes cut candidates its world box,
+    // up to sqrt(3) wider than the node on each axis when tilted, lets through. Both err wide
     // (rounding).
-    auto overlap = [](const double* A, const double* B) {
+    static CS_ALWAYS_INLINE bool overlap(const double* A, const double* B) {
         const double* h = B + BOX_HALF;
         const double d[3] = {B[0] - A[0], B[1] - A[1], B[2] - A[2]};
         if (!(std::fabs(d[0]) <= A[3] + h[0] && std::fabs(d[1]) <= A[4] + h[1] &&
@@ -133,47 +157,62 @@ void CloudBuilder::element_candidates(const Model& m, const double* T_links, dou
                 return false;
         }
         return true;
-    };
-    if (!overlap(world_box(m.roots[e]), fbox(0))) return;
-    std::vector<int64_t>& stack = work.stack;
-    std::vector<Candidate>& out = work.found;
-    const bool solid = m.elem_solid[SOLID_WIDTH * e] != SOLID_NONE;
-    // The element's triangles against the voxels (its solid, with its root box).
-    for (int pass = 0; pass < (solid ? 2 : 1); ++pass) {
-        stack.clear();
-        stack.push_back(m.roots[e]);
-        stack.push_back(0);
-        while (!stack.empty()) {
-            const int64_t nb = stack.back();
-            stack.pop_back();
-            const int64_t na = stack.back();
-            stack.pop_back();
-            const double* A = world_box(na);
-            const double* B = fbox(nb);
-            if (!overlap(A, B)) continue;
-            const int64_t* node_a = f.node(na);
-            const int64_t* node_b = fnode(nb);
-            const bool leaf_a = pass == 1 || node_a[NODE_LEFT] < 0;
-            const bool leaf_b = node_b[NODE_LEFT] < 0;
-            if (leaf_a && leaf_b) {
-                const int64_t voxel = order_[node_b[NODE_FIRST]];
-                if (pass == 1) {
-                    out.push_back({voxel, b, -1 - e});
-                } else {
-                    for (int64_t t = node_a[NODE_FIRST];
-                         t < node_a[NODE_FIRST] + node_a[NODE_COUNT]; ++t)
-                        out.push_back({voxel, b, t});
-                }
-                continue;
-            }
-            const double ra = A[3] + A[4] + A[5];
-            const double rb = B[BOX_HALF] + B[BOX_HALF + 1] + B[BOX_HALF + 2];
-            if (!leaf_a && (leaf_b || ra >= rb)) {
-                stack.insert(stack.end(), {node_a[NODE_LEFT], nb, node_a[NODE_RIGHT], nb});
-            } else {
-                stack.insert(stack.end(), {na, node_b[NODE_LEFT], na, node_b[NODE_RIGHT]});
-            }
+    }
+
+    CS_ALWAYS_INLINE bool apart(int64_t na, int64_t nb, int64_t, Seen& seen) {
+        const double* A = world_box(na);
+        const double* B = box_b(nb);
+        if (!overlap(A, B)) return true;
+        seen = {A, B};
+        return false;
+    }
+
+    CS_ALWAYS_INLINE bool leaves(int64_t, int64_t, const int64_t* node_a, const int64_t* node_b,
+                                 const Seen&) {
+        const int64_t voxel = voxel_of[node_b[NODE_FIRST]];
+        if (Solid) {
+            out.push_back({voxel, b, -1 - e});
+        } else {
+            for (int64_t t = node_a[NODE_FIRST]; t < node_a[NODE_FIRST] + node_a[NODE_COUNT]; ++t)
+                out.push_back({voxel, b, t});
         }
+        return false;
+    }
+
+    CS_ALWAYS_INLINE bool split_a(int64_t, int64_t, int64_t, const Seen& seen) const {
+        const double* A = seen.A;
+        const double* B = seen.B;
+        return A[3] + A[4] + A[5] >= B[BOX_HALF] + B[BOX_HALF + 1] + B[BOX_HALF + 2];
+    }
+
+    CS_ALWAYS_INLINE void order(int64_t, int64_t, int64_t, bool, ChildPairs& c, const Seen&) const {
+        c.swap();
+        c.word_first = c.word_second = 0;
+    }
+};
+
+// Element e of body b against the filter's hierarchy: its candidates appended to work.found.
+void CloudBuilder::element_candidates(const Model& m, const double* T_links, double r,
+                                      int64_t b, int64_t e, FilterWork& work) {
+    const double* T = T_links + 16 * b;
+    CandidateNode<false> node = {m.forest,         filter_boxes_.data(), filter_nodes_.data(),
+                                 T,                r,                    node_world_.data(),
+                                 node_stamp_.data(), stamp_,             order_.data(),
+                                 b,                e,                    work.found};
+    if (!node.overlap(node.world_box(m.roots[e]), node.box_b(0))) return;
+    const size_t rows = size_t(PAIR_ROW * (1 + m.depth + filter_depth_ + 2));
+    if (work.stack.size() < rows) work.stack.resize(rows);
+    int64_t* stack = work.stack.data();
+    // The element's triangles against the voxels, then its solid, with its root box.
+    seed_pair(stack, 0, m.roots[e], 0);
+    descend(node, stack, 1);
+    if (m.elem_solid[SOLID_WIDTH * e] != SOLID_NONE) {
+        CandidateNode<true> whole = {m.forest,         filter_boxes_.data(), filter_nodes_.data(),
+                                     T,                r,                    node_world_.data(),
+                                     node_stamp_.data(), stamp_,             order_.data(),
+                                     b,                e,                    work.found};
+        seed_pair(stack, 0, m.roots[e], 0);
+        descend(whole, stack, 1);
     }
 }
 

@@ -55,7 +55,7 @@ Scratch::Scratch(const Model& model, int64_t front_capacity, int64_t* counters_r
     nearest = nearest_rows;
     // A traversal's seeds (a front's node pairs, or a pair's root pairs), then a descent.
     const int64_t rows = std::max(front_capacity, model.most_seeds) + 2 * model.depth + 8;
-    stack.assign(3 * rows, 0);
+    stack.assign(PAIR_ROW * rows, 0);
     todo.assign(P, 0);
     pending.assign(P, 0);
     moved.assign(model.n_joints, 0);

@@ -97,7 +97,7 @@ struct Scratch {
     int64_t* counters;      // (N_COUNTERS,) COUNT_*: work done
     int64_t* scene_culled;  // (W, L) culling.hpp: 1 where world object w misses link l's subtree
     int64_t* nearest;       // (P, 2) proximity's warm start: the triangles nearest last time
-    std::vector<int64_t> stack;          // (rows, 3) a traversal's node pairs
+    std::vector<int64_t> stack;          // (rows, PAIR_ROW) a descent's node pairs
     std::vector<int64_t> todo, pending;  // (P,) the pairs to re-check; pending all 0 between
     std::vector<int64_t> moved, chain;   // (J,) moved variables; (L,) links to pose
     std::vector<double> subtree_boxes;   // (L, BOX_WIDTH) culling.hpp

@@ -1,19 +1,23 @@
 // Distances with nearest points between two OBB trees, for the proximity query.
 //
-// trees_distance: the smallest triangle distance between two OBB trees (traversal.hpp's
-// layout), found by descending both with a lower bound per node pair and pruning every node
-// pair whose bound is not below the best distance found so far, which starts at the caller's
-// cutoff (max_distance, or the best over the pair's other trees, or the distance of the
-// triangles nearest last time): a pair with nothing nearer than the cutoff costs only the
+// trees_distance: the smallest triangle distance between two OBB trees (obb_tree.hpp's
+// tables), found by the descent (descent.hpp) with a lower bound per node pair, pruning every
+// node pair whose bound is not below the best distance found so far, which starts at the
+// caller's cutoff (max_distance, or the best over the pair's other trees, or the distance of
+// the triangles nearest last time): a pair with nothing nearer than the cutoff costs only the
 // node pairs that prove it. The nearer child pair is visited first. Leaves are measured with
 // triangle_distance (triangle_distance.hpp).
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 
+#include "box_pair.hpp"
+#include "descent.hpp"
 #include "inlining.hpp"
-#include "traversal.hpp"
+#include "leaf_pair.hpp"
 #include "triangle_distance.hpp"
 
 namespace collision_sensor {
@@ -240,24 +244,43 @@ struct DistanceTraversal {
     DistanceWork& rows;
 };
 
-// trees_distance's floor: the search stops once best.distance is at most floor (a caller that
-// only asks whether the distance exceeds floor has its answer then; -INF: the smallest).
-inline void trees_distance(const DistanceTraversal& node, int64_t ra, int64_t rb,
-                           NearestPoints& best, double floor = -INF) {
-    const Forest& f = node.forest;
-    const double* P = node.pose;
-    const double pad_a = node.pad_a, pad_b = node.pad_b;
-    int64_t* stack = node.work.stack;
-    DistanceWork& work = node.rows;
-    ++work.placed_tag;
-    const double pad = pad_a + pad_b;
+// The distance's node for the descent (descent.hpp): branch and bound, as its order. Each
+// child pair's lower bound is computed when its parent is expanded, and kept with it on the
+// stack (the word: the bound's bits); the pair of the lower bound is visited first, one whose
+// bound is not below the best distance is never pushed, and one whose bound the best has
+// passed since it was pushed is dropped when popped.
+struct DistanceNode {
+    static constexpr bool WHOLE_A = false;
+    struct Seen {
+        double bound;  // the popped pair's lower bound
+    };
+
+    const Forest& f;
+    const double* P;
+    const double pad;
+    const double stop;
+    DistanceWork& work;
+    NearestPoints& best;
     Slab slab;
-    slab.active = false;
-    slab.pad_a = pad_a;
-    slab.pad_b = pad_b;
-    if (best.found) aim_slab(best, P, slab, work);
     int64_t n_boxes = 0, n_triangles = 0;
-    auto bound = [&](int64_t na, int64_t nb) {
+
+    DistanceNode(const DistanceTraversal& t, NearestPoints& best, double floor)
+        : f(t.forest),
+          P(t.pose),
+          pad(t.pad_a + t.pad_b),
+          stop(std::max(-(t.pad_a + t.pad_b), floor)),
+          work(t.rows),
+          best(best),
+          slab{false, {0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}, 0.0, t.pad_a, t.pad_b} {
+        if (best.found) aim_slab(best, P, slab, work);
+    }
+
+    CS_ALWAYS_INLINE const int64_t* node_a(int64_t n) const { return f.node(n); }
+    CS_ALWAYS_INLINE const int64_t* node_b(int64_t n) const { return f.node(n); }
+
+    // The pair's lower bound: the slab's, and the boxes' own unless the slab's is within
+    // SLAB_TRUST_REL of the best (or not below it).
+    CS_ALWAYS_INLINE double bound(int64_t na, int64_t nb) {
         double g = -INF;
         if (slab.active) {
             g = node_support(f, nb, slab, true, work) - node_support(f, na, slab, false, work);
@@ -267,71 +290,80 @@ inline void trees_distance(const DistanceTraversal& node, int64_t ra, int64_t rb
         }
         ++n_boxes;
         return std::max(g, placed_node_gap(f, na, nb, P, work));
-    };
-    auto push = [&](int64_t top, int64_t na, int64_t nb, double lb) {
-        int64_t* row = stack + 3 * top;
-        row[0] = na;
-        row[1] = nb;
-        std::memcpy(row + 2, &lb, sizeof lb);
-    };
-    int64_t top = 0;
-    const double root_gap = bound(ra, rb);
-    if (root_gap < best.distance) push(top++, ra, rb, root_gap);
-    Triangle Q;
-    double x[3], y[3];
-    const double stop = std::max(-pad, floor);
-    while (top > 0 && best.distance > stop) {
-        --top;
-        const int64_t* row = stack + 3 * top;
-        const int64_t na = row[0], nb = row[1];
-        double lb;
-        std::memcpy(&lb, row + 2, sizeof lb);
-        if (lb >= best.distance) continue;  // the best improved since it was pushed
-        const int64_t* node_a = f.node(na);
-        const int64_t* node_b = f.node(nb);
-        const bool leaf_a = node_a[NODE_LEFT] < 0;
-        const bool leaf_b = node_b[NODE_LEFT] < 0;
-        if (leaf_a && leaf_b) {
-            for (int64_t ib = node_b[NODE_FIRST]; ib < node_b[NODE_FIRST] + node_b[NODE_COUNT];
-                 ++ib) {
-                triangle_in_a(f.tris, ib, P, Q);
-                for (int64_t ia = node_a[NODE_FIRST];
-                     ia < node_a[NODE_FIRST] + node_a[NODE_COUNT]; ++ia) {
-                    ++n_triangles;
-                    // lb > 0: the padded geometry apart, so the triangles too.
-                    const double d =
-                        triangle_distance(triangle_at(f.tris, ia), Q, x, y, lb > 0.0) - pad;
-                    if (d < best.distance) {
-                        best.take(d, ia, ib, x, y);
-                        aim_slab(best, P, slab, work);
-                    }
+    }
+
+    static CS_ALWAYS_INLINE int64_t word_of(double bound) {
+        int64_t word;
+        std::memcpy(&word, &bound, sizeof word);
+        return word;
+    }
+
+    CS_ALWAYS_INLINE bool apart(int64_t, int64_t, int64_t word, Seen& seen) const {
+        std::memcpy(&seen.bound, &word, sizeof seen.bound);
+        return seen.bound >= best.distance;  // the best improved since it was pushed
+    }
+
+    // Every triangle pair measured; the search ends once the best is at most the floor.
+    CS_ALWAYS_INLINE bool leaves(int64_t, int64_t, const int64_t* node_a, const int64_t* node_b,
+                                 const Seen& seen) {
+        Triangle Q;
+        double x[3], y[3];
+        for (int64_t ib = node_b[NODE_FIRST]; ib < node_b[NODE_FIRST] + node_b[NODE_COUNT];
+             ++ib) {
+            triangle_in_a(f.tris, ib, P, Q);
+            for (int64_t ia = node_a[NODE_FIRST]; ia < node_a[NODE_FIRST] + node_a[NODE_COUNT];
+                 ++ia) {
+                ++n_triangles;
+                // bound > 0: the padded geometry apart, so the triangles too.
+                const double d =
+                    triangle_distance(triangle_at(f.tris, ia), Q, x, y, seen.bound > 0.0) - pad;
+                if (d < best.distance) {
+                    best.take(d, ia, ib, x, y);
+                    aim_slab(best, P, slab, work);
                 }
             }
-            continue;
         }
-        // Expand the larger box (EXPAND_LARGER by radius), or the one that is not a leaf.
-        const bool expand_a =
-            !leaf_a && (leaf_b || f.box(na)[BOX_RADIUS] >= f.box(nb)[BOX_RADIUS]);
-        int64_t c1a = na, c1b = nb, c2a = na, c2b = nb;
-        if (expand_a) {
-            c1a = node_a[NODE_LEFT];
-            c2a = node_a[NODE_RIGHT];
-        } else {
-            c1b = node_b[NODE_LEFT];
-            c2b = node_b[NODE_RIGHT];
-        }
-        double g1 = bound(c1a, c1b);
-        double g2 = bound(c2a, c2b);
-        if (g1 < g2) {  // the nearer child pair on top: popped first
-            std::swap(g1, g2);
-            std::swap(c1a, c2a);
-            std::swap(c1b, c2b);
-        }
-        if (g1 < best.distance) push(top++, c1a, c1b, g1);
-        if (g2 < best.distance) push(top++, c2a, c2b, g2);
+        return !(best.distance > stop);
     }
-    node.work.counters[COUNT_BOX_TESTS] += n_boxes;
-    node.work.counters[COUNT_TRIANGLE_TESTS] += n_triangles;
+
+    // The larger box (EXPAND_WIDER's rule).
+    CS_ALWAYS_INLINE bool split_a(int64_t na, int64_t nb, int64_t, const Seen&) const {
+        return f.box(na)[BOX_RADIUS] >= f.box(nb)[BOX_RADIUS];
+    }
+
+    // The child pair of the lower bound first (the right one on a tie); a child pair whose
+    // bound is not below the best is not visited.
+    CS_ALWAYS_INLINE void order(int64_t na, int64_t nb, int64_t, bool on_a, ChildPairs& c,
+                                const Seen&) {
+        const double g_left = on_a ? bound(c.first, nb) : bound(na, c.first);
+        const double g_right = on_a ? bound(c.second, nb) : bound(na, c.second);
+        double g_first = g_left, g_second = g_right;
+        if (!(g_left < g_right)) {
+            c.swap();
+            std::swap(g_first, g_second);
+        }
+        c.word_first = word_of(g_first);
+        c.word_second = word_of(g_second);
+        c.visit_first = g_first < best.distance;
+        c.visit_second = g_second < best.distance;
+    }
+};
+
+// trees_distance's floor: the search stops once best.distance is at most floor (a caller that
+// only asks whether the distance exceeds floor has its answer then; -INF: the smallest).
+// Forced inline, into its callers' loops over a pair's trees (proximity.cpp, motion.cpp): left
+// out of line, the callers' own box tests compile to more instructions.
+CS_ALWAYS_INLINE void trees_distance(const DistanceTraversal& traversal, int64_t ra,
+                                     int64_t rb, NearestPoints& best, double floor = -INF) {
+    ++traversal.rows.placed_tag;
+    DistanceNode node(traversal, best, floor);
+    const double root = node.bound(ra, rb);
+    if (root < best.distance && best.distance > node.stop) {
+        seed_pair(traversal.work.stack, 0, ra, rb, DistanceNode::word_of(root));
+        descend(node, traversal.work.stack, 1);
+    }
+    traversal.work.counters[COUNT_BOX_TESTS] += node.n_boxes;
+    traversal.work.counters[COUNT_TRIANGLE_TESTS] += node.n_triangles;
 }
 
 }  // namespace collision_sensor

@@ -25,7 +25,7 @@
 #include <string>
 
 #include "box_test.hpp"
-#include "traversal.hpp"
+#include "descent.hpp"
 
 namespace collision_sensor {
 

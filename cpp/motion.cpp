@@ -44,18 +44,6 @@ void MotionQuery::link_pose(int64_t i) {
     }
 }
 
-// Body b's pose in body a's frame at the evaluated state (a is a link; b a link, or a world
-// object, which no joint moves: its pose is the carried state's).
-void MotionQuery::pair_pose(int64_t a, int64_t b, double* pose) {
-    link_pose(a);
-    const double* Tb = c_.view.state.poses.T_world_body + 16 * b;
-    if (!m_.is_world_object(b)) {
-        link_pose(b);
-        Tb = w_.T.data() + 16 * b;
-    }
-    relative_pose(w_.T.data() + 16 * a, Tb, pose);
-}
-
 // Pair p's two sides: the joints between each body and the pair's lowest common ancestor
 // (none above a world object: it is the world's), lowest first, those moving at the evaluated
 // part of the path, with their speeds per unit of the parameter. Returns whether any of those
@@ -155,15 +143,6 @@ void MotionQuery::margin(int64_t p, double h2) {
     ++mm.tag;
 }
 
-bool MotionQuery::crude_apart(int64_t p, const double* pose, double h, double* reach) {
-    const double rate = crude_rate(p);
-    if (!(rate < INF)) return false;
-    const double gap = sphere_gap(p, pose);
-    if (!(gap > rate * h)) return false;
-    *reach = rate > 0.0 ? gap / rate : INF;
-    return true;
-}
-
 // One step of pair s.p's march along the path: the pair is proven apart on [0, s.t). The
 // interval [t, t + length] is tested at its midpoint m over its half-width h (pair_within):
 // apart, the pair is proven apart on the whole interval and further, on [m, m + reach], and
@@ -171,9 +150,10 @@ bool MotionQuery::crude_apart(int64_t p, const double* pose, double h, double* r
 // intervals pass and shrinks when one does not: near an obstacle the distance, and so the
 // reach, shrinks from one interval to the next). Within its margin: the interval is halved,
 // and once twice the margin is at most the touching tolerance, the state at t is within the
-// tolerance of contact: the first contact. Returns MARCH_*.
+// tolerance of contact: the first contact. Returns MARCH_*. Inline: compiled into its one
+// caller, march_pairs, whose loop runs it at every step.
 template <class Path>
-int MotionQuery::march_step(MotionWork::March& s, const Path& path, double t_end) {
+inline int MotionQuery::march_step(MotionWork::March& s, const Path& path, double t_end) {
     const int64_t a = m_.pair_a[s.p], b = m_.pair_b[s.p];
     double pose[POSE_WIDTH];
     if (waypoint_leap(path, s)) return s.t >= t_end ? MARCH_FREE : MARCH_ON;
@@ -386,20 +366,21 @@ double MotionQuery::solid_gap(int64_t a, int64_t b, const double* P) const {
 WithinResult MotionQuery::pair_within(int64_t p, const double* pose, double m, double h,
                                       double crude, double extra) {
     const int64_t a = m_.pair_a[p], b = m_.pair_b[p];
-    if (m_.is_cloud(b))  // a point cloud's voxels (cloud_queries.hpp)
-        return cloud_pair_within(m_, a, *m_.clouds[b], pose, h, extra, w_.margin,
-                                 c_.view.options.box_test, counters_);
     MotionMargin& mm = w_.margin;
+    const int box_test = c_.view.options.box_test;
+    if (m_.is_cloud(b)) {  // a point cloud's voxels (cloud_queries.hpp)
+        const IntervalTest cloud = {pose, mm.side[0].T, h, extra, mm, box_test};
+        return cloud_pair_within(m_, a, *m_.clouds[b], cloud, counters_);
+    }
+    const IntervalTest test = {pose, mm.side[0].T, h, extra, mm, box_test};
     const double* A = m_.body_box(a);
     const double* B = m_.body_box(b);
-    const int box_test = c_.view.options.box_test;
     const BoxMotion ma = mm.box_motion(A, 0), mb = mm.box_motion(B, 1);
     const double rate = ma.rate + mb.rate;
     const double r = h * rate + extra;
+    NodePairApart bodies;
+    if (node_pair_apart(test, A, B, ma, mb, bodies)) return {false, 0.0, bodies.reach};
     double reach = mm.h2;
-    if (node_pair_apart(A, B, pose, mm.side[0].T, ma, mb, h, extra, mm, box_test, &reach))
-        return {false, 0.0, reach};
-    reach = mm.h2;
     if (m_.body_solid[a] || m_.body_solid[b]) {
         // A test vertex of one body moves no farther than the body's box allows.
         const double solid = solid_gap(a, b, pose);
@@ -443,18 +424,12 @@ WithinResult MotionQuery::pair_within(int64_t p, const double* pose, double m, d
                 reach = std::min(reach, std::max(u, m + h) - m);
                 continue;
             }
-            int64_t* row = stack + 3 * n_seeds++;
-            row[0] = front[k];
-            row[1] = front[k + 1];
-            row[2] = 0;
+            seed_pair(stack, n_seeds++, front[k], front[k + 1]);
         }
     } else {
         for (int64_t ea = m_.elem_start[a]; ea < m_.elem_end[a]; ++ea) {
             for (int64_t eb = m_.elem_start[b]; eb < m_.elem_end[b]; ++eb) {
-                int64_t* row = stack + 3 * n_seeds++;
-                row[0] = m_.roots[ea];
-                row[1] = m_.roots[eb];
-                row[2] = 0;
+                seed_pair(stack, n_seeds++, m_.roots[ea], m_.roots[eb]);
             }
         }
     }

@@ -188,75 +188,104 @@ CS_ALWAYS_INLINE void box_direction_in_world(const double* A, const double* Ta, 
     for (int i = 0; i < 3; ++i) n[i] = Ta[4 * i] * e[0] + Ta[4 * i + 1] * e[1] + Ta[4 * i + 2] * e[2];
 }
 
-// Is the node pair of boxes A (body a at world pose Ta) and B (body b at pose P in body a),
-// whose motions are ma and mb, apart over the half-width h, more than extra apart? If so, the
-// half-width (>= h) over which it stays so goes to reach. Cheapest first: the spheres, then
-// the boxes' gap along the direction of their nearest points (projected_gap) against the
-// zeroth-order margin, then the same gap against the first-order bound, then the box test with
-// both boxes grown by half the zeroth-order margin (a box grown by r / 2 along its axes holds
-// every point within r / 2 of it, so grown boxes apart are more than r apart: the exact test
-// as the margin goes to 0).
-CS_ALWAYS_INLINE bool node_pair_apart(const double* A, const double* B, const double* P,
-                                      const double* Ta, const BoxMotion& ma,
-                                      const BoxMotion& mb, double h, double extra,
-                                      const MotionMargin& motion, int box_method,
-                                      double* reach, double* gap = nullptr,
-                                      const double* placed = nullptr) {
+// What node_pair_apart asks of every node pair of one pair of bodies at one state: body b's
+// pose P in body a's frame, body a's world pose Ta (4, 4), the half-width h of the path and the
+// distance extra the pair must keep beyond its margin, the motions' bounds (their node rows
+// filled on demand: MotionMargin::node), and the box test (BOX_TEST_*).
+struct IntervalTest {
+    const double* P;
+    const double* Ta;
+    double h, extra;
+    MotionMargin& motion;
+    int box_test;
+};
+
+// A node pair proven apart: the half-width of the path over which it stays so (>= h), and
+// the gap it was proven apart by.
+struct NodePairApart {
+    double reach, gap;
+};
+
+// Is the node pair of boxes A (body a) and B (body b), whose motions are ma and mb, apart over
+// the half-width t.h, more than t.extra apart? If so, out says how far and by how much.
+// Placed: B's placed row (placed_row: its centre and axes in body a) is given, else B is
+// placed by t.P. Cheapest first: the spheres, then the boxes' gap along the direction of their
+// nearest points (projected_gap) against the zeroth-order margin, then the same gap against the
+// first-order bound, then the box test with both boxes grown by half the zeroth-order margin
+// (a box grown by r / 2 along its axes holds every point within r / 2 of it, so grown boxes
+// apart are more than r apart: the exact test as the margin goes to 0).
+template <bool Placed>
+CS_ALWAYS_INLINE bool node_pair_apart_as(const IntervalTest& t, const double* A,
+                                         const double* B, const double* placed,
+                                         const BoxMotion& ma, const BoxMotion& mb,
+                                         NodePairApart& out) {
+    const double h = t.h, extra = t.extra;
+    const MotionMargin& motion = t.motion;
     const double rate = ma.rate + mb.rate;
     const double r = h * rate + extra;
     auto zeroth = [&](double gap) {
         return rate > 0.0 ? std::min((gap - extra) / rate, motion.h2) : motion.h2;
     };
     double d[3];
-    if (placed) {
+    if (Placed) {
         for (int i = 0; i < 3; ++i) d[i] = placed[i] - A[BOX_CENTER + i];
     } else {
-        centre_offset(A, B, P, d);
+        centre_offset(A, B, t.P, d);
     }
     const double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
     const double radii = A[BOX_RADIUS] + B[BOX_RADIUS];
     const double bound = (radii + r) * (1.0 + SPHERE_EPS_REL);
     if (dd > bound * bound) {
         const double g = std::sqrt(dd) - radii * (1.0 + SPHERE_EPS_REL);
-        *reach = zeroth(g);
-        if (gap) *gap = g;
+        out = {zeroth(g), g};
         return true;
     }
     double T[12], u[3];
-    if (placed)
+    if (Placed)
         placed_in_frame(A, placed, d, T);
     else
-        box_in_frame(A, B, P, T);
+        box_in_frame(A, B, t.P, T);
     const double g = projected_gap(A, B, T, u);
     if (g > r) {
-        *reach = zeroth(g);
-        if (gap) *gap = g;
+        out = {zeroth(g), g};
         return true;
     }
     // No direction: the alternating projection met a point of both boxes, which overlap.
     if (u[0] == 0.0 && u[1] == 0.0 && u[2] == 0.0) return false;
     if (g > extra) {
         double n[3];
-        box_direction_in_world(A, Ta, u, n);
+        box_direction_in_world(A, t.Ta, u, n);
         const double x = motion.first_order_reach(n, g, extra, A[BOX_RADIUS], ma,
                                                   B[BOX_RADIUS], mb, h);
         if (x >= h) {
-            *reach = x;
-            if (gap) *gap = g;
+            out = {x, g};
             return true;
         }
     }
     const double grow = 0.5 * r;
     const double ha[3] = {A[BOX_HALF] + grow, A[BOX_HALF + 1] + grow, A[BOX_HALF + 2] + grow};
     const double hb[3] = {B[BOX_HALF] + grow, B[BOX_HALF + 1] + grow, B[BOX_HALF + 2] + grow};
-    const bool apart = box_method == BOX_TEST_PAPER ? boxes_disjoint_paper(ha, hb, T, T + 9)
+    const bool apart = t.box_test == BOX_TEST_PAPER ? boxes_disjoint_paper(ha, hb, T, T + 9)
                                                     : boxes_disjoint_sat(ha, hb, T, T + 9);
     if (apart) {
         const double g = std::max(face_gap_of(ha, hb, T), 0.0) + r;
-        *reach = std::max(h, zeroth(g));
-        if (gap) *gap = g;
+        out = {std::max(h, zeroth(g)), g};
     }
     return apart;
+}
+
+// node_pair_apart_as, B placed by t.P.
+CS_ALWAYS_INLINE bool node_pair_apart(const IntervalTest& t, const double* A, const double* B,
+                                      const BoxMotion& ma, const BoxMotion& mb,
+                                      NodePairApart& out) {
+    return node_pair_apart_as<false>(t, A, B, nullptr, ma, mb, out);
+}
+
+// node_pair_apart_as, B's placed row given.
+CS_ALWAYS_INLINE bool placed_pair_apart(const IntervalTest& t, const double* A, const double* B,
+                                        const double* placed, const BoxMotion& ma,
+                                        const BoxMotion& mb, NodePairApart& out) {
+    return node_pair_apart_as<true>(t, A, B, placed, ma, mb, out);
 }
 
 // What trees_within is asked: the tests (TraversalRequest's box_test and expansion), the

@@ -61,7 +61,7 @@ void MotionWork::size_for(const Model& m) {
     prev_sums.assign(2 * P, 0.0);
     // A descent from at most MOTION_FRONT_MAX seeds (or a pair's root pairs) holds at most
     // one node pair per level of each tree on top of them.
-    stack.assign(3 * (std::max(MOTION_FRONT_MAX, m.most_seeds) + 2 * m.depth + 2), 0);
+    stack.assign(PAIR_ROW * (std::max(MOTION_FRONT_MAX, m.most_seeds) + 2 * m.depth + 2), 0);
     tag = 0;
     margin.tag = 0;
     sized = true;

@@ -192,8 +192,15 @@ class MotionQuery {
     // (sides(p) has just listed them), so they only translate relative to each other, and
     // each body's elements are convex hulls. A pair that can joins w_.sweeping, with its
     // pose at the evaluated state (the path's start) and its translation to the end
-    // (pair_shift) in w_.sweep_poses.
-    bool sweepable(const StraightPath&, int64_t p);
+    // (pair_shift) in w_.sweep_poses. Asked of every pair that moves: the turns here, the
+    // bodies in motion_sweeps.cpp (sweepable_bodies).
+    bool sweepable(const StraightPath&, int64_t p) {
+        for (int s = 0; s < 2; ++s)
+            for (int64_t i = 0; i < w_.side_n[s]; ++i)
+                if (w_.side_rot[s][i] != 0.0) return false;
+        return sweepable_bodies(p);
+    }
+    bool sweepable_bodies(int64_t p);
     // The pairs in w_.sweeping: their first contacts by ray casts (convex_sweep.hpp) instead
     // of marches; the first contact lowers *best (its pair in *best_pair), and a pair a sweep
     // cannot decide joins the marches (heap).
@@ -323,6 +330,27 @@ inline double MotionQuery::sphere_gap(int64_t p, const double* pose) const {
     centre_offset(A, B, pose, d);
     return std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) -
            (A[BOX_RADIUS] + B[BOX_RADIUS]) * (1.0 + SPHERE_EPS_REL);
+}
+
+// Body b's pose in body a's frame at the evaluated state (a is a link; b a link, or a world
+// object, which no joint moves: its pose is the carried state's).
+inline void MotionQuery::pair_pose(int64_t a, int64_t b, double* pose) {
+    link_pose(a);
+    const double* Tb = c_.view.state.poses.T_world_body + 16 * b;
+    if (!m_.is_world_object(b)) {
+        link_pose(b);
+        Tb = w_.T.data() + 16 * b;
+    }
+    relative_pose(w_.T.data() + 16 * a, Tb, pose);
+}
+
+inline bool MotionQuery::crude_apart(int64_t p, const double* pose, double h, double* reach) {
+    const double rate = crude_rate(p);
+    if (!(rate < INF)) return false;
+    const double gap = sphere_gap(p, pose);
+    if (!(gap > rate * h)) return false;
+    *reach = rate > 0.0 ? gap / rate : INF;
+    return true;
 }
 
 // Pair p's padded distance with body b at pose in body a, less the rounding allowed for a

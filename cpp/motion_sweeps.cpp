@@ -11,11 +11,8 @@
 namespace collision_sensor {
 namespace motion_detail {
 
-bool MotionQuery::sweepable(const StraightPath&, int64_t p) {
+bool MotionQuery::sweepable_bodies(int64_t p) {
     const int64_t a = m_.pair_a[p], b = m_.pair_b[p];
-    for (int s = 0; s < 2; ++s)
-        for (int64_t i = 0; i < w_.side_n[s]; ++i)
-            if (w_.side_rot[s][i] != 0.0) return false;
     if (m_.is_cloud(b) || m_.elements(a) * m_.elements(b) > SWEEP_MAX_ELEMENT_PAIRS ||
         !body_hulls(a) || !body_hulls(b))
         return false;

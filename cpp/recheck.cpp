@@ -68,10 +68,7 @@ TreesResult trees_of_pair(CheckContext& c, const PairRecheck& r) {
         int64_t* stack = scratch.stack.data();
         for (int64_t ea = m.elem_start[r.a]; ea < m.elem_end[r.a]; ++ea) {
             for (int64_t eb = m.elem_start[r.b]; eb < m.elem_end[r.b]; ++eb) {
-                int64_t* row = stack + 3 * n_seeds++;
-                row[0] = m.roots[ea];
-                row[1] = m.roots[eb];
-                row[2] = 0;
+                seed_pair(stack, n_seeds++, m.roots[ea], m.roots[eb]);
             }
         }
     }

@@ -1,18 +1,10 @@
-// Hierarchy-versus-hierarchy traversal of two OBB trees (paper sec. 4.1).
+// The collision test of two OBB trees (paper sec. 4.1): the descent (descent.hpp) with the
+// node that tests boxes and triangles, and the front it records and re-settles.
 //
 // Two trees, each in its own body frame, are tested from their roots down. When two boxes
-// overlap, one of them is expanded (its two children are tested against the other box); when
-// both are leaves, their triangles are tested exactly. Which side is expanded is the paper's
-// "node expansion consideration"; five rules are offered (the answer never depends on the
-// rule, only the work done; the benchmarks, python -m benchmarks, measure which is fastest):
-//   EXPAND_SAME       always expand the first tree until it reaches a leaf, then the second;
-//   EXPAND_ALTERNATE  alternate sides with the depth of the descent;
-//   EXPAND_LARGER     expand the node with the larger box volume;
-//   EXPAND_PROMISING  expand the node whose volume most exceeds the sum of its children's
-//                     volumes (the paper's "most promising node");
-//   EXPAND_WIDER      expand the node with the larger half diagonal |half| (its sphere's
-//                     radius): unlike the volume, it sees the size of a flat box (the box of
-//                     a few coplanar triangles has almost none), as FCL's rule does.
+// overlap, one of them is expanded (its two children are tested against the other box, the
+// request's expansion rule: descent.hpp, EXPAND_*); when both are leaves, their triangles are
+// tested exactly.
 //
 // As coal's queries: a traversal is asked by a request (TraversalRequest: its options as named
 // fields) and runs as a node (TreePairTraversal: the two trees' forest, body b's pose in body
@@ -28,6 +20,7 @@
 
 #include "box_pair.hpp"
 #include "box_test.hpp"
+#include "descent.hpp"
 #include "inlining.hpp"
 #include "leaf_pair.hpp"
 #include "obb_tree.hpp"
@@ -35,22 +28,11 @@
 
 namespace collision_sensor {
 
-constexpr int POSE_WIDTH = 12;
-constexpr int EXPAND_SAME = 0, EXPAND_ALTERNATE = 1, EXPAND_LARGER = 2, EXPAND_PROMISING = 3,
-              EXPAND_WIDER = 4;
-
-// counters[COUNT_*]: work done, for the benchmarks and tests.
-constexpr int COUNT_BOX_TESTS = 0, COUNT_TRIANGLE_TESTS = 1, COUNT_SPHERE_SKIPS = 2,
-              COUNT_FRONT_STARTS = 3, COUNT_FRONT_UNTESTED = 4, COUNT_SWEEPS = 5,
-              COUNT_SWEEP_STEPS = 6, COUNT_MEASURES = 7, N_COUNTERS = 8;
-
 // A front is a table of node pairs (na, nb, how): how is the axis of the 15-axis test that
 // separated the pair's boxes (0-14, see separating_axis), or one of these.
 constexpr int64_t FRONT_LEAF = -1;    // a leaf pair tested triangle by triangle (apart then)
 constexpr int64_t FRONT_SPHERE = -2;  // the spheres around the two boxes were apart
 constexpr int64_t FRONT_BOX = -3;     // the paper's box test separated them (names no axis)
-
-constexpr double INF = std::numeric_limits<double>::infinity();
 
 // What a traversal of two trees is asked (coal's CollisionRequest, for one body pair).
 struct TraversalRequest {
@@ -90,33 +72,6 @@ struct FrontRecord {
     int64_t length;
 };
 
-// Where a traversal works: stack (rows, 3) int64, and counters (N_COUNTERS,) it adds to.
-struct TraversalWork {
-    int64_t* stack;
-    int64_t* counters;
-};
-
-// The paper's node expansion consideration (sec. 4.1): true iff node pair (na, nb), whose
-// boxes A and B overlap, is expanded on side a (a's two children against nb).
-CS_ALWAYS_INLINE bool expand_first(const Forest& f, int64_t na, int64_t nb, const double* A,
-                                   const double* B, bool leaf_a, bool leaf_b, int64_t level,
-                                   int expansion) {
-    if (leaf_a) return false;
-    if (leaf_b) return true;
-    switch (expansion) {
-        case EXPAND_SAME:
-            return true;
-        case EXPAND_ALTERNATE:
-            return level % 2 == 0;
-        case EXPAND_LARGER:
-            return f.volume[na] >= f.volume[nb];
-        case EXPAND_WIDER:
-            return A[BOX_RADIUS] >= B[BOX_RADIUS];
-        default:
-            return f.gain[na] >= f.gain[nb];
-    }
-}
-
 // A traversal node (coal's MeshCollisionTraversalNode): the forest holding both trees, body
 // b's pose in body a's frame, what is asked, where it works, and the front it records
 // (nullptr: none).
@@ -127,16 +82,6 @@ struct TreePairTraversal {
     TraversalWork work;
     FrontRecord* front;
 };
-
-// True iff box m's centre is nearer the point x than box n's (same body frame).
-CS_ALWAYS_INLINE bool closer(const Forest& f, int64_t m, int64_t n, double x0, double x1,
-                             double x2) {
-    const double* bm = f.box(m);
-    const double* bn = f.box(n);
-    const double a0 = bm[0] - x0, a1 = bm[1] - x1, a2 = bm[2] - x2;
-    const double b0 = bn[0] - x0, b1 = bn[1] - x1, b2 = bn[2] - x2;
-    return a0 * a0 + a1 * a1 + a2 * a2 < b0 * b0 + b1 * b1 + b2 * b2;
-}
 
 // Append (na, nb, how) and until to the front being recorded (nothing once its length is -1,
 // which it becomes when the rows overflow).
@@ -224,33 +169,54 @@ inline FrontScan front_scan(const TreePairTraversal& node, const FrontRows& old,
 
 // The definitions, inline: each runs at every pair a query re-checks (recheck.cpp), inside
 // its loop.
-// collide_trees for a request that inflates the boxes or not (Inflated: a constant of each of
-// the two copies of the descent: the collision queries do not, and pay nothing for it).
+
+// The collision test's node for the descent (descent.hpp): the traversal's fields as locals
+// of the query (the stack's writes could alias them otherwise), what it has found, and the
+// hooks. Inflated: the boxes are grown by the request's inflation (a constant of each of the
+// two copies of the descent: the collision queries do not inflate, and pay nothing for it).
 template <bool Inflated>
-inline TreesResult collide_trees_as(const TreePairTraversal& node, int64_t n_seeds) {
-    // The request's fields as locals: the loop below writes through pointers that could
-    // otherwise alias them.
-    const TraversalRequest& request = node.request;
-    const Forest& f = node.forest;
-    const double* P = node.pose;
-    const int box_test = request.box_test, expansion = request.expansion;
-    const bool track = request.track;
-    const int64_t wa = request.witness_a, wb = request.witness_b;
-    const double pad = request.pad + request.inflation, grow = 0.5 * request.inflation;
-    const double base = request.travel - request.rounding;
-    int64_t* stack = node.work.stack;
-    FrontRecord no_front = {{nullptr, nullptr, 0}, -1};
-    FrontRecord& front = node.front ? *node.front : no_front;
-    double best = track ? INF : 0.0;
+struct CollideNode {
+    static constexpr bool WHOLE_A = false;
+    // What apart() saw of a pair its boxes did not settle: the boxes (grown when Inflated) and
+    // B's centre relative to A's, in body a (Spheres::d).
+    struct Seen {
+        const double* A;
+        const double* B;
+        double d[3];
+    };
+
+    const Forest& f;
+    const double* P;
+    const int box_test, expansion;
+    const bool track;
+    const int64_t wa, wb;
+    const double pad, grow, base;
+    FrontRecord& front;
+    double best;
     int64_t n_boxes = 0, n_spheres = 0, n_triangles = 0;
     bool hit = false;
     int64_t ia = -1, ib = -1;
-    int64_t top = n_seeds;
     double grown_a[BOX_WIDTH], grown_b[BOX_WIDTH];
-    while (top > 0) {
-        --top;
-        int64_t* slot = stack + 3 * top;
-        const int64_t na = slot[0], nb = slot[1], level = slot[2];
+
+    CollideNode(const TreePairTraversal& t, FrontRecord& front)
+        : f(t.forest),
+          P(t.pose),
+          box_test(t.request.box_test),
+          expansion(t.request.expansion),
+          track(t.request.track),
+          wa(t.request.witness_a),
+          wb(t.request.witness_b),
+          pad(t.request.pad + t.request.inflation),
+          grow(0.5 * t.request.inflation),
+          base(t.request.travel - t.request.rounding),
+          front(front),
+          best(t.request.track ? INF : 0.0) {}
+
+    CS_ALWAYS_INLINE const int64_t* node_a(int64_t n) const { return f.node(n); }
+    CS_ALWAYS_INLINE const int64_t* node_b(int64_t n) const { return f.node(n); }
+
+    // The spheres, then the box test; a pair they separate goes to the front with its gap.
+    CS_ALWAYS_INLINE bool apart(int64_t na, int64_t nb, int64_t, Seen& seen) {
         const double* A = Inflated ? grown(f.box(na), grow, grown_a) : f.box(na);
         const double* B = Inflated ? grown(f.box(nb), grow, grown_b) : f.box(nb);
         const Spheres s = spheres(A, B, P);
@@ -264,7 +230,7 @@ inline TreesResult collide_trees_as(const TreePairTraversal& node, int64_t n_see
                 const double bound = best + s.radii;  // sqrt only when it can lower the bound
                 if (s.dd < bound * bound) best = std::sqrt(s.dd) - s.radii;
             }
-            continue;
+            return true;
         }
         ++n_boxes;
         double T[12];
@@ -281,71 +247,77 @@ inline TreesResult collide_trees_as(const TreePairTraversal& node, int64_t n_see
                 best = std::min(best, g);
                 record(front, na, nb, how, base + g);
             }
-            continue;
+            return true;
         }
-        const int64_t* node_a = f.node(na);
-        const int64_t* node_b = f.node(nb);
-        const bool leaf_a = node_a[NODE_LEFT] < 0;
-        const bool leaf_b = node_b[NODE_LEFT] < 0;
-        if (leaf_a && leaf_b) {
-            const LeafResult leaf = leaves_collide(f.tris, node_a, node_b, P, pad, track);
-            n_triangles += leaf.tested;
-            if (leaf.hit) {
-                hit = true;
-                ia = leaf.ia;
-                ib = leaf.ib;
-                break;
-            }
-            record(front, na, nb, FRONT_LEAF, base + leaf.gap);
-            best = std::min(best, leaf.gap);
-            continue;
+        seen.A = A;
+        seen.B = B;
+        seen.d[0] = s.d[0];
+        seen.d[1] = s.d[1];
+        seen.d[2] = s.d[2];
+        return false;
+    }
+
+    // The triangles; the first meeting pair ends the descent.
+    CS_ALWAYS_INLINE bool leaves(int64_t na, int64_t nb, const int64_t* row_a,
+                                 const int64_t* row_b, Seen&) {
+        const LeafResult leaf = leaves_collide(f.tris, row_a, row_b, P, pad, track);
+        n_triangles += leaf.tested;
+        if (leaf.hit) {
+            hit = true;
+            ia = leaf.ia;
+            ib = leaf.ib;
+            return true;
         }
-        const bool expand_a = expand_first(f, na, nb, A, B, leaf_a, leaf_b, level, expansion);
-        // Visit first the child nearer the other box's centre (more likely to meet it: a
-        // colliding pair stops at its first meeting triangles), or the one holding the last
-        // witness.
-        int64_t first, second;
+        record(front, na, nb, FRONT_LEAF, base + leaf.gap);
+        best = std::min(best, leaf.gap);
+        return false;
+    }
+
+    CS_ALWAYS_INLINE bool split_a(int64_t na, int64_t nb, int64_t level, const Seen& seen) const {
+        return expand_first(f, na, nb, seen.A, seen.B, level, expansion);
+    }
+
+    // First the child holding the last witness, or else the one nearer the other box's
+    // centre (B's in body a; A's in body b: R_ab' (ca - t_ab)).
+    CS_ALWAYS_INLINE void order(int64_t, int64_t, int64_t level, bool on_a, ChildPairs& c,
+                                const Seen& seen) const {
+        const double* A = seen.A;
         bool swap;
-        if (expand_a) {
-            first = node_a[NODE_LEFT];
-            second = node_a[NODE_RIGHT];
-            if (wa >= 0) {
-                swap = wa >= f.node(second)[NODE_FIRST];
-            } else {  // B's centre in body a
-                swap = closer(f, second, first, A[0] + s.d[0], A[1] + s.d[1], A[2] + s.d[2]);
-            }
-            if (swap) std::swap(first, second);
-            slot[0] = second;
-            slot[1] = nb;
-            slot[2] = level + 1;
-            slot[3] = first;
-            slot[4] = nb;
+        if (on_a) {
+            if (wa >= 0)
+                swap = wa >= f.node(c.second)[NODE_FIRST];
+            else
+                swap = nearer(f.box(c.second), f.box(c.first), A[0] + seen.d[0],
+                              A[1] + seen.d[1], A[2] + seen.d[2]);
         } else {
-            first = node_b[NODE_LEFT];
-            second = node_b[NODE_RIGHT];
             if (wb >= 0) {
-                swap = wb >= f.node(second)[NODE_FIRST];
-            } else {  // A's centre in body b: R_ab' (ca - t_ab)
+                swap = wb >= f.node(c.second)[NODE_FIRST];
+            } else {
                 const double e0 = A[0] - P[9], e1 = A[1] - P[10], e2 = A[2] - P[11];
-                swap = closer(f, second, first, P[0] * e0 + P[3] * e1 + P[6] * e2,
+                swap = nearer(f.box(c.second), f.box(c.first),
+                              P[0] * e0 + P[3] * e1 + P[6] * e2,
                               P[1] * e0 + P[4] * e1 + P[7] * e2,
                               P[2] * e0 + P[5] * e1 + P[8] * e2);
             }
-            if (swap) std::swap(first, second);
-            slot[0] = na;
-            slot[1] = second;
-            slot[2] = level + 1;
-            slot[3] = na;
-            slot[4] = first;
         }
-        slot[5] = level + 1;
-        top += 2;
+        if (swap) c.swap();
+        c.word_first = c.word_second = level + 1;
     }
-    int64_t* counters = node.work.counters;
-    counters[COUNT_BOX_TESTS] += n_boxes;
-    counters[COUNT_SPHERE_SKIPS] += n_spheres;
-    counters[COUNT_TRIANGLE_TESTS] += n_triangles;
-    return {hit, ia, ib, best};
+};
+
+// Forced inline, into its caller's loop over the pairs (recheck.cpp): left out of line, the
+// box test inside the descent compiles to more instructions (its registers spill).
+template <bool Inflated>
+CS_ALWAYS_INLINE TreesResult collide_trees_as(const TreePairTraversal& traversal,
+                                              int64_t n_seeds) {
+    FrontRecord no_front = {{nullptr, nullptr, 0}, -1};
+    CollideNode<Inflated> node(traversal, traversal.front ? *traversal.front : no_front);
+    descend(node, traversal.work.stack, n_seeds);
+    int64_t* counters = traversal.work.counters;
+    counters[COUNT_BOX_TESTS] += node.n_boxes;
+    counters[COUNT_SPHERE_SKIPS] += node.n_spheres;
+    counters[COUNT_TRIANGLE_TESTS] += node.n_triangles;
+    return {node.hit, node.ia, node.ib, node.best};
 }
 
 
@@ -407,11 +379,7 @@ inline FrontScan front_scan(const TreePairTraversal& node, const FrontRows& old,
             ++n_kept;
             best = std::min(best, g);
         } else {
-            int64_t* row = stack + 3 * n_seeds;
-            row[0] = na;
-            row[1] = nb;
-            row[2] = 0;
-            ++n_seeds;
+            seed_pair(stack, n_seeds++, na, nb);
         }
     }
     int64_t* counters = node.work.counters;
