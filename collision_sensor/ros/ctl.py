@@ -46,7 +46,7 @@ from visualization_msgs.msg import MarkerArray
 from collision_sensor.errors import CollisionSensorError, ConfigError
 from collision_sensor.model.mesh_loading import parse_package_paths
 from collision_sensor.ros.answers import (
-    SCENE_COUNTS, handled_total, status_values, trajectory_answer_from)
+    SCENE_COUNTS, answers_it, handled_total, status_values, trajectory_answer_from)
 from collision_sensor.ros.message_yaml import fill_message, message_to_yaml, message_type
 from collision_sensor.ros.scene_messages import (
     delete_all_marker, delete_markers, scene_markers)
@@ -222,6 +222,7 @@ def run_trajectory(client: Client, args, out) -> int:
     client.spin_until(lambda: publisher.get_subscription_count() > 0
                       and subscription.get_publisher_count() > 0,
                       f'no node subscribing {topic} and publishing {result_topic}')
+    sent_after = time.time_ns()
     publisher.publish(msg)
 
     def mine():
@@ -230,7 +231,7 @@ def run_trajectory(client: Client, args, out) -> int:
                 read = trajectory_answer_from(answer)
             except ValueError:
                 continue
-            if read.digest == digest:
+            if answers_it(read, digest, sent_after):
                 return answer, read
         return None
     raw, answer = client.spin_until(mine, f'no answer on {result_topic} to the trajectory '

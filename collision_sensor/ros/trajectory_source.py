@@ -7,7 +7,7 @@ cubic or quintic between points, segment 0 from the current state at rest, wrap-
 continuous joints), from the joint state accepted last, with the node's
 ``joint_limit_tolerance`` for the joint limits along the way. Each trajectory is answered by
 one ``diagnostic_msgs/DiagnosticArray`` on ``trajectory_result`` (:data:`RESULT_QOS`: reliable,
-volatile), its header the trajectory's, with one status:
+transient local, keep last 100), its header the trajectory's, with one status:
 
 - name ``<node>: trajectory``, level OK (valid) or ERROR, message ``valid`` or the reason,
   ``hardware_id`` the root link;
@@ -19,12 +19,17 @@ volatile), its header the trajectory's, with one status:
   ``colliding_pairs`` (every pair in contact there, ``a:b`` comma-separated), ``reason``
   (empty when valid), ``points``, ``joints``, ``trajectory_digest`` (:func:`trajectory_digest`
   of the trajectory; empty for one answered undecoded: ``oversized``, ``dropped``, and
-  ``malformed`` bytes that do not decode).
+  ``malformed`` bytes that do not decode), ``trajectory_sent_ns`` (the trajectory's source
+  timestamp: when the sender's middleware wrote it, ns since the epoch on the sender's clock).
 
 A client matches its answer by the digest, which it computes from what it sent (the header
 alone identifies nothing: planners send stamp 0, and a non-zero stamp changes when
-joint_trajectory_controller starts the trajectory). Answers are volatile: a client subscribed
-before it sends gets its own, and one that joins later is not handed other clients' old answers.
+joint_trajectory_controller starts the trajectory), and by ``trajectory_sent_ns``, at or after
+its own clock's time just before it published (:func:`~collision_sensor.ros.answers.answers_it`).
+Answers are kept (transient local), so an answer published before the node's publisher matched
+the client's subscription (discovery is not symmetric: the client seeing the node's publisher
+does not mean the node sees the client) still reaches it; a client that joins later receives
+older answers too, and the sent time keeps it from taking one of them for its own.
 
 A valid trajectory is then relayed unchanged (the bytes received) on ``trajectory_out``
 (reliable), so the node can sit between a planner and a controller's ``joint_trajectory``
@@ -46,6 +51,7 @@ until the trajectory is answered, so a trajectory is checked against one scene a
 """
 import array
 import collections
+import functools
 import hashlib
 import struct
 import sys
@@ -78,12 +84,13 @@ TRAJECTORY_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
 RELAY_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE)
-#: ``trajectory_result``: reliable, volatile (an answer is for the client that sent the
-#: trajectory, subscribed when it sent it: a late joiner must not take old answers for its own),
-#: keep last 100 (the ``trajectory`` subscription's depth: a burst is answered whole).
+#: ``trajectory_result``: reliable, transient local (an answer given before the node's
+#: publisher matched the client's subscription still reaches it; a client tells its own from older
+#: ones by the digest and the sent time), keep last 100 (the ``trajectory`` subscription's depth:
+#: a burst is answered whole).
 RESULT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
                         reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.VOLATILE)
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
 #: Trajectories that may wait to be checked; more are answered ``dropped`` at once.
 MAX_TRAJECTORY_BACKLOG = 10
 #: Longest reason in a result (characters).
@@ -257,17 +264,17 @@ class TrajectorySource(InputSource):
 
     # -- the executor's thread ----------------------------------------------------------------
 
-    def _take(self, data: bytes) -> None:
-        """Hand a trajectory's bytes to the checking thread, which decodes them (decoding a few
-        thousand points takes milliseconds: not on the executor's thread); above the size
-        bound or the backlog, a placeholder answered in its turn."""
+    def _take(self, data: bytes, info: dict) -> None:
+        """Hand a trajectory's bytes and its sent time to the checking thread, which decodes
+        them (decoding a few thousand points takes milliseconds: not on the executor's thread);
+        above the size bound or the backlog, a placeholder answered in its turn."""
         if len(data) > self._max_bytes:
             item = Oversized(data)
         elif self._worker.backlog() >= MAX_TRAJECTORY_BACKLOG:
             item = Dropped(data)
         else:
             item = data
-        self._worker.put(item)
+        self._worker.put((item, int(info.get('source_timestamp') or 0)))
 
     def _on_message_lost(self, info) -> None:
         self.counts['lost'] += info.total_count_change
@@ -286,7 +293,7 @@ class TrajectorySource(InputSource):
         self._log.warn(
             'trajectory_result_qos', 'a subscriber of trajectory_result asks for a QoS it does '
             f'not offer (policy {event.last_policy_kind}); it receives no answer. Answers are '
-            'reliable and volatile: subscribe volatile before sending a trajectory')
+            'reliable, transient local, keep last 100: subscribe with that or less')
 
     # -- the checking thread ------------------------------------------------------------------
 
@@ -302,17 +309,23 @@ class TrajectorySource(InputSource):
                               f'{printable(repr(error), 300)}'))
             self._log.write(notes)
 
-    def _answer(self, item, notes: list) -> None:
+    def _answer(self, received: tuple, notes: list) -> None:
         """Check one trajectory (or answer a placeholder), publish its result, relay it when
-        valid."""
+        valid.
+
+        :param received: ``(item, sent_ns)``: the bytes or a placeholder, and the trajectory's
+            source timestamp.
+        """
+        item, sent_ns = received
+        answer = functools.partial(self._publish, sent_ns=sent_ns)
         if isinstance(item, Oversized):
-            self._publish(item.header, 'oversized', None, (
+            answer(item.header, 'oversized', None, (
                 f'{item.size} bytes, above max_trajectory_bytes ({self._max_bytes}); raise the '
                 'parameter if the planner\'s trajectories are really that large, or send fewer '
                 'points'), notes)
             return
         if isinstance(item, Dropped):
-            self._publish(item.header, 'dropped', None, (
+            answer(item.header, 'dropped', None, (
                 f'{MAX_TRAJECTORY_BACKLOG} trajectories waited to be checked already; send '
                 'them one at a time'), notes)
             return
@@ -320,7 +333,7 @@ class TrajectorySource(InputSource):
         try:
             msg = deserialize_message(data, JointTrajectory)
         except Exception as error:  # noqa: B902 - whatever the bytes, answered
-            self._publish(header_of(data), 'malformed', None, 'the message could not be '
+            answer(header_of(data), 'malformed', None, 'the message could not be '
                           f'decoded: {printable(repr(error), 300)}', notes)
             return
         points = points_of(msg)
@@ -333,11 +346,11 @@ class TrajectorySource(InputSource):
             try:
                 result, why = sensor.check_trajectory(names, points)
             except Exception as error:  # noqa: B902 - answered, never relayed
-                self._publish(msg.header, 'engine_error', None, 'the check failed: '
+                answer(msg.header, 'engine_error', None, 'the check failed: '
                               f'{printable(repr(error), 300)}', notes, size, digest)
                 return
             if result is None:
-                self._publish(msg.header, 'no_start', None, why, notes, size, digest)
+                answer(msg.header, 'no_start', None, why, notes, size, digest)
                 return
             elapsed = time.perf_counter() - started
             self.check_time_max = max(self.check_time_max, elapsed)
@@ -350,7 +363,7 @@ class TrajectorySource(InputSource):
                                   f'skipped after an error: {printable(repr(error), 300)}'))
         if result.valid:
             self._relay_pub.publish(data)   # the bytes received: unchanged
-        self._publish(msg.header, kind_of(result), result, printable(result.reason,
+        answer(msg.header, kind_of(result), result, printable(result.reason,
                                                                     MAX_REASON_CHARS), notes,
                       size, digest)
 
@@ -376,9 +389,10 @@ class TrajectorySource(InputSource):
             self._markers.trajectory_contact(boxes, msg.header.stamp, text)
 
     def _publish(self, header, kind: str, result: Optional[TrajectoryResult], reason: str,
-                 notes: list, size=(0, 0), digest: str = '') -> None:
+                 notes: list, size=(0, 0), digest: str = '', *, sent_ns: int) -> None:
         """Publish the one status answering a trajectory (``digest``: its
-        :func:`trajectory_digest`, '' when undecoded); log an invalid one (throttled)."""
+        :func:`trajectory_digest`, '' when undecoded; ``sent_ns``: its source timestamp); log
+        an invalid one (throttled)."""
         checker = self._sensor.checker
         root = root_link(checker) if checker is not None else ''
         valid = kind == 'valid'
@@ -399,6 +413,7 @@ class TrajectorySource(InputSource):
             'points': str(size[0]),
             'joints': str(size[1]),
             'trajectory_digest': digest,
+            'trajectory_sent_ns': str(sent_ns),
         }
         status = DiagnosticStatus(
             level=DiagnosticStatus.OK if valid else DiagnosticStatus.ERROR,

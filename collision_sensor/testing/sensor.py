@@ -51,8 +51,8 @@ from visualization_msgs.msg import Marker, MarkerArray
 from collision_sensor.errors import ConfigError
 from collision_sensor.model.point_cloud_message import cdr_from_points
 from collision_sensor.ros.answers import (
-    CLOUD_COUNTS, SCENE_COUNTS, Verdict, handled_total, status_values, trajectory_answer_from,
-    verdict_from)
+    CLOUD_COUNTS, SCENE_COUNTS, Verdict, answers_it, handled_total, status_values,
+    trajectory_answer_from, verdict_from)
 from collision_sensor.ros.scene_messages import absolute_mesh_paths, scene_markers
 from collision_sensor.ros.trajectory_source import trajectory_digest
 from collision_sensor.testing.messages import joint_trajectory
@@ -180,7 +180,7 @@ class SensorUnderTest:
             client.create_subscription(DiagnosticArray, 'colliding_pairs', self._on_pairs,
                                        _KEEP_ALL_LATCHED),
             client.create_subscription(DiagnosticArray, 'trajectory_result', self._on_result,
-                                       _KEEP_ALL),
+                                       _KEEP_ALL_LATCHED),
             client.create_subscription(JointTrajectory, 'trajectory_out', self._on_relay,
                                        _KEEP_ALL)]
         client.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
@@ -192,7 +192,7 @@ class SensorUnderTest:
 
     def _matched(self) -> bool:
         """Every publisher matched by the node, every subscription by the node's publisher
-        (answers on trajectory_result and trajectory_out are volatile: none may go before)."""
+        (relays on trajectory_out are volatile: none may go before)."""
         return (self._joint_states.get_subscription_count() > 0
                 and self._trajectories.get_subscription_count() > 0
                 and self._scene.get_subscription_count() > 0
@@ -255,17 +255,18 @@ class SensorUnderTest:
         except ValueError:
             return
         with self._condition:
-            waiting = self._waiting_trajectories.get(answer.digest) if answer.digest else None
-            if waiting:
-                pending = waiting.pop(0)
+            if answer.digest:   # first sent first among those it may answer
+                pending = next((p for p in self._waiting_trajectories.get(answer.digest, ())
+                                if answers_it(answer, p.digest, p.sent_after)), None)
             else:   # answered undecoded: by its header, first sent first
                 pending = next((p for waiting in self._waiting_trajectories.values()
                                 for p in waiting if (p.msg.header.stamp.sec,
                                                      p.msg.header.stamp.nanosec) == answer.stamp
-                                and p.msg.header.frame_id == answer.frame), None)
-                if pending is None:
-                    return
-                self._waiting_trajectories[pending.digest].remove(pending)
+                                and p.msg.header.frame_id == answer.frame
+                                and answer.sent_ns >= p.sent_after), None)
+            if pending is None:     # not one of this client's
+                return
+            self._waiting_trajectories[pending.digest].remove(pending)
             if answer.valid:
                 count = self._valid_answers.get(pending.digest, 0) + 1
                 self._valid_answers[pending.digest] = pending.relay_rank = count
@@ -394,6 +395,7 @@ class SensorUnderTest:
         pending = PendingTrajectory(self, msg)
         with self._condition:
             self._waiting_trajectories.setdefault(pending.digest, []).append(pending)
+            pending.sent_after = time.time_ns()
         self._trajectories.publish(msg)
         return pending
 

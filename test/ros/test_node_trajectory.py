@@ -29,7 +29,7 @@ from collision_sensor.untrusted_text import printable  # noqa: E402
 from ros_helpers import WAIT, node_status, reliable  # noqa: E402
 from motion_cases import crossing, scene_of  # noqa: E402,F401 - the case's fixture
 from node_harness import (  # noqa: E402,F401 - the fixtures of the node's tests
-    ARM, GRIPPER, Probe, joint_state, logged, panda_parameters, ros, start_node)
+    ARM, GRIPPER, Probe, joint_state, panda_parameters, ros, start_node)
 
 NAMES = ARM + GRIPPER
 TOLERANCE = 0.01    # the node's joint_limit_tolerance (its default)
@@ -359,13 +359,16 @@ def test_a_burst_is_answered_in_order_the_excess_dropped_at_once(ros, crossing, 
     probe.trajectory_status(lambda status, _: status.level == DiagnosticStatus.WARN)
 
 
-def test_each_client_matches_its_answers_and_a_late_one_gets_no_old_ones(
-        ros, capfd, crossing, scene_file, panda_urdf, panda_srdf, erd_share):
+def test_each_client_matches_its_answers_and_a_late_one_takes_no_old_one(
+        ros, crossing, scene_file, panda_urdf, panda_srdf, erd_share):
     """Planners send stamp 0: two trajectories in flight at once, both stamped 0 with the same
-    frame, are told apart by the digest each client computes from what it sent. A client that
-    subscribes after answers were given receives none of them, then its own."""
+    frame, are told apart by the digest each client computes from what it sent. Answers are
+    kept (transient local), so one given before a client's subscription was matched still
+    reaches it; a client that joins later receives the older answers too, and by the sent time
+    takes none of them for its own, even one to the very trajectory it then sends."""
     from rclpy.node import Node
-    from collision_sensor.ros.trajectory_source import trajectory_digest
+    from collision_sensor.ros.answers import answers_it, trajectory_answer_from
+    from collision_sensor.ros.trajectory_source import RESULT_QOS, trajectory_digest
     start_node(ros, panda_parameters(panda_urdf, panda_srdf, erd_share, scene_path=scene_file))
     probe = TrajectoryProbe(ros)
     a, b, c = crossing.q0, crossing.q_half, crossing.q1
@@ -384,23 +387,21 @@ def test_each_client_matches_its_answers_and_a_late_one_gets_no_old_ones(
     assert answers[trajectory_digest(through)]['kind'] == 'contact'
     assert trajectory_digest(free) == digest_by_the_recipe(free)
 
+    # A subscription made after the answers were published receives them.
     late = ros.add(Node('late_planner', namespace=ros.namespace, context=ros.context))
     heard = []
-    late.create_subscription(DiagnosticArray, 'trajectory_result', heard.append, reliable(100))
+    late.create_subscription(DiagnosticArray, 'trajectory_result', heard.append, RESULT_QOS)
     sender = late.create_publisher(JointTrajectory, 'trajectory', reliable(100))
-    assert ros.spin_until(lambda: sender.get_subscription_count() > 0 and late.count_publishers(
-        f'{ros.namespace}/trajectory_result') > 0)
-    ros.spin_for(0.5)
-    assert heard == []      # the two answers above are not handed to it
-    from rclpy.qos import DurabilityPolicy
-    offered = late.get_publishers_info_by_topic(f'{ros.namespace}/trajectory_result')
-    assert [info.qos_profile.durability for info in offered] == [DurabilityPolicy.VOLATILE]
-    # A client still asking for old answers (transient local) is told so by the node.
-    late.create_subscription(DiagnosticArray, 'trajectory_result', heard.append,
-                             reliable(100, latched=True))
-    assert 'subscribe volatile before sending' in logged(ros, capfd, 'trajectory_result asks')
+    assert ros.spin_until(lambda: sender.get_subscription_count() > 0 and len(heard) >= 2)
+    old = [trajectory_answer_from(msg) for msg in heard]
+    assert {answer.digest for answer in old} >= {trajectory_digest(free),
+                                                  trajectory_digest(through)}
+    # None of them answers what it sends now, though one has the same digest.
+    sent_after = time.time_ns()
+    assert not any(answers_it(answer, trajectory_digest(through), sent_after) for answer in old)
     sender.publish(through)
-    assert ros.spin_until(lambda: len(heard) == 1, 30.0)
-    values = {kv.key: kv.value for kv in heard[0].status[0].values}
-    assert (values['trajectory_digest'], values['kind']) == (trajectory_digest(through),
-                                                             'contact')
+    assert ros.spin_until(lambda: len(heard) == len(old) + 1, 30.0)
+    new = trajectory_answer_from(heard[-1])
+    assert answers_it(new, trajectory_digest(through), sent_after)
+    assert new.kind == 'contact'
+    assert sent_after <= new.sent_ns <= time.time_ns()
