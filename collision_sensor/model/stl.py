@@ -60,15 +60,53 @@ def _starts_ascii(path: str) -> bool:
         return stream.read(84).lstrip().startswith(b'solid')
 
 
+#: Odd 64-bit multipliers of :func:`merge_vertices`' hash, one per coordinate word.
+_HASH_WORDS = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9],
+                       dtype=np.uint64)
+
+
 def merge_vertices(corners: np.ndarray):
     """Return ``vertices, faces`` for triangles given as consecutive corner triples (k, 3):
-    exactly equal corners become one vertex, numbered in the order they first appear."""
+    exactly equal corners become one vertex, numbered in the order they first appear.
+
+    Corners are grouped by a 64-bit hash of their coordinates (one sort of integers, not a sort
+    of rows) and each group is then checked to hold one corner only; a hash shared by unequal
+    corners (or a NaN) falls back to sorting the rows.
+    """
     if len(corners) == 0:
         return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
-    unique, first, inverse = np.unique(corners, axis=0, return_index=True, return_inverse=True)
+    corners = np.ascontiguousarray(corners, dtype=np.float64) + 0.0   # -0.0 as 0.0
+    words = corners.view(np.uint64)
+    keys = np.zeros(len(words), dtype=np.uint64)
+    for k in range(3):      # multiply and xor-shift each word in (modulo 2**64)
+        keys ^= words[:, k]
+        keys *= _HASH_WORDS[k]
+        keys ^= keys >> np.uint64(31)
+    order = np.argsort(keys)
+    sorted_keys = keys[order]
+    change = sorted_keys[1:] != sorted_keys[:-1]
+    starts = np.flatnonzero(np.concatenate(([True], change)))
+    group = np.cumsum(np.concatenate(([0], change)))
+    first = np.minimum.reduceat(order, starts)      # each group's first corner in the file
+    if not np.array_equal(corners[order], corners[first[group]]):
+        return _merge_vertices_by_rows(corners)
+    inverse = np.empty(len(corners), dtype=np.int64)
+    inverse[order] = group
+    return _numbered_by_first(corners, first, inverse)
+
+
+def _merge_vertices_by_rows(corners: np.ndarray):
+    """:func:`merge_vertices` by sorting the rows (slow, and exact whatever the hash does)."""
+    _, first, inverse = np.unique(corners, axis=0, return_index=True, return_inverse=True)
+    return _numbered_by_first(corners, first, inverse.reshape(-1))
+
+
+def _numbered_by_first(corners: np.ndarray, first: np.ndarray, inverse: np.ndarray):
+    """Vertices and faces from groups of equal corners (``first``: each group's first corner,
+    ``inverse``: each corner's group), the groups numbered in the order they first appear."""
     order = np.argsort(first, kind='stable')
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
-    vertices = np.ascontiguousarray(unique[order])
-    faces = np.ascontiguousarray(rank[inverse.reshape(-1)].reshape(-1, 3).astype(np.int64))
+    vertices = np.ascontiguousarray(corners[first[order]])
+    faces = np.ascontiguousarray(rank[inverse].reshape(-1, 3).astype(np.int64))
     return vertices, faces
