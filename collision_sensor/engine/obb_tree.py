@@ -19,6 +19,7 @@ Conventions, shared with :mod:`collision_sensor.engine.bounding_volumes`:
 * ``gain[n] = volume(n) - volume(left) - volume(right)`` is the paper's "most promising node"
   score (sec. 4.1), 0 for leaves.
 """
+import concurrent.futures
 from dataclasses import dataclass
 
 import numpy as np
@@ -138,7 +139,33 @@ def _refit(tris_sorted, center, axes, half, left, right, first, count, n_nodes, 
         center[node], axes[node], half[node] = fit_obb(points, method, faces=faces)
 
 
-def build_forest(meshes, leaf_size: int = 2, fit: int = OBB_PCA) -> ObbForest:
+def _build_tree(mesh, leaf_size: int, fit: int) -> dict:
+    """One mesh's tree, numbered from 0: its node arrays, sorted triangles and depth."""
+    vertices, faces = mesh
+    tris = triangles_of(vertices, faces)
+    m = len(tris)
+    cap = 2 * m - 1
+    center = np.empty((cap, 3))
+    axes = np.empty((cap, 3, 3))
+    half = np.empty((cap, 3))
+    left = np.empty(cap, dtype=np.int64)
+    right = np.empty(cap, dtype=np.int64)
+    first = np.empty(cap, dtype=np.int64)
+    count = np.empty(cap, dtype=np.int64)
+    order = np.empty(m, dtype=np.int64)
+    n_nodes, depth = build_tree_kernel(
+        tris, leaf_size, center, axes, half, left, right, first, count, order,
+        refine=fit == OBB_REFINED)
+    tris_sorted = tris[order]
+    if fit in (OBB_HULL_PCA, OBB_MIN_VOLUME):
+        _refit(tris_sorted, center, axes, half, left, right, first, count, n_nodes, fit)
+    return dict(center=center[:n_nodes], axes=axes[:n_nodes], half=half[:n_nodes],
+                left=left[:n_nodes], right=right[:n_nodes], first=first[:n_nodes],
+                count=count[:n_nodes], tris=tris_sorted, depth=depth)
+
+
+def build_forest(meshes, leaf_size: int = 2, fit: int = OBB_PCA,
+                 threads: int = 1) -> ObbForest:
     """Build one OBB tree per mesh and concatenate them.
 
     :param meshes: sequence of ((n, 3) float vertices, (m, 3) int faces), in body frames.
@@ -146,40 +173,34 @@ def build_forest(meshes, leaf_size: int = 2, fit: int = OBB_PCA) -> ObbForest:
     :param fit: OBB_PCA (default, the paper's Wu method), OBB_REFINED (the same, the top of
         each tree tightened around each principal axis, in the same build), OBB_HULL_PCA or
         OBB_MIN_VOLUME (boxes refitted after the build, in Python: slow).
+    :param threads: trees built at once (the kernel runs without the GIL); the forest is the
+        same whatever the number.
     :return: the forest; ``roots[i]`` is mesh ``i``'s root node.
     """
     if leaf_size < 1:
         raise EngineInputError(f'leaf_size must be at least 1, got {leaf_size}')
+    meshes = list(meshes)
+    if threads > 1 and len(meshes) > 1:
+        # the largest first, so that no thread is left with a large one at the end
+        largest_first = sorted(range(len(meshes)), key=lambda i: -len(meshes[i][1]))
+        with concurrent.futures.ThreadPoolExecutor(min(threads, len(meshes))) as pool:
+            built = dict(zip(largest_first, pool.map(
+                lambda i: _build_tree(meshes[i], leaf_size, fit), largest_first)))
+        trees = [built[i] for i in range(len(meshes))]
+    else:
+        trees = [_build_tree(mesh, leaf_size, fit) for mesh in meshes]
     parts = []
     node_offset = 0
     tri_offset = 0
-    for vertices, faces in meshes:
-        tris = triangles_of(vertices, faces)
-        m = len(tris)
-        cap = 2 * m - 1
-        center = np.empty((cap, 3))
-        axes = np.empty((cap, 3, 3))
-        half = np.empty((cap, 3))
-        left = np.empty(cap, dtype=np.int64)
-        right = np.empty(cap, dtype=np.int64)
-        first = np.empty(cap, dtype=np.int64)
-        count = np.empty(cap, dtype=np.int64)
-        order = np.empty(m, dtype=np.int64)
-        n_nodes, depth = build_tree_kernel(
-            tris, leaf_size, center, axes, half, left, right, first, count, order,
-            refine=fit == OBB_REFINED)
-        tris_sorted = tris[order]
-        if fit in (OBB_HULL_PCA, OBB_MIN_VOLUME):
-            _refit(tris_sorted, center, axes, half, left, right, first, count, n_nodes, fit)
-        inner = left[:n_nodes] >= 0
-        left = left[:n_nodes].copy()
-        right = right[:n_nodes].copy()
-        first = first[:n_nodes] + tri_offset
+    for tree in trees:
+        n_nodes, m = len(tree['left']), len(tree['tris'])
+        inner = tree['left'] >= 0
+        left = tree['left'].copy()
+        right = tree['right'].copy()
         left[inner] += node_offset
         right[inner] += node_offset
-        parts.append(dict(center=center[:n_nodes], axes=axes[:n_nodes], half=half[:n_nodes],
-                          left=left, right=right, first=first, count=count[:n_nodes],
-                          tris=tris_sorted, root=node_offset, depth=depth))
+        parts.append(dict(tree, left=left, right=right, first=tree['first'] + tri_offset,
+                          root=node_offset))
         node_offset += n_nodes
         tri_offset += m
 

@@ -61,6 +61,11 @@ def test_boxes_contain_geometry_and_leaves_partition_triangles(leaf_size):
     ]
     forest = build_forest(meshes, leaf_size=leaf_size)
     _check_forest(forest, meshes, leaf_size)
+    # Trees built side by side on threads make the same forest, mesh for mesh.
+    threaded = build_forest(meshes, leaf_size=leaf_size, threads=3)
+    for name in forest.__dataclass_fields__:
+        ours, theirs = getattr(forest, name), getattr(threaded, name)
+        assert np.array_equal(ours, theirs), name
 
 
 def test_degenerate_meshes_build():
