@@ -14,6 +14,8 @@ Groups: ``model`` (what a query reads and never writes), ``state`` (the carried 
 state, carried over a scene change pair by pair), ``work`` (what the engine works in and the
 checker may read; fresh after a scene change).
 """
+import contextlib
+import threading
 from typing import Dict, Mapping, NamedTuple, Tuple
 
 import numpy as np
@@ -72,6 +74,39 @@ def shape_of(slot: Slot, dims: Mapping[str, int]) -> Tuple[int, ...]:
             extent = dims[name] + int(plus or 0)
         out.append(int(extent))
     return tuple(out)
+
+
+#: numpy's switch of its transparent huge page advice (None where this numpy has none).
+_HUGE_PAGE_ADVICE = getattr(getattr(np, '_core', getattr(np, 'core', None)), 'multiarray', None)
+_HUGE_PAGE_ADVICE = getattr(_HUGE_PAGE_ADVICE, '_set_madvise_hugepage', None)
+_huge_page_lock = threading.Lock()
+_huge_page_holders = 0      # normal_pages() entered and not left
+_huge_page_setting = True   # numpy's setting before the first of them
+
+
+@contextlib.contextmanager
+def normal_pages():
+    """Arrays made inside are of normal pages: numpy asks the kernel for transparent huge pages
+    for every array of 4 MiB or more, and where the kernel then compacts memory on the first
+    touch (THP ``defrag`` ``madvise``, Ubuntu's default), filling a large model's fresh arrays
+    stalls: building the SO-101 (398,884 triangles) spent about 1 s of system time so, for no
+    measurable gain in the checks after. Nested and threaded uses keep numpy's setting off
+    until the last one leaves, then restore it."""
+    global _huge_page_holders, _huge_page_setting
+    if _HUGE_PAGE_ADVICE is None:
+        yield
+        return
+    with _huge_page_lock:
+        if _huge_page_holders == 0:
+            _huge_page_setting = _HUGE_PAGE_ADVICE(False)
+        _huge_page_holders += 1
+    try:
+        yield
+    finally:
+        with _huge_page_lock:
+            _huge_page_holders -= 1
+            if _huge_page_holders == 0:
+                _HUGE_PAGE_ADVICE(_huge_page_setting)
 
 
 def _aligned_zeros(n: int, dtype: np.dtype) -> np.ndarray:

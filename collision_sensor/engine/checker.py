@@ -16,6 +16,7 @@ from typing import Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
+from collision_sensor.engine.array_pack import normal_pages
 from collision_sensor.engine.checker_clouds import CheckerClouds
 from collision_sensor.engine.checker_config import CheckerConfig
 from collision_sensor.engine.checker_motion import CheckerMotion
@@ -80,8 +81,9 @@ class CollisionChecker(CheckerQueries, CheckerScene, CheckerClouds, CheckerMotio
         self.world_frames = world_frames(model, srdf)
         # The robot's trees, link boxes and pairs, and the joints' tables: built once, never
         # again. The scene is laid out by every structural scene change (_install).
-        self._robot = build_robot_block(model, self.kinematics, self.config, srdf,
-                                        [obj.name for obj in scene])
+        with normal_pages():
+            self._robot = build_robot_block(model, self.kinematics, self.config, srdf,
+                                            [obj.name for obj in scene])
         self.link_names: Tuple[str, ...] = self._robot.link_names
         self._allowed_to_come, self.config_warnings = allowed_names_to_come(
             self.config, model, self._robot.link_names, [obj.name for obj in scene])

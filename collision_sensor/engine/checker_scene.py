@@ -203,13 +203,15 @@ class CheckerScene:
         """Lay the scene ``prepared`` describes out for a new engine, carrying over the state
         of every pair that survives (scene_layout.SceneLayout.carry), and swap it in."""
         old = self._scene
-        layout = SceneLayout(
-            self._robot, self.kinematics, self._joints, prepared.objects,
-            old.rows if old is not None else {},
-            changed_objects(prepared.base, prepared.objects, prepared.moved, prepared.rebuilt))
-        if old is not None:
-            layout.carry(old, prepared.rebuilt | prepared.moved)
-        packed = array_pack.pack(layout.arrays)
+        with array_pack.normal_pages():
+            layout = SceneLayout(
+                self._robot, self.kinematics, self._joints, prepared.objects,
+                old.rows if old is not None else {},
+                changed_objects(prepared.base, prepared.objects, prepared.moved,
+                                prepared.rebuilt))
+            if old is not None:
+                layout.carry(old, prepared.rebuilt | prepared.moved)
+            packed = array_pack.pack(layout.arrays)
         config = self.config
         new_engine = engine.Engine(packed.F, packed.F_layout, packed.I, packed.I_layout,
                                    box_test=config.box_test_code,

@@ -367,3 +367,38 @@ def test_answers_stay_right_when_another_caller_queries_the_engine_between_calls
             assert got.colliding_pairs == expected(k), (k, full)
             kept = got
     assert stale >= 10   # the kept answer was wrong that often: the test can fail
+
+
+def test_arrays_made_for_the_engine_ask_for_normal_pages_and_numpy_is_left_as_it_was():
+    """normal_pages() turns numpy's huge page advice off inside, nested and from threads, and
+    gives numpy back its own setting when the last one leaves."""
+    import threading
+    from collision_sensor.engine import array_pack
+    advice = array_pack._HUGE_PAGE_ADVICE
+    if advice is None:
+        pytest.skip('this numpy has no huge page advice to switch')
+    original = advice(True)
+    try:
+        for setting in (True, False):
+            advice(setting)
+            inside = []
+            entered, release = threading.Barrier(2), threading.Event()
+
+            def hold():
+                with array_pack.normal_pages():
+                    entered.wait()
+                    release.wait()
+            thread = threading.Thread(target=hold)
+            thread.start()
+            with array_pack.normal_pages():
+                entered.wait()
+                with array_pack.normal_pages():
+                    inside.append(advice(False))
+                inside.append(advice(False))
+            inside.append(advice(False))     # the thread still holds it: still off
+            release.set()
+            thread.join()
+            assert inside == [False, False, False]
+            assert advice(setting) is setting    # given back as it was
+    finally:
+        advice(original)
