@@ -21,6 +21,17 @@ rosidl_typesupport_c__get_message_type_support_handle__diagnostic_msgs__msg__Dia
 static volatile int run = 1;
 static void stop(int s) { (void)s; run = 0; }
 
+// Subscribe `topic` with `qos` (depth 100 when reliable); false on failure.
+static int subscribe(rcl_subscription_t *sub, rcl_node_t *node,
+                     const rosidl_message_type_support_t *type, const char *topic,
+                     rmw_qos_profile_t qos) {
+    rcl_subscription_options_t options = rcl_subscription_get_default_options();
+    options.qos = qos;
+    if (qos.reliability == RMW_QOS_POLICY_RELIABILITY_RELIABLE) options.qos.depth = 100;
+    *sub = rcl_get_zero_initialized_subscription();
+    return rcl_subscription_init(sub, node, type, topic, &options) == RCL_RET_OK;
+}
+
 int main(int argc, char **argv) {
     signal(SIGINT, stop);
     signal(SIGTERM, stop);
@@ -34,21 +45,14 @@ int main(int argc, char **argv) {
     rcl_node_options_t no = rcl_node_get_default_options();
     if (rcl_node_init(&node, "echo_rcl_camera", ns, &ctx, &no) != RCL_RET_OK) return 1;
 
-    rcl_subscription_t states = rcl_get_zero_initialized_subscription();
-    rcl_subscription_options_t so = rcl_subscription_get_default_options();
-    so.qos = rmw_qos_profile_default;
-    so.qos.depth = 100;
-    if (rcl_subscription_init(
-            &states, &node,
-            rosidl_typesupport_c__get_message_type_support_handle__sensor_msgs__msg__JointState(),
-            "joint_states", &so) != RCL_RET_OK) return 1;
-    rcl_subscription_t clouds = rcl_get_zero_initialized_subscription();
-    rcl_subscription_options_t co = rcl_subscription_get_default_options();
-    co.qos = rmw_qos_profile_sensor_data;
-    if (rcl_subscription_init(
-            &clouds, &node,
-            rosidl_typesupport_c__get_message_type_support_handle__sensor_msgs__msg__PointCloud2(),
-            "points", &co) != RCL_RET_OK) return 1;
+    rcl_subscription_t states, clouds;
+    if (!subscribe(&states, &node,
+                   rosidl_typesupport_c__get_message_type_support_handle__sensor_msgs__msg__JointState(),
+                   "joint_states", rmw_qos_profile_default) ||
+        !subscribe(&clouds, &node,
+                   rosidl_typesupport_c__get_message_type_support_handle__sensor_msgs__msg__PointCloud2(),
+                   "points", rmw_qos_profile_sensor_data))
+        return 1;
     rcl_publisher_t pub = rcl_get_zero_initialized_publisher();
     rcl_publisher_options_t po = rcl_publisher_get_default_options();
     po.qos = rmw_qos_profile_default;

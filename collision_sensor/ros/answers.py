@@ -92,8 +92,8 @@ class TrajectoryAnswer:
     :ivar digest: ``trajectory_digest`` ('' for one answered undecoded).
     :ivar stamp: the trajectory's header stamp, echoed, ``(sec, nanosec)``.
     :ivar frame: the trajectory's header frame, echoed.
-    :ivar sent_ns: ``trajectory_sent_ns``: when the sender's middleware wrote the trajectory
-        (ns since the epoch, on the sender's clock; 0 when unknown).
+    :ivar index: ``answer_index``: 1 for the node's first answer, then one more for each (0 when
+        the answer carries none).
     """
 
     valid: bool
@@ -107,15 +107,15 @@ class TrajectoryAnswer:
     digest: str
     stamp: Tuple[int, int]
     frame: str
-    sent_ns: int = 0
+    index: int = 0
 
 
-def answers_it(answer: TrajectoryAnswer, digest: str, sent_after_ns: int) -> bool:
+def answers_it(answer: TrajectoryAnswer, digest: str, answered_before: int) -> bool:
     """Return whether ``answer`` answers the trajectory of ``digest`` that its client published
-    after ``sent_after_ns`` (``time.time_ns()`` taken just before publishing): older answers to
-    the same trajectory, which a subscription receives when it joins (``trajectory_result`` is
-    transient local), are not its."""
-    return answer.digest == digest and answer.sent_ns >= sent_after_ns
+    when the node had given ``answered_before`` answers (its trajectory status's
+    ``trajectories_total``): older answers to the same trajectory, which a subscription receives
+    when it joins (``trajectory_result`` is transient local), are not its."""
+    return answer.digest == digest and answer.index > answered_before
 
 
 def trajectory_answer_from(msg) -> TrajectoryAnswer:
@@ -138,7 +138,7 @@ def trajectory_answer_from(msg) -> TrajectoryAnswer:
         time_from_start=float(at) if at else None, colliding_pairs=pairs,
         points=int(values.get('points', '0') or 0), joints=int(values.get('joints', '0') or 0),
         digest=values.get('trajectory_digest', ''), stamp=(stamp.sec, stamp.nanosec),
-        frame=msg.header.frame_id, sent_ns=_integer(values.get('trajectory_sent_ns', '')))
+        frame=msg.header.frame_id, index=_integer(values.get('answer_index', '')))
 
 
 def _integer(text: str) -> int:

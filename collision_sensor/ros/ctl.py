@@ -29,7 +29,7 @@ import argparse
 import os
 import sys
 import time
-from typing import List, Optional, Sequence
+from typing import List, Optional, Sequence, Tuple
 
 import rclpy
 import yaml
@@ -219,10 +219,14 @@ def run_trajectory(client: Client, args, out) -> int:
     subscription = client.node.create_subscription(DiagnosticArray, result_topic,
                                                    answers.append, RESULT_QOS)
     publisher = client.node.create_publisher(JointTrajectory, topic, TRAJECTORY_QOS)
+    status_name, statuses = follow_status(client, topic, 'trajectory')
+    # The node's status once a second gives the count of answers so far: the answer to this
+    # trajectory comes after them (older ones with its digest may reach a new subscription).
     client.spin_until(lambda: publisher.get_subscription_count() > 0
-                      and subscription.get_publisher_count() > 0,
-                      f'no node subscribing {topic} and publishing {result_topic}')
-    sent_after = time.time_ns()
+                      and subscription.get_publisher_count() > 0 and statuses,
+                      f'no node subscribing {topic} and publishing {result_topic} with a '
+                      f'"{status_name}" status on /diagnostics')
+    answered_before = int(statuses[-1].get('trajectories_total', '0') or 0)
     publisher.publish(msg)
 
     def mine():
@@ -231,7 +235,7 @@ def run_trajectory(client: Client, args, out) -> int:
                 read = trajectory_answer_from(answer)
             except ValueError:
                 continue
-            if answers_it(read, digest, sent_after):
+            if answers_it(read, digest, answered_before):
                 return answer, read
         return None
     raw, answer = client.spin_until(mine, f'no answer on {result_topic} to the trajectory '
@@ -241,6 +245,29 @@ def run_trajectory(client: Client, args, out) -> int:
           else f'refused ({answer.kind}): {answer.reason}', file=out)
     print(yaml.safe_dump(values, sort_keys=False, width=1000).rstrip(), file=out)
     return EXIT_OK if answer.valid else EXIT_REFUSED
+
+
+# -- the node's statuses --------------------------------------------------------------------------
+
+def follow_status(client: Client, topic: str, source: str) -> Tuple[str, List[dict]]:
+    """Follow on /diagnostics the ``source`` status (``scene``, ``trajectory``) of the node that
+    subscribes ``topic``; return its name and the list its values are appended to, newest
+    last."""
+    # A subscriber's node name is known once its participant's node list is discovered.
+    subscribers = client.spin_until(
+        lambda: [info for info in client.node.get_subscriptions_info_by_topic(topic)
+                 if info.node_name != client.node.get_name()
+                 and not info.node_name.startswith('_NODE_NAME_UNKNOWN')],
+        f'no node subscribing {topic}')
+    owner = subscribers[0]
+    status_name = f'{owner.node_namespace.strip("/")}/{owner.node_name}'.lstrip('/') + \
+        f': {source}'
+    statuses: List[dict] = []
+
+    def on_diagnostics(msg):
+        statuses.extend(status_values(s) for s in msg.status if s.name == status_name)
+    client.node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 100)
+    return status_name, statuses
 
 
 # -- scene ----------------------------------------------------------------------------------------
@@ -257,20 +284,7 @@ def run_scene(client: Client, args, out) -> int:
         raise ConfigError('nothing to send: give a scene file, --delete NAME or --delete-all')
     topic = client.topic(args.topic)
     publisher = client.node.create_publisher(MarkerArray, topic, _SCENE_QOS)
-    # A subscriber's node name is known once its participant's node list is discovered.
-    subscribers = client.spin_until(
-        lambda: [info for info in client.node.get_subscriptions_info_by_topic(topic)
-                 if info.node_name != client.node.get_name()
-                 and not info.node_name.startswith('_NODE_NAME_UNKNOWN')],
-        f'no node subscribing {topic}')
-    owner = subscribers[0]
-    status_name = f'{owner.node_namespace.strip("/")}/{owner.node_name}'.lstrip('/') + \
-        ': scene'
-    statuses: List[dict] = []
-
-    def on_diagnostics(msg):
-        statuses.extend(status_values(s) for s in msg.status if s.name == status_name)
-    client.node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 100)
+    status_name, statuses = follow_status(client, topic, 'scene')
     # The node's status once a second gives the count of arrays handled so far.
     client.spin_until(lambda: publisher.get_subscription_count() > 0 and statuses,
                       f'no "{status_name}" status on /diagnostics')

@@ -19,17 +19,17 @@ transient local, keep last 100), its header the trajectory's, with one status:
   ``colliding_pairs`` (every pair in contact there, ``a:b`` comma-separated), ``reason``
   (empty when valid), ``points``, ``joints``, ``trajectory_digest`` (:func:`trajectory_digest`
   of the trajectory; empty for one answered undecoded: ``oversized``, ``dropped``, and
-  ``malformed`` bytes that do not decode), ``trajectory_sent_ns`` (the trajectory's source
-  timestamp: when the sender's middleware wrote it, ns since the epoch on the sender's clock).
+  ``malformed`` bytes that do not decode), ``answer_index`` (1 for the node's first answer, then
+  one more for each: the trajectory status's ``trajectories_total`` once it is out).
 
 A client matches its answer by the digest, which it computes from what it sent (the header
 alone identifies nothing: planners send stamp 0, and a non-zero stamp changes when
-joint_trajectory_controller starts the trajectory), and by ``trajectory_sent_ns``, at or after
-its own clock's time just before it published (:func:`~collision_sensor.ros.answers.answers_it`).
+joint_trajectory_controller starts the trajectory), and by ``answer_index``, above the node's
+``trajectories_total`` before it published (:func:`~collision_sensor.ros.answers.answers_it`).
 Answers are kept (transient local), so an answer published before the node's publisher matched
 the client's subscription (discovery is not symmetric: the client seeing the node's publisher
 does not mean the node sees the client) still reaches it; a client that joins later receives
-older answers too, and the sent time keeps it from taking one of them for its own.
+older answers too, and the index keeps it from taking one of them for its own.
 
 A valid trajectory is then relayed unchanged (the bytes received) on ``trajectory_out``
 (reliable), so the node can sit between a planner and a controller's ``joint_trajectory``
@@ -51,7 +51,6 @@ until the trajectory is answered, so a trajectory is checked against one scene a
 """
 import array
 import collections
-import functools
 import hashlib
 import struct
 import sys
@@ -86,8 +85,8 @@ RELAY_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                        durability=DurabilityPolicy.VOLATILE)
 #: ``trajectory_result``: reliable, transient local (an answer given before the node's
 #: publisher matched the client's subscription still reaches it; a client tells its own from older
-#: ones by the digest and the sent time), keep last 100 (the ``trajectory`` subscription's depth:
-#: a burst is answered whole).
+#: ones by the digest and the answer's index), keep last 100 (the ``trajectory`` subscription's
+#: depth: a burst is answered whole).
 RESULT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
                         reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -264,17 +263,17 @@ class TrajectorySource(InputSource):
 
     # -- the executor's thread ----------------------------------------------------------------
 
-    def _take(self, data: bytes, info: dict) -> None:
-        """Hand a trajectory's bytes and its sent time to the checking thread, which decodes
-        them (decoding a few thousand points takes milliseconds: not on the executor's thread);
-        above the size bound or the backlog, a placeholder answered in its turn."""
+    def _take(self, data: bytes) -> None:
+        """Hand a trajectory's bytes to the checking thread, which decodes them (decoding a few
+        thousand points takes milliseconds: not on the executor's thread); above the size
+        bound or the backlog, a placeholder answered in its turn."""
         if len(data) > self._max_bytes:
             item = Oversized(data)
         elif self._worker.backlog() >= MAX_TRAJECTORY_BACKLOG:
             item = Dropped(data)
         else:
             item = data
-        self._worker.put((item, int(info.get('source_timestamp') or 0)))
+        self._worker.put(item)
 
     def _on_message_lost(self, info) -> None:
         self.counts['lost'] += info.total_count_change
@@ -309,23 +308,17 @@ class TrajectorySource(InputSource):
                               f'{printable(repr(error), 300)}'))
             self._log.write(notes)
 
-    def _answer(self, received: tuple, notes: list) -> None:
+    def _answer(self, item, notes: list) -> None:
         """Check one trajectory (or answer a placeholder), publish its result, relay it when
-        valid.
-
-        :param received: ``(item, sent_ns)``: the bytes or a placeholder, and the trajectory's
-            source timestamp.
-        """
-        item, sent_ns = received
-        answer = functools.partial(self._publish, sent_ns=sent_ns)
+        valid."""
         if isinstance(item, Oversized):
-            answer(item.header, 'oversized', None, (
+            self._publish(item.header, 'oversized', None, (
                 f'{item.size} bytes, above max_trajectory_bytes ({self._max_bytes}); raise the '
                 'parameter if the planner\'s trajectories are really that large, or send fewer '
                 'points'), notes)
             return
         if isinstance(item, Dropped):
-            answer(item.header, 'dropped', None, (
+            self._publish(item.header, 'dropped', None, (
                 f'{MAX_TRAJECTORY_BACKLOG} trajectories waited to be checked already; send '
                 'them one at a time'), notes)
             return
@@ -333,7 +326,7 @@ class TrajectorySource(InputSource):
         try:
             msg = deserialize_message(data, JointTrajectory)
         except Exception as error:  # noqa: B902 - whatever the bytes, answered
-            answer(header_of(data), 'malformed', None, 'the message could not be '
+            self._publish(header_of(data), 'malformed', None, 'the message could not be '
                           f'decoded: {printable(repr(error), 300)}', notes)
             return
         points = points_of(msg)
@@ -346,11 +339,11 @@ class TrajectorySource(InputSource):
             try:
                 result, why = sensor.check_trajectory(names, points)
             except Exception as error:  # noqa: B902 - answered, never relayed
-                answer(msg.header, 'engine_error', None, 'the check failed: '
+                self._publish(msg.header, 'engine_error', None, 'the check failed: '
                               f'{printable(repr(error), 300)}', notes, size, digest)
                 return
             if result is None:
-                answer(msg.header, 'no_start', None, why, notes, size, digest)
+                self._publish(msg.header, 'no_start', None, why, notes, size, digest)
                 return
             elapsed = time.perf_counter() - started
             self.check_time_max = max(self.check_time_max, elapsed)
@@ -363,7 +356,7 @@ class TrajectorySource(InputSource):
                                   f'skipped after an error: {printable(repr(error), 300)}'))
         if result.valid:
             self._relay_pub.publish(data)   # the bytes received: unchanged
-        answer(msg.header, kind_of(result), result, printable(result.reason,
+        self._publish(msg.header, kind_of(result), result, printable(result.reason,
                                                                     MAX_REASON_CHARS), notes,
                       size, digest)
 
@@ -389,10 +382,9 @@ class TrajectorySource(InputSource):
             self._markers.trajectory_contact(boxes, msg.header.stamp, text)
 
     def _publish(self, header, kind: str, result: Optional[TrajectoryResult], reason: str,
-                 notes: list, size=(0, 0), digest: str = '', *, sent_ns: int) -> None:
+                 notes: list, size=(0, 0), digest: str = '') -> None:
         """Publish the one status answering a trajectory (``digest``: its
-        :func:`trajectory_digest`, '' when undecoded; ``sent_ns``: its source timestamp); log
-        an invalid one (throttled)."""
+        :func:`trajectory_digest`, '' when undecoded); log an invalid one (throttled)."""
         checker = self._sensor.checker
         root = root_link(checker) if checker is not None else ''
         valid = kind == 'valid'
@@ -413,7 +405,7 @@ class TrajectorySource(InputSource):
             'points': str(size[0]),
             'joints': str(size[1]),
             'trajectory_digest': digest,
-            'trajectory_sent_ns': str(sent_ns),
+            'answer_index': str(self.counts['trajectories'] + 1),
         }
         status = DiagnosticStatus(
             level=DiagnosticStatus.OK if valid else DiagnosticStatus.ERROR,

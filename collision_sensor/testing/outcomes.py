@@ -83,7 +83,7 @@ class PendingTrajectory:
         self._sensor, self.msg = sensor, msg
         self.digest = trajectory_digest(msg)
         self.answer: Optional[TrajectoryAnswer] = None
-        self.sent_after = 0     # time.time_ns() just before it was published
+        self.answered_before = 0    # the node's answers this client had when it was sent
         self.relay_rank = 0     # the n-th valid answer to this digest: the n-th relay of it
 
     def result(self, timeout: float = TIMEOUT) -> TrajectoryAnswer:

@@ -51,8 +51,8 @@ from visualization_msgs.msg import Marker, MarkerArray
 from collision_sensor.errors import ConfigError
 from collision_sensor.model.point_cloud_message import cdr_from_points
 from collision_sensor.ros.answers import (
-    CLOUD_COUNTS, SCENE_COUNTS, Verdict, answers_it, handled_total, status_values,
-    trajectory_answer_from, verdict_from)
+    CLOUD_COUNTS, SCENE_COUNTS, Verdict, handled_total, status_values, trajectory_answer_from,
+    verdict_from)
 from collision_sensor.ros.scene_messages import absolute_mesh_paths, scene_markers
 from collision_sensor.ros.trajectory_source import trajectory_digest
 from collision_sensor.testing.messages import joint_trajectory
@@ -122,6 +122,7 @@ class SensorUnderTest:
         self._waiting_trajectories: Dict[str, List[PendingTrajectory]] = {}
         self._relays: Dict[str, int] = {}
         self._valid_answers: Dict[str, int] = {}
+        self._answers_seen = 0      # the highest answer_index received on trajectory_result
         self._last_stamp = 0
         self._scenes_sent = self._scenes_applied = self._scene_verdicts = 0
         self._clouds_sent: Dict[str, int] = {}
@@ -255,15 +256,16 @@ class SensorUnderTest:
         except ValueError:
             return
         with self._condition:
-            if answer.digest:   # first sent first among those it may answer
+            self._answers_seen = max(self._answers_seen, answer.index)
+            if answer.digest:   # by its digest, first sent first
                 pending = next((p for p in self._waiting_trajectories.get(answer.digest, ())
-                                if answers_it(answer, p.digest, p.sent_after)), None)
+                                if answer.index > p.answered_before), None)
             else:   # answered undecoded: by its header, first sent first
                 pending = next((p for waiting in self._waiting_trajectories.values()
                                 for p in waiting if (p.msg.header.stamp.sec,
                                                      p.msg.header.stamp.nanosec) == answer.stamp
                                 and p.msg.header.frame_id == answer.frame
-                                and answer.sent_ns >= p.sent_after), None)
+                                and answer.index > p.answered_before), None)
             if pending is None:     # not one of this client's
                 return
             self._waiting_trajectories[pending.digest].remove(pending)
@@ -395,7 +397,7 @@ class SensorUnderTest:
         pending = PendingTrajectory(self, msg)
         with self._condition:
             self._waiting_trajectories.setdefault(pending.digest, []).append(pending)
-            pending.sent_after = time.time_ns()
+            pending.answered_before = self._answers_seen
         self._trajectories.publish(msg)
         return pending
 

@@ -364,8 +364,9 @@ def test_each_client_matches_its_answers_and_a_late_one_takes_no_old_one(
     """Planners send stamp 0: two trajectories in flight at once, both stamped 0 with the same
     frame, are told apart by the digest each client computes from what it sent. Answers are
     kept (transient local), so one given before a client's subscription was matched still
-    reaches it; a client that joins later receives the older answers too, and by the sent time
-    takes none of them for its own, even one to the very trajectory it then sends."""
+    reaches it; a client that joins later receives the older answers too, and by their index
+    (above the node's trajectories_total when it sends) takes none of them for its own, even one
+    to the very trajectory it then sends."""
     from rclpy.node import Node
     from collision_sensor.ros.answers import answers_it, trajectory_answer_from
     from collision_sensor.ros.trajectory_source import RESULT_QOS, trajectory_digest
@@ -396,12 +397,15 @@ def test_each_client_matches_its_answers_and_a_late_one_takes_no_old_one(
     old = [trajectory_answer_from(msg) for msg in heard]
     assert {answer.digest for answer in old} >= {trajectory_digest(free),
                                                   trajectory_digest(through)}
-    # None of them answers what it sends now, though one has the same digest.
-    sent_after = time.time_ns()
-    assert not any(answers_it(answer, trajectory_digest(through), sent_after) for answer in old)
+    assert sorted(answer.index for answer in old) == list(range(1, len(old) + 1))
+    # None of them answers what it sends now, though one has the same digest: the node's
+    # status says how many answers it has given.
+    _, values = probe.trajectory_status(lambda _, v: v['trajectories_total'] == str(len(old)))
+    answered_before = int(values['trajectories_total'])
+    assert not any(answers_it(answer, trajectory_digest(through), answered_before)
+                   for answer in old)
     sender.publish(through)
     assert ros.spin_until(lambda: len(heard) == len(old) + 1, 30.0)
     new = trajectory_answer_from(heard[-1])
-    assert answers_it(new, trajectory_digest(through), sent_after)
-    assert new.kind == 'contact'
-    assert sent_after <= new.sent_ns <= time.time_ns()
+    assert answers_it(new, trajectory_digest(through), answered_before)
+    assert (new.kind, new.index) == ('contact', len(old) + 1)
