@@ -11,6 +11,14 @@ constexpr size_t ENCAPSULATION = 4;
 // The longest frame_id read_header takes (bytes, with its NUL).
 constexpr uint32_t HEADER_FRAME_MAX = 257;
 
+// True on a little-endian machine (CDR's byte order flag is compared with it).
+bool little_endian() {
+    const uint16_t one = 1;
+    uint8_t first;
+    std::memcpy(&first, &one, 1);
+    return first == 1;
+}
+
 // Reads primitives from data[:size] in the message's byte order, aligned from ENCAPSULATION.
 class Reader {
    public:
@@ -70,12 +78,6 @@ class Reader {
     }
 
    private:
-    static bool little_endian() {
-        const uint16_t one = 1;
-        uint8_t first;
-        std::memcpy(&first, &one, 1);
-        return first == 1;
-    }
     bool align(size_t n) {
         const size_t offset = (at_ - ENCAPSULATION) % n;
         if (offset) {
@@ -126,12 +128,6 @@ class Writer {
     }
 
    private:
-    static bool little_endian() {
-        const uint16_t one = 1;
-        uint8_t first;
-        std::memcpy(&first, &one, 1);
-        return first == 1;
-    }
     void align(size_t n) {
         while ((out_->size() - ENCAPSULATION) % n) out_->push_back(0);
     }

@@ -89,6 +89,24 @@ struct BodyCloudNode {
         if (swap) c.swap();
         c.word_first = c.word_second = 0;
     }
+
+    // visit(W, lo, hi, t, v) for each triangle t of leaf node_a (W: in the cloud's frame) and
+    // each cube v (lo, hi) of leaf node_v, until a visit returns true (then true).
+    template <class Visit>
+    CS_ALWAYS_INLINE bool each_triangle_cube(const int64_t* node_a, const int64_t* node_v,
+                                             Visit&& visit) const {
+        for (int64_t t = node_a[NODE_FIRST]; t < node_a[NODE_FIRST] + node_a[NODE_COUNT]; ++t) {
+            Triangle W;
+            triangle_in_cloud(f.tris, t, P, W);
+            for (int64_t v = node_v[NODE_FIRST]; v < node_v[NODE_FIRST] + node_v[NODE_COUNT];
+                 ++v) {
+                double lo[3], hi[3];
+                g.cube(v, lo, hi);
+                if (visit(W, lo, hi, t, v)) return true;
+            }
+        }
+        return false;
+    }
 };
 
 // collide_body_cloud's node: boxes by their spheres and the 15-axis test, leaves by the
@@ -130,22 +148,17 @@ struct CollideCloudNode : BodyCloudNode {
 
     CS_ALWAYS_INLINE bool leaves(int64_t, int64_t, const int64_t* node_a, const int64_t* node_v,
                                  const Seen&) {
-        for (int64_t t = node_a[NODE_FIRST]; t < node_a[NODE_FIRST] + node_a[NODE_COUNT]; ++t) {
-            Triangle W;
-            triangle_in_cloud(f.tris, t, P, W);
-            for (int64_t v = node_v[NODE_FIRST]; v < node_v[NODE_FIRST] + node_v[NODE_COUNT];
-                 ++v) {
-                double lo[3], hi[3], d;
-                g.cube(v, lo, hi);
-                ++n_triangles;
-                if (triangle_box_within(W, lo, hi, pad, &d)) {
-                    out = {true, t, v, 0.0};
-                    return true;
-                }
-                if (track) best = std::min(best, d - pad);
+        return each_triangle_cube(node_a, node_v, [&](const Triangle& W, const double* lo,
+                                                      const double* hi, int64_t t, int64_t v) {
+            double d;
+            ++n_triangles;
+            if (triangle_box_within(W, lo, hi, pad, &d)) {
+                out = {true, t, v, 0.0};
+                return true;
             }
-        }
-        return false;
+            if (track) best = std::min(best, d - pad);
+            return false;
+        });
     }
 };
 
@@ -167,17 +180,13 @@ struct DistanceCloudNode : BodyCloudNode {
 
     CS_ALWAYS_INLINE bool leaves(int64_t, int64_t, const int64_t* node_a, const int64_t* node_v,
                                  const Seen&) {
-        for (int64_t t = node_a[NODE_FIRST]; t < node_a[NODE_FIRST] + node_a[NODE_COUNT]; ++t) {
-            Triangle W;
-            triangle_in_cloud(f.tris, t, P, W);
-            for (int64_t v = node_v[NODE_FIRST]; v < node_v[NODE_FIRST] + node_v[NODE_COUNT];
-                 ++v) {
-                double lo[3], hi[3], x[3], y[3];
-                g.cube(v, lo, hi);
-                const double d = triangle_box_distance(W, lo, hi, x, y) - pad;
-                if (d < best.distance) best.take(d, t, v, x, y);
-            }
-        }
+        each_triangle_cube(node_a, node_v, [&](const Triangle& W, const double* lo,
+                                               const double* hi, int64_t t, int64_t v) {
+            double x[3], y[3];
+            const double d = triangle_box_distance(W, lo, hi, x, y) - pad;
+            if (d < best.distance) best.take(d, t, v, x, y);
+            return false;
+        });
         return false;
     }
 };
@@ -222,34 +231,29 @@ struct WithinCloudNode : BodyCloudNode {
         const BoxMotion& ma = *seen.ma;
         const double rate = ma.rate;
         const double r = h * rate + extra;
-        for (int64_t t = node_a[NODE_FIRST]; t < node_a[NODE_FIRST] + node_a[NODE_COUNT]; ++t) {
-            Triangle W;
-            triangle_in_cloud(f.tris, t, P, W);
-            for (int64_t v = node_v[NODE_FIRST]; v < node_v[NODE_FIRST] + node_v[NODE_COUNT];
-                 ++v) {
-                double lo[3], hi[3], xa[3], yb[3];
-                g.cube(v, lo, hi);
-                ++n_triangles;
-                const double distance = triangle_box_distance(W, lo, hi, xa, yb) - pad;
-                double got = rate > 0.0 ? std::min((distance - extra) / rate, motion.h2)
-                                        : (distance > extra ? motion.h2 : -1.0);
-                if (!(distance > r) && distance > extra) {
-                    // Along the nearest points' direction (world) the two are distance apart.
-                    const double n[3] = {(yb[0] - xa[0]) / (distance + pad),
-                                         (yb[1] - xa[1]) / (distance + pad),
-                                         (yb[2] - xa[2]) / (distance + pad)};
-                    got = std::max(got, motion.first_order_reach(n, distance, extra,
-                                                                 seen.A[BOX_RADIUS], ma,
-                                                                 seen.B[BOX_RADIUS], still, h));
-                }
-                if (!(got >= h)) {
-                    within = {true, r, std::max(got, 0.0)};
-                    return true;
-                }
-                reach = std::min(reach, got);
+        return each_triangle_cube(node_a, node_v, [&](const Triangle& W, const double* lo,
+                                                      const double* hi, int64_t, int64_t) {
+            double xa[3], yb[3];
+            ++n_triangles;
+            const double distance = triangle_box_distance(W, lo, hi, xa, yb) - pad;
+            double got = rate > 0.0 ? std::min((distance - extra) / rate, motion.h2)
+                                    : (distance > extra ? motion.h2 : -1.0);
+            if (!(distance > r) && distance > extra) {
+                // Along the nearest points' direction (world) the two are distance apart.
+                const double n[3] = {(yb[0] - xa[0]) / (distance + pad),
+                                     (yb[1] - xa[1]) / (distance + pad),
+                                     (yb[2] - xa[2]) / (distance + pad)};
+                got = std::max(got, motion.first_order_reach(n, distance, extra,
+                                                             seen.A[BOX_RADIUS], ma,
+                                                             seen.B[BOX_RADIUS], still, h));
             }
-        }
-        return false;
+            if (!(got >= h)) {
+                within = {true, r, std::max(got, 0.0)};
+                return true;
+            }
+            reach = std::min(reach, got);
+            return false;
+        });
     }
 };
 

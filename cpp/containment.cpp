@@ -15,15 +15,10 @@ namespace collision_sensor {
 // do. A closed mesh: a ray from x crosses its triangles an odd number of times.
 bool inside_solid(const Model& m, int64_t e, const double* x) {
     const double* s = m.elem_solid + SOLID_WIDTH * e;
-    const int kind = int(s[0]);
-    const double* R = s + 4;
-    const double* t = s + 13;
-    // The point in the element frame: R' (x - t).
-    const double d0 = x[0] - t[0], d1 = x[1] - t[1], d2 = x[2] - t[2];
-    const double p0 = R[0] * d0 + R[3] * d1 + R[6] * d2;
-    const double p1 = R[1] * d0 + R[4] * d1 + R[7] * d2;
-    const double p2 = R[2] * d0 + R[5] * d1 + R[8] * d2;
-    switch (kind) {
+    double p[3];
+    in_solid_frame(s, x, p);
+    const double p0 = p[0], p1 = p[1], p2 = p[2];
+    switch (int(s[0])) {
         case SOLID_BOX:
             return std::fabs(p0) <= s[1] && std::fabs(p1) <= s[2] && std::fabs(p2) <= s[3];
         case SOLID_SPHERE:

@@ -17,6 +17,17 @@
 
 namespace collision_sensor {
 
+// Point x (in the body frame) in the frame of a solid (elem_solid row s: kind, size, R at s + 4,
+// t at s + 13): p = R' (x - t).
+inline void in_solid_frame(const double* s, const double* x, double* p) {
+    const double* R = s + 4;
+    const double* t = s + 13;
+    const double d0 = x[0] - t[0], d1 = x[1] - t[1], d2 = x[2] - t[2];
+    p[0] = R[0] * d0 + R[3] * d1 + R[6] * d2;
+    p[1] = R[1] * d0 + R[4] * d1 + R[7] * d2;
+    p[2] = R[2] * d0 + R[5] * d1 + R[8] * d2;
+}
+
 // True iff point x (in element e's body frame) lies in element e's solid: the true box, sphere
 // or cylinder, or a closed mesh by ray parity (the boundary counts). False for no solid.
 bool inside_solid(const Model& model, int64_t e, const double* x);
@@ -39,23 +50,19 @@ bool contained_vertex(const Model& model, int64_t a, int64_t b, const double* po
 // triangles see; a primitive's tessellation is inscribed, so a vertex can enter the true solid
 // (which check() counts) without any triangle meeting.
 inline double solid_distance(const double* s, const double* x) {
-    const int kind = int(s[0]);
-    const double* R = s + 4;
-    const double* t = s + 13;
-    const double d0 = x[0] - t[0], d1 = x[1] - t[1], d2 = x[2] - t[2];
-    const double p0 = R[0] * d0 + R[3] * d1 + R[6] * d2;
-    const double p1 = R[1] * d0 + R[4] * d1 + R[7] * d2;
-    const double p2 = R[2] * d0 + R[5] * d1 + R[8] * d2;
-    switch (kind) {
-        case 1: {  // SOLID_BOX: half extents
+    double p[3];
+    in_solid_frame(s, x, p);
+    const double p0 = p[0], p1 = p[1], p2 = p[2];
+    switch (int(s[0])) {
+        case SOLID_BOX: {  // half extents
             const double e0 = std::max(std::fabs(p0) - s[1], 0.0);
             const double e1 = std::max(std::fabs(p1) - s[2], 0.0);
             const double e2 = std::max(std::fabs(p2) - s[3], 0.0);
             return std::sqrt(e0 * e0 + e1 * e1 + e2 * e2);
         }
-        case 2:  // SOLID_SPHERE: radius
+        case SOLID_SPHERE:  // radius
             return std::max(std::sqrt(p0 * p0 + p1 * p1 + p2 * p2) - s[1], 0.0);
-        case 3: {  // SOLID_CYLINDER along z: radius, half length
+        case SOLID_CYLINDER: {  // along z: radius, half length
             const double er = std::max(std::sqrt(p0 * p0 + p1 * p1) - s[1], 0.0);
             const double ez = std::max(std::fabs(p2) - s[2], 0.0);
             return std::sqrt(er * er + ez * ez);
