@@ -36,7 +36,6 @@ import rclpy
 import yaml
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
@@ -53,6 +52,7 @@ from collision_sensor.model.point_cloud_message import cdr_from_points
 from collision_sensor.ros.answers import (
     CLOUD_COUNTS, SCENE_COUNTS, Verdict, handled_total, status_values, trajectory_answer_from,
     verdict_from)
+from collision_sensor.ros.node import make_executor
 from collision_sensor.ros.scene_messages import absolute_mesh_paths, scene_markers
 from collision_sensor.ros.trajectory_source import trajectory_digest
 from collision_sensor.testing.messages import joint_trajectory
@@ -162,7 +162,8 @@ class SensorUnderTest:
             self.client = Node('collision_sensor_test_client', namespace=self.namespace,
                                context=self.context)
             self._connect()
-            self._executor = SingleThreadedExecutor(context=self.context)
+            # the executor the console script spins (COLLISION_SENSOR_EXECUTOR, else events)
+            self._executor = make_executor(self.context)
             self._executor.add_node(self.node)
             self._executor.add_node(self.client)
             self._spinner = threading.Thread(target=self._spin, name='sensor under test',
