@@ -110,12 +110,22 @@ class TrajectoryAnswer:
     index: int = 0
 
 
-def answers_it(answer: TrajectoryAnswer, digest: str, answered_before: int) -> bool:
+def answers_it(answer: TrajectoryAnswer, digest: str, answered_before: int,
+               header=None) -> bool:
     """Return whether ``answer`` answers the trajectory of ``digest`` that its client published
     when the node had given ``answered_before`` answers (its trajectory status's
     ``trajectories_total``): older answers to the same trajectory, which a subscription receives
-    when it joins (``trajectory_result`` is transient local), are not its."""
-    return answer.digest == digest and answer.index > answered_before
+    when it joins (``trajectory_result`` is transient local), are not its.
+
+    :param header: the trajectory's ``std_msgs/Header``: then an answer given undecoded
+        (``oversized``, ``dropped``: no digest) is its when it carries that header.
+    """
+    if answer.index <= answered_before:
+        return False
+    if answer.digest:
+        return answer.digest == digest
+    return header is not None and answer.stamp == (header.stamp.sec, header.stamp.nanosec) \
+        and answer.frame == header.frame_id
 
 
 def trajectory_answer_from(msg) -> TrajectoryAnswer:

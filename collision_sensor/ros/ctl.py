@@ -235,7 +235,7 @@ def run_trajectory(client: Client, args, out) -> int:
                 read = trajectory_answer_from(answer)
             except ValueError:
                 continue
-            if answers_it(read, digest, answered_before):
+            if answers_it(read, digest, answered_before, msg.header):
                 return answer, read
         return None
     raw, answer = client.spin_until(mine, f'no answer on {result_topic} to the trajectory '

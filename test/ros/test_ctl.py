@@ -74,7 +74,8 @@ def test_echo_prints_the_verdicts_as_ros2_topic_echo(collision_sensor):
 
 
 def test_trajectory_from_a_yaml_file_is_answered(collision_sensor, tmp_path):
-    sensor = collision_sensor('panda', scene=TABLE, parameters={'stale_timeout': 0.0})
+    sensor = collision_sensor('panda', scene=TABLE, parameters={'stale_timeout': 0.0,
+                                                                'max_trajectory_bytes': 4096})
     sensor.send_joint_state(READY)
     topic = f'{sensor.namespace}/trajectory'
     for goal, expected in (([0.0, 0.6, 0.0, -1.4, 0.0, 1.9, 0.785], 'contact'),
@@ -89,6 +90,12 @@ def test_trajectory_from_a_yaml_file_is_answered(collision_sensor, tmp_path):
     bad = tmp_path / 'bad.yaml'
     bad.write_text('joint_names: [a]\npoints: [{position: [1.0]}]\n')
     assert run('trajectory', topic, str(bad))[0] == 2
+    # Above max_trajectory_bytes: answered undecoded (no digest), matched by its header.
+    large = tmp_path / 'large.yaml'
+    large.write_text(yaml.safe_dump({'joint_names': ARM, 'points': [
+        {'positions': [0.0] * 7, 'time_from_start': {'sec': k + 1}} for k in range(100)]}))
+    status, text = run('trajectory', topic, str(large))
+    assert status == 1 and text.startswith('refused (oversized): '), text
 
 
 def test_scene_file_added_then_deleted(collision_sensor, tmp_path):
