@@ -306,23 +306,18 @@ struct DistanceNode {
     // Every triangle pair measured; the search ends once the best is at most the floor.
     CS_ALWAYS_INLINE bool leaves(int64_t, int64_t, const int64_t* node_a, const int64_t* node_b,
                                  const Seen& seen) {
-        Triangle Q;
-        double x[3], y[3];
-        for (int64_t ib = node_b[NODE_FIRST]; ib < node_b[NODE_FIRST] + node_b[NODE_COUNT];
-             ++ib) {
-            triangle_in_a(f.tris, ib, P, Q);
-            for (int64_t ia = node_a[NODE_FIRST]; ia < node_a[NODE_FIRST] + node_a[NODE_COUNT];
-                 ++ia) {
-                ++n_triangles;
-                // bound > 0: the padded geometry apart, so the triangles too.
-                const double d =
-                    triangle_distance(triangle_at(f.tris, ia), Q, x, y, seen.bound > 0.0) - pad;
-                if (d < best.distance) {
-                    best.take(d, ia, ib, x, y);
-                    aim_slab(best, P, slab, work);
-                }
+        each_triangle_pair(f.tris, node_a, node_b, P,
+                           [&](const Triangle& A, const Triangle& Q, int64_t ia, int64_t ib) {
+            ++n_triangles;
+            // bound > 0: the padded geometry apart, so the triangles too.
+            double x[3], y[3];
+            const double d = triangle_distance(A, Q, x, y, seen.bound > 0.0) - pad;
+            if (d < best.distance) {
+                best.take(d, ia, ib, x, y);
+                aim_slab(best, P, slab, work);
             }
-        }
+            return false;
+        });
         return !(best.distance > stop);
     }
 

@@ -27,6 +27,23 @@ CS_ALWAYS_INLINE const Triangle&  triangle_at(const double* tris, int64_t i) {
     return *reinterpret_cast<const Triangle*>(tris + 9 * i);
 }
 
+// visit(P, Q, ia, ib) for each triangle ia of leaf a (P) and ib of leaf b (Q: in body a's frame
+// by the pose, placed once for all of leaf a), until a visit returns true (then true).
+template <class Visit>
+CS_ALWAYS_INLINE bool each_triangle_pair(const double* tris, const int64_t* leaf_a,
+                                         const int64_t* leaf_b, const double* pose,
+                                         Visit&& visit) {
+    Triangle Q;
+    const int64_t first_a = leaf_a[NODE_FIRST], end_a = first_a + leaf_a[NODE_COUNT];
+    const int64_t first_b = leaf_b[NODE_FIRST], end_b = first_b + leaf_b[NODE_COUNT];
+    for (int64_t ib = first_b; ib < end_b; ++ib) {
+        triangle_in_a(tris, ib, pose, Q);
+        for (int64_t ia = first_a; ia < end_a; ++ia)
+            if (visit(triangle_at(tris, ia), Q, ia, ib)) return true;
+    }
+    return false;
+}
+
 // True iff triangle P is within pad of triangle Q (pad > 0: the padded contact rule, the
 // triangles' distance against the pair's padding, distance <= pad), or (pad 0) meets it.
 CS_ALWAYS_INLINE bool triangles_within(const Triangle& P, const Triangle& Q, double pad,
@@ -65,25 +82,26 @@ struct LeafResult {
 inline LeafResult leaves_collide(const double* tris, const int64_t* leaf_a,
                                  const int64_t* leaf_b, const double* pose, double pad,
                                  bool measure = false) {
-    Triangle Q;
-    int64_t tested = 0;
+    int64_t tested = 0, hit_a = -1, hit_b = -1;
     double nearest = std::numeric_limits<double>::infinity();
-    const int64_t first_a = leaf_a[NODE_FIRST], end_a = first_a + leaf_a[NODE_COUNT];
-    const int64_t first_b = leaf_b[NODE_FIRST], end_b = first_b + leaf_b[NODE_COUNT];
-    for (int64_t ib = first_b; ib < end_b; ++ib) {
-        triangle_in_a(tris, ib, pose, Q);
-        for (int64_t ia = first_a; ia < end_a; ++ia) {
+    const bool hit = each_triangle_pair(
+        tris, leaf_a, leaf_b, pose,
+        [&](const Triangle& P, const Triangle& Q, int64_t ia, int64_t ib) {
             ++tested;
             double distance;
-            const Triangle& P = triangle_at(tris, ia);
-            if (triangles_within(P, Q, pad, distance)) return {true, ia, ib, tested, 0.0};
+            if (triangles_within(P, Q, pad, distance)) {
+                hit_a = ia;
+                hit_b = ib;
+                return true;
+            }
             if (measure && !(pad > 0.0)) {
                 double x[3], y[3];
                 distance = triangle_distance(P, Q, x, y);
             }
             nearest = std::min(nearest, distance);
-        }
-    }
+            return false;
+        });
+    if (hit) return {true, hit_a, hit_b, tested, 0.0};
     return {false, -1, -1, tested, (pad > 0.0 || measure) ? nearest - pad : 0.0};
 }
 

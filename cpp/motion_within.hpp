@@ -102,15 +102,12 @@ struct WithinNode {
         const double rate = ma.rate + mb.rate;
         const double r = h * rate + extra;
         double leaf_reach = motion.h2, leaf_gap = INF;
-        Triangle Q;
-        for (int64_t ib = node_b[NODE_FIRST]; ib < node_b[NODE_FIRST] + node_b[NODE_COUNT];
-             ++ib) {
-            triangle_in_a(f.tris, ib, P, Q);
-            for (int64_t ia = node_a[NODE_FIRST]; ia < node_a[NODE_FIRST] + node_a[NODE_COUNT];
-                 ++ia) {
+        const bool hit = each_triangle_pair(
+            f.tris, node_a, node_b, P,
+            [&](const Triangle& A, const Triangle& Q, int64_t, int64_t) {
                 ++n_triangles;
                 double xa[3], yb[3];
-                const double distance = triangle_distance(triangle_at(f.tris, ia), Q, xa, yb) - pad;
+                const double distance = triangle_distance(A, Q, xa, yb) - pad;
                 // Apart over this half-width by the zeroth-order bound (within when nothing
                 // moves and the triangles are within extra).
                 double got = rate > 0.0 ? std::min((distance - extra) / rate, motion.h2)
@@ -135,8 +132,9 @@ struct WithinNode {
                 reach = std::min(reach, got);
                 leaf_reach = std::min(leaf_reach, got);
                 leaf_gap = std::min(leaf_gap, distance);
-            }
-        }
+                return false;
+            });
+        if (hit) return true;
         stopped(na, nb, leaf_reach, leaf_gap);
         return false;
     }
