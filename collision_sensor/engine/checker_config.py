@@ -59,6 +59,7 @@ max_points            1000000    point clouds: most rows taken from one cloud; a
 """
 from dataclasses import dataclass, fields, replace
 import math
+import os
 from typing import Any, Mapping, Optional, Tuple
 
 from collision_sensor.engine.bounding_volumes import (
@@ -73,6 +74,14 @@ BOX_TESTS = {'paper': BOX_TEST_PAPER, 'sat': BOX_TEST_SAT}
 MAX_THREADS = engine.MAX_THREADS
 OBB_FITS = {'pca': OBB_PCA, 'refined': OBB_REFINED, 'hull_pca': OBB_HULL_PCA,
             'min_volume': OBB_MIN_VOLUME}
+
+
+def usable_cores() -> int:
+    """All the cores this process may use (its CPU affinity where the system has one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
 
 
 @dataclass(frozen=True)

@@ -15,14 +15,13 @@ scene's objects; the robot's trees are never rebuilt.
 """
 import dataclasses
 import math
-import os
 from difflib import SequenceMatcher
 from typing import Dict, FrozenSet, List, NamedTuple, Optional, Sequence, Tuple
 
 import numpy as np
 
 from collision_sensor.engine.bounding_volumes import fit_obb
-from collision_sensor.engine.checker_config import MAX_THREADS, CheckerConfig
+from collision_sensor.engine.checker_config import MAX_THREADS, CheckerConfig, usable_cores
 from collision_sensor.engine.compiled import engine
 from collision_sensor.engine.dynamic_scene import cover_solid, solid_radius, solid_row
 from collision_sensor.engine.kinematics import JOINT_PRISMATIC, KinematicTree, variables
@@ -104,7 +103,7 @@ def build_robot_block(model: RobotModel, kin: KinematicTree, config: CheckerConf
     owners = np.asarray(owners, dtype=np.int64)[order]
     # every core the process may use: a one-time build (the setting threads is for queries)
     forest = build_forest(meshes, leaf_size=config.leaf_size, fit=config.obb_fit_code,
-                          threads=min(len(os.sched_getaffinity(0)), MAX_THREADS))
+                          threads=min(usable_cores(), MAX_THREADS))
     counts = np.bincount(owners, minlength=n_links) if len(owners) else np.zeros(
         n_links, dtype=np.int64)
     elem_end = np.cumsum(counts).astype(np.int64)

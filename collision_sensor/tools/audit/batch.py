@@ -12,6 +12,7 @@ import time
 from dataclasses import dataclass
 from typing import Callable, List, Optional
 
+from collision_sensor.engine.checker_config import usable_cores
 from collision_sensor.tools.audit import report
 from collision_sensor.tools.audit.local_pool import LocalPool
 from collision_sensor.tools.audit.scheduling import PoolStats
@@ -27,10 +28,7 @@ EXIT_CLEAR, EXIT_COLLISION, EXIT_FAILED = 0, 1, 3
 
 def default_jobs() -> int:
     """All the cores this process may use."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:
-        return os.cpu_count() or 1
+    return usable_cores()
 
 
 @dataclass

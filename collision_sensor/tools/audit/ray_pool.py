@@ -29,6 +29,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable, Deque, Dict, List, Optional
 
+from collision_sensor.engine.checker_config import usable_cores
 from collision_sensor.errors import ConfigError
 from collision_sensor.tools.audit import shipping
 from collision_sensor.tools.audit.node_host import FETCH, FileServer, NodeHost
@@ -135,7 +136,7 @@ class RayPool:
         kwargs = dict(include_dashboard=False, log_to_driver=False,
                       configure_logging=False)
         if self.address == 'local':
-            kwargs['num_cpus'] = self.jobs or len(os.sched_getaffinity(0))
+            kwargs['num_cpus'] = self.jobs or usable_cores()
         try:
             ray.init(address=self.address, **kwargs)
         except (ConnectionError, RuntimeError, ValueError) as err:
